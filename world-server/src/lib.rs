@@ -1,0 +1,1 @@
+//! The physics world: the Webots Crazyflie in rapier3d (DESIGN.md §5).
