@@ -1,0 +1,128 @@
+//! The four motors (thesis §4.2.1 "send_data_to_motor", §4.5.1 "Motors"):
+//! the functional side forwards the STM32's commands to the world; what the
+//! power models need (commanded speeds, the drone's velocities and pitch)
+//! is kept here for the power network to sample.
+//!
+//! Per PID iteration the motors send SET_VELOCITY q times, where q is
+//! `iter_delay − 1` ms rounded to whole timesteps, then account 1 ms for the
+//! motor power model (DESIGN.md §3), then ask the world for the data of the
+//! D'Andrea (GET_DATA_2) and Stolaroff (GET_DATA_3) models.
+
+use protocol::{Reply, Request};
+
+use super::{DeviceCtx, LinkError};
+use crate::peripherals::stm32::pid::MotorCommands;
+use crate::units::{Millis, Picos};
+
+/// What the motor power models see.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MotorState {
+    /// Commanded speed magnitudes m1..m4 (rad/s).
+    pub commands: MotorCommands,
+    /// Horizontal speed (m/s), GET_DATA_2/3.
+    pub horizontal_speed: f64,
+    /// World-frame velocity (m/s).
+    pub velocity_x: f64,
+    pub velocity_y: f64,
+    pub velocity_z: f64,
+    /// Pitch (rad), GET_DATA_3.
+    pub pitch: f64,
+}
+
+#[derive(Debug, Default)]
+pub struct Motors {
+    pub state: MotorState,
+    /// SET_VELOCITY frames sent.
+    pub set_velocity_sent: u64,
+}
+
+impl Motors {
+    /// Delivers `commands` for an iteration of `iter` ms of platform time
+    /// (already accounted in the time keeper).
+    pub fn drive(
+        &mut self,
+        commands: MotorCommands,
+        iter: Millis,
+        now: Picos,
+        ctx_world: &mut dyn super::WorldLink,
+        time: &mut crate::sync::TimeKeeper,
+    ) -> Result<(), LinkError> {
+        self.state.commands = commands;
+        let steps = time.iteration_steps(Millis(iter.0.saturating_sub(1)));
+        let request = Request::SetVelocity {
+            m1: commands.m1,
+            m2: commands.m2,
+            m3: commands.m3,
+            m4: commands.m4,
+        };
+        for _ in 0..steps {
+            ctx_world.send(&request, now)?;
+            self.set_velocity_sent += 1;
+        }
+        // The last millisecond goes to the motor power model; it reaches the
+        // world only when it rounds to a whole step.
+        let extra = time.iteration_steps(Millis(iter.0.min(1)));
+        if extra > 0 {
+            let ms = extra * time.timestep().0;
+            ctx_world.send(&Request::AdvanceTime { time: ms }, now)?;
+        }
+        self.refresh_model_data(now, ctx_world)
+    }
+
+    /// Sets the commanded speeds without talking to the world (STOP).
+    pub fn stopped(&mut self) {
+        self.state.commands = MotorCommands::default();
+    }
+
+    fn refresh_model_data(
+        &mut self,
+        now: Picos,
+        world: &mut dyn super::WorldLink,
+    ) -> Result<(), LinkError> {
+        match world.call(&Request::GetData2, now)? {
+            Reply::Data2 {
+                velocity,
+                velocity_x,
+                velocity_y,
+            } => {
+                self.state.horizontal_speed = velocity;
+                self.state.velocity_x = velocity_x;
+                self.state.velocity_y = velocity_y;
+            }
+            other => {
+                return Err(LinkError::Unexpected {
+                    request: "GET_DATA_2",
+                    reply: other.command(),
+                })
+            }
+        }
+        match world.call(&Request::GetData3, now)? {
+            Reply::Data3 {
+                velocity,
+                velocity_z,
+                pitch,
+            } => {
+                self.state.horizontal_speed = velocity;
+                self.state.velocity_z = velocity_z;
+                self.state.pitch = pitch;
+            }
+            other => {
+                return Err(LinkError::Unexpected {
+                    request: "GET_DATA_3",
+                    reply: other.command(),
+                })
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Convenience for devices holding a [`DeviceCtx`].
+pub fn drive_from_ctx(
+    ctx: &mut DeviceCtx<'_>,
+    commands: MotorCommands,
+    iter: Millis,
+    now: Picos,
+) -> Result<(), LinkError> {
+    ctx.motors.drive(commands, iter, now, ctx.world, ctx.time)
+}
