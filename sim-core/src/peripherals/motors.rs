@@ -12,22 +12,8 @@ use protocol::{Reply, Request};
 
 use super::{DeviceCtx, LinkError};
 use crate::peripherals::stm32::pid::MotorCommands;
+use crate::power::MotorState;
 use crate::units::{Millis, Picos};
-
-/// What the motor power models see.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct MotorState {
-    /// Commanded speed magnitudes m1..m4 (rad/s).
-    pub commands: MotorCommands,
-    /// Horizontal speed (m/s), GET_DATA_2/3.
-    pub horizontal_speed: f64,
-    /// World-frame velocity (m/s).
-    pub velocity_x: f64,
-    pub velocity_y: f64,
-    pub velocity_z: f64,
-    /// Pitch (rad), GET_DATA_3.
-    pub pitch: f64,
-}
 
 #[derive(Debug, Default)]
 pub struct Motors {
@@ -47,7 +33,7 @@ impl Motors {
         ctx_world: &mut dyn super::WorldLink,
         time: &mut crate::sync::TimeKeeper,
     ) -> Result<(), LinkError> {
-        self.state.commands = commands;
+        self.state.omega = commands.as_array();
         let steps = time.iteration_steps(Millis(iter.0.saturating_sub(1)));
         let request = Request::SetVelocity {
             m1: commands.m1,
@@ -71,7 +57,7 @@ impl Motors {
 
     /// Sets the commanded speeds without talking to the world (STOP).
     pub fn stopped(&mut self) {
-        self.state.commands = MotorCommands::default();
+        self.state.omega = [0.0; 4];
     }
 
     fn refresh_model_data(
@@ -80,15 +66,9 @@ impl Motors {
         world: &mut dyn super::WorldLink,
     ) -> Result<(), LinkError> {
         match world.call(&Request::GetData2, now)? {
-            Reply::Data2 {
-                velocity,
-                velocity_x,
-                velocity_y,
-            } => {
-                self.state.horizontal_speed = velocity;
-                self.state.velocity_x = velocity_x;
-                self.state.velocity_y = velocity_y;
-            }
+            // The world-frame components are logged by the world's
+            // trajectory; the D'Andrea model needs the horizontal speed.
+            Reply::Data2 { velocity, .. } => self.state.horizontal_speed = velocity,
             other => {
                 return Err(LinkError::Unexpected {
                     request: "GET_DATA_2",
@@ -103,7 +83,7 @@ impl Motors {
                 pitch,
             } => {
                 self.state.horizontal_speed = velocity;
-                self.state.velocity_z = velocity_z;
+                self.state.vertical_speed = velocity_z;
                 self.state.pitch = pitch;
             }
             other => {

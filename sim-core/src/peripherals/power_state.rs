@@ -1,6 +1,5 @@
 //! The power side of a device (MESSY's `sensor_*_power`, thesis §4.5.1):
-//! a set of states, each with a current, and the state the device is in at
-//! any simulated time.
+//! which state (read, write, idle) the device is in at any simulated time.
 //!
 //! Our reading of MESSY's read/write/idle states for the thesis's devices:
 //! a device is in `read` while an operation that produces data is in
@@ -11,38 +10,26 @@
 //! ISS could not be exact, and the thesis's firmware would keep the devices
 //! in `read` for the whole flight).
 
-use crate::units::Picos;
+//! The currents of the states are the platform file's; the power network
+//! (`crate::power`) turns a state into a current at each 1 ms sample.
 
-/// Currents (mA) of the three states and the write delay.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PowerStates {
-    pub read_ma: f64,
-    pub write_ma: f64,
-    pub idle_ma: f64,
-    /// How long a register write keeps the device in `write`.
-    pub write_delay: Picos,
-}
+pub use crate::power::SensorState as PowerState;
+use crate::units::Picos;
 
 /// The state of a device's power side over time.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DevicePower {
-    pub states: PowerStates,
+    /// How long a register write keeps the device in `write` (the platform
+    /// file's `states.write.delay`).
+    pub write_delay: Picos,
     read_until: Picos,
     write_until: Picos,
 }
 
-/// The state a device is in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PowerState {
-    Read,
-    Write,
-    Idle,
-}
-
 impl DevicePower {
-    pub fn new(states: PowerStates) -> Self {
+    pub fn new(write_delay: Picos) -> Self {
         DevicePower {
-            states,
+            write_delay,
             read_until: Picos::ZERO,
             write_until: Picos::ZERO,
         }
@@ -55,7 +42,7 @@ impl DevicePower {
 
     /// The core wrote a register at `now`.
     pub fn written(&mut self, now: Picos) {
-        self.write_until = self.write_until.max(now + self.states.write_delay);
+        self.write_until = self.write_until.max(now + self.write_delay);
     }
 
     pub fn state_at(&self, t: Picos) -> PowerState {
@@ -67,15 +54,6 @@ impl DevicePower {
             PowerState::Idle
         }
     }
-
-    /// Current drawn at time `t`, mA.
-    pub fn current_ma(&self, t: Picos) -> f64 {
-        match self.state_at(t) {
-            PowerState::Read => self.states.read_ma,
-            PowerState::Write => self.states.write_ma,
-            PowerState::Idle => self.states.idle_ma,
-        }
-    }
 }
 
 #[cfg(test)]
@@ -84,18 +62,13 @@ mod tests {
 
     #[test]
     fn states_follow_the_activity() {
-        let mut p = DevicePower::new(PowerStates {
-            read_ma: 150.0,
-            write_ma: 150.0,
-            idle_ma: 60.0,
-            write_delay: Picos::from_ms(1),
-        });
-        assert_eq!(p.current_ma(Picos::ZERO), 60.0);
+        let mut p = DevicePower::new(Picos::from_ms(1));
+        assert_eq!(p.state_at(Picos::ZERO), PowerState::Idle);
         p.written(Picos::from_ms(10));
         assert_eq!(p.state_at(Picos::from_ms(10)), PowerState::Write);
         assert_eq!(p.state_at(Picos::from_ms(11)), PowerState::Idle);
         p.busy_reading(Picos::from_ms(20));
         assert_eq!(p.state_at(Picos::from_ms(15)), PowerState::Read);
-        assert_eq!(p.current_ma(Picos::from_ms(20)), 60.0);
+        assert_eq!(p.state_at(Picos::from_ms(20)), PowerState::Idle);
     }
 }
