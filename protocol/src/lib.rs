@@ -1,1 +1,40 @@
-//! Wire protocol shared by `sim-core` and `world-server` (DESIGN.md §2).
+//! Wire protocol shared by `sim-core` (the virtual platform) and
+//! `world-server` (the physics world): DESIGN.md §2, byte-compatible with the
+//! thesis's VirtualConnector (§4.1.1, Appendix B). Full description, with
+//! example frames, in `docs/PROTOCOL.md`.
+//!
+//! - [`frame`]: 4-byte little-endian length + compact UTF-8 JSON body,
+//!   maximum frame size ([`DEFAULT_MAX_FRAME`]) checked before allocating.
+//! - [`Request`] / [`Reply`]: the nine commands and their replies, plus
+//!   `ERROR`; [`encode_request`], [`encode_reply`] (nlohmann `dump()`
+//!   spelling: sorted keys, no spaces) and [`decode_request`],
+//!   [`decode_reply`] (unknown keys ignored, errors typed as
+//!   [`ProtocolError`]).
+//! - [`Image`] with [`ImageEncoding::Array`] (the thesis's, default) or
+//!   [`ImageEncoding::Base64`] (negotiated in `GET_INIT_DATA`).
+//! - [`blocking`]: std sockets, for the lockstep platform.
+//! - [`tokio_transport`]: a `tokio_util` codec on `LengthDelimitedCodec`,
+//!   for the world server.
+//! - [`trace`]: JSON-lines traces, writer and reader.
+//! - [`Endpoint`]: `unix:PATH` (default) or `tcp:HOST:PORT`.
+
+pub mod blocking;
+mod decode;
+pub mod dump;
+mod endpoint;
+mod error;
+pub mod frame;
+mod image;
+mod message;
+pub mod tokio_transport;
+pub mod trace;
+
+pub use endpoint::Endpoint;
+pub use error::{ProtocolError, Result};
+pub use frame::DEFAULT_MAX_FRAME;
+pub use image::{sha256_hex, Image, ImageEncoding};
+pub use message::{
+    command, decode_reply, decode_request, encode_reply, encode_request, Reply, Request, Sensors,
+    State,
+};
+pub use trace::{Direction, FrameEvent, Observer};

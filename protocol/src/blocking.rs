@@ -1,0 +1,416 @@
+//! Blocking transport over `std::os::unix::net` (and `std::net` for `tcp:`),
+//! used by the lockstep virtual platform.
+//!
+//! One [`Connection`] type serves both ends: the platform gets it from
+//! [`Client::connect`] and calls [`Connection::request`] / [`Connection::send`];
+//! the world gets it from [`Server::accept`] and calls
+//! [`Connection::recv_request`] / [`Connection::send_reply`]. Every frame sent
+//! or received is shown, as raw bytes, to an optional observer (the trace
+//! writer) so tracing never re-serialises.
+
+use std::io::{self, BufReader, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use crate::endpoint::{bind_unix, unlink_if_ours, Endpoint};
+use crate::error::{ProtocolError, Result};
+use crate::frame::{read_frame, write_frame, DEFAULT_MAX_FRAME};
+use crate::image::{Image, ImageEncoding};
+use crate::message::{decode_reply, decode_request, encode_reply, encode_request, Reply, Request};
+use crate::trace::{Direction, FrameEvent, Observer};
+
+/// A connected stream socket of either kind.
+#[derive(Debug)]
+pub enum Stream {
+    Unix(UnixStream),
+    Tcp(TcpStream),
+}
+
+impl Stream {
+    /// Connects once.
+    pub fn connect(ep: &Endpoint) -> io::Result<Stream> {
+        Ok(match ep {
+            Endpoint::Unix(p) => Stream::Unix(UnixStream::connect(p)?),
+            Endpoint::Tcp(a) => {
+                let s = TcpStream::connect(a.as_str())?;
+                // Lockstep request/reply: Nagle would add a delay per frame.
+                s.set_nodelay(true)?;
+                Stream::Tcp(s)
+            }
+        })
+    }
+
+    /// Shuts both directions down (the peer then reads end of stream).
+    pub fn shutdown(&self) -> io::Result<()> {
+        match self {
+            Stream::Unix(s) => s.shutdown(std::net::Shutdown::Both),
+            Stream::Tcp(s) => s.shutdown(std::net::Shutdown::Both),
+        }
+    }
+}
+
+impl Read for Stream {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        match self {
+            Stream::Unix(s) => s.read(buf),
+            Stream::Tcp(s) => s.read(buf),
+        }
+    }
+}
+
+impl Write for Stream {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        match self {
+            Stream::Unix(s) => s.write(buf),
+            Stream::Tcp(s) => s.write(buf),
+        }
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Which end of the protocol a connection is (decides trace directions).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// The virtual platform: sends requests.
+    Platform,
+    /// The world: sends replies.
+    World,
+}
+
+/// Connection options.
+#[derive(Clone, Copy, Debug)]
+pub struct Options {
+    /// Largest frame body accepted or sent.
+    pub max_frame: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            max_frame: DEFAULT_MAX_FRAME,
+        }
+    }
+}
+
+/// One end of a connection.
+pub struct Connection {
+    io: BufReader<Stream>,
+    role: Role,
+    max_frame: usize,
+    rbuf: Vec<u8>,
+    wbuf: Vec<u8>,
+    /// Image encoding used by `send_reply` (world side); set by sending an
+    /// `InitData` reply, i.e. by the `GET_INIT_DATA` negotiation.
+    image_encoding: ImageEncoding,
+    observer: Option<Observer>,
+}
+
+impl std::fmt::Debug for Connection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Connection")
+            .field("stream", self.io.get_ref())
+            .field("role", &self.role)
+            .field("image_encoding", &self.image_encoding)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Read buffer: a small frame arrives with one `read`; large bodies bypass it.
+const READ_BUF: usize = 64 * 1024;
+
+impl Connection {
+    /// Wraps a connected stream.
+    pub fn new(stream: Stream, role: Role, opts: Options) -> Self {
+        Connection {
+            io: BufReader::with_capacity(READ_BUF, stream),
+            role,
+            max_frame: opts.max_frame,
+            rbuf: Vec::new(),
+            wbuf: Vec::new(),
+            image_encoding: ImageEncoding::Array,
+            observer: None,
+        }
+    }
+
+    /// Shows every frame, sent or received, to `observer` (e.g. a closure
+    /// around a [`crate::trace::TraceWriter`]). An observer error aborts the
+    /// operation with [`ProtocolError::Io`].
+    pub fn set_observer(&mut self, observer: Observer) {
+        self.observer = Some(observer);
+    }
+
+    pub fn role(&self) -> Role {
+        self.role
+    }
+
+    /// The image encoding `send_reply` uses.
+    pub fn image_encoding(&self) -> ImageEncoding {
+        self.image_encoding
+    }
+
+    /// Overrides the image encoding `send_reply` uses (normally set by
+    /// sending the `GET_INIT_DATA` reply).
+    pub fn set_image_encoding(&mut self, e: ImageEncoding) {
+        self.image_encoding = e;
+    }
+
+    pub fn stream(&self) -> &Stream {
+        self.io.get_ref()
+    }
+
+    fn out_dir(&self) -> Direction {
+        match self.role {
+            Role::Platform => Direction::ToWorld,
+            Role::World => Direction::ToPlatform,
+        }
+    }
+
+    // ------------------------------------------------------------ raw frames
+
+    /// Sends one frame whose body `body` writes (header + body in one write).
+    pub fn send_frame_with(
+        &mut self,
+        image: Option<&Image>,
+        body: impl FnOnce(&mut Vec<u8>),
+    ) -> Result<()> {
+        self.wbuf.clear();
+        write_frame(&mut self.wbuf, self.max_frame, body)?;
+        self.io.get_mut().write_all(&self.wbuf)?;
+        let ev = FrameEvent {
+            dir: self.out_dir(),
+            bytes: &self.wbuf[4..],
+            image,
+            valid: true,
+        };
+        notify(&mut self.observer, &ev)
+    }
+
+    /// Sends a frame with this exact body (for replay tools and tests).
+    pub fn send_raw(&mut self, body: &[u8]) -> Result<()> {
+        self.send_frame_with(None, |o| o.extend_from_slice(body))
+    }
+
+    /// Receives one frame body; `None` on a clean end of stream between
+    /// frames. The slice is valid until the next receive.
+    pub fn recv_raw(&mut self) -> Result<Option<&[u8]>> {
+        if read_frame(&mut self.io, &mut self.rbuf, self.max_frame)? {
+            Ok(Some(&self.rbuf))
+        } else {
+            Ok(None)
+        }
+    }
+
+    // ------------------------------------------------------- platform side
+
+    /// Sends a request without waiting (the only way for `SET_VELOCITY` and
+    /// `ADVANCE_TIME`, which have no reply).
+    pub fn send(&mut self, req: &Request) -> Result<()> {
+        self.send_frame_with(None, |o| encode_request(req, o))
+    }
+
+    /// Sends a request and waits for its reply. A reply-less request is just
+    /// sent and `Ok(None)` returned; an `ERROR` reply becomes
+    /// [`ProtocolError::Remote`]; a reply to another command is
+    /// [`ProtocolError::UnexpectedReply`].
+    pub fn request(&mut self, req: &Request) -> Result<Option<Reply>> {
+        self.send(req)?;
+        if !req.expects_reply() {
+            return Ok(None);
+        }
+        let reply = self
+            .recv_reply()?
+            .ok_or(ProtocolError::Closed(req.command()))?;
+        match reply {
+            Reply::Error { error } => Err(ProtocolError::Remote(error)),
+            r if r.command() == req.command() => Ok(Some(r)),
+            r => Err(ProtocolError::UnexpectedReply {
+                expected: req.command(),
+                got: r.command().to_owned(),
+            }),
+        }
+    }
+
+    /// Receives one reply; `None` on a clean close.
+    pub fn recv_reply(&mut self) -> Result<Option<Reply>> {
+        if !read_frame(&mut self.io, &mut self.rbuf, self.max_frame)? {
+            return Ok(None);
+        }
+        let decoded = decode_reply(&self.rbuf);
+        let image = match &decoded {
+            Ok(Reply::Image(img)) => Some(img),
+            _ => None,
+        };
+        let ev = FrameEvent {
+            dir: Direction::ToPlatform,
+            bytes: &self.rbuf,
+            image,
+            valid: decoded.is_ok(),
+        };
+        notify(&mut self.observer, &ev)?;
+        decoded.map(Some)
+    }
+
+    // ---------------------------------------------------------- world side
+
+    /// Receives one request; `None` on a clean close between frames.
+    pub fn recv_request(&mut self) -> Result<Option<Request>> {
+        if !read_frame(&mut self.io, &mut self.rbuf, self.max_frame)? {
+            return Ok(None);
+        }
+        let decoded = decode_request(&self.rbuf);
+        let ev = FrameEvent {
+            dir: Direction::ToWorld,
+            bytes: &self.rbuf,
+            image: None,
+            valid: decoded.is_ok(),
+        };
+        notify(&mut self.observer, &ev)?;
+        decoded.map(Some)
+    }
+
+    /// Sends a reply; images use the negotiated encoding. Sending an
+    /// `InitData` reply records its `image_encoding` for later images.
+    pub fn send_reply(&mut self, reply: &Reply) -> Result<()> {
+        if let Reply::InitData { image_encoding, .. } = reply {
+            self.image_encoding = *image_encoding;
+        }
+        let enc = self.image_encoding;
+        let image = match reply {
+            Reply::Image(img) => Some(img),
+            _ => None,
+        };
+        self.send_frame_with(image, |o| encode_reply(reply, enc, o))
+    }
+}
+
+fn notify(observer: &mut Option<Observer>, ev: &FrameEvent<'_>) -> Result<()> {
+    match observer {
+        Some(obs) => Ok(obs(ev)?),
+        None => Ok(()),
+    }
+}
+
+/// Client side (the virtual platform).
+pub struct Client;
+
+impl Client {
+    /// Connects once.
+    pub fn connect(ep: &Endpoint) -> Result<Connection> {
+        Self::connect_with(ep, Options::default())
+    }
+
+    pub fn connect_with(ep: &Endpoint, opts: Options) -> Result<Connection> {
+        let s = Stream::connect(ep).map_err(|e| {
+            ProtocolError::Io(io::Error::new(
+                e.kind(),
+                format!("cannot connect to {ep}: {e}"),
+            ))
+        })?;
+        Ok(Connection::new(s, Role::Platform, opts))
+    }
+
+    /// Connects, retrying every 10 ms while the server is not there yet
+    /// (path missing or connection refused), for at most `patience`. For
+    /// launchers that start both processes at once; wall-clock time only
+    /// decides when to give up, never a simulated result.
+    pub fn connect_retry(ep: &Endpoint, opts: Options, patience: Duration) -> Result<Connection> {
+        let deadline = Instant::now() + patience;
+        loop {
+            match Stream::connect(ep) {
+                Ok(s) => return Ok(Connection::new(s, Role::Platform, opts)),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::NotFound | io::ErrorKind::ConnectionRefused
+                    ) && Instant::now() < deadline =>
+                {
+                    std::thread::sleep(Duration::from_millis(10))
+                }
+                Err(e) => {
+                    return Err(ProtocolError::Io(io::Error::new(
+                        e.kind(),
+                        format!("cannot connect to {ep}: {e}"),
+                    )))
+                }
+            }
+        }
+    }
+}
+
+enum ListenerKind {
+    Unix {
+        l: UnixListener,
+        path: PathBuf,
+        ino: u64,
+    },
+    Tcp(TcpListener),
+}
+
+/// Server side (the world): binds, then accepts one client at a time.
+pub struct Server {
+    kind: ListenerKind,
+    opts: Options,
+}
+
+impl Server {
+    /// Binds `ep`. For `unix:` a stale socket file is removed first, the
+    /// socket is created mode 0600, and a path held by a live server gives
+    /// [`ProtocolError::AddrInUse`]. The socket file is removed on drop.
+    pub fn bind(ep: &Endpoint) -> Result<Server> {
+        Self::bind_with(ep, Options::default())
+    }
+
+    pub fn bind_with(ep: &Endpoint, opts: Options) -> Result<Server> {
+        let kind = match ep {
+            Endpoint::Unix(p) => {
+                let (l, ino) = bind_unix(p)?;
+                ListenerKind::Unix {
+                    l,
+                    path: p.clone(),
+                    ino,
+                }
+            }
+            Endpoint::Tcp(a) => ListenerKind::Tcp(TcpListener::bind(a.as_str()).map_err(|e| {
+                ProtocolError::Io(io::Error::new(
+                    e.kind(),
+                    format!("cannot bind tcp:{a}: {e}"),
+                ))
+            })?),
+        };
+        Ok(Server { kind, opts })
+    }
+
+    /// The bound endpoint (with the real port for `tcp:HOST:0`).
+    pub fn local_endpoint(&self) -> Result<Endpoint> {
+        Ok(match &self.kind {
+            ListenerKind::Unix { path, .. } => Endpoint::Unix(path.clone()),
+            ListenerKind::Tcp(l) => Endpoint::Tcp(l.local_addr()?.to_string()),
+        })
+    }
+
+    /// Waits for the next client. Serve it to the end before calling again:
+    /// the listen backlog is 1, as in the thesis.
+    pub fn accept(&self) -> Result<Connection> {
+        let s = match &self.kind {
+            ListenerKind::Unix { l, .. } => Stream::Unix(l.accept()?.0),
+            ListenerKind::Tcp(l) => {
+                let s = l.accept()?.0;
+                s.set_nodelay(true)?;
+                Stream::Tcp(s)
+            }
+        };
+        Ok(Connection::new(s, Role::World, self.opts))
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        if let ListenerKind::Unix { path, ino, .. } = &self.kind {
+            unlink_if_ours(path, *ino);
+        }
+    }
+}

@@ -1,0 +1,200 @@
+//! Endpoints `unix:PATH` (the default, as the thesis) and `tcp:HOST:PORT`,
+//! and the UNIX-socket server setup both transports share.
+
+use std::fmt;
+use std::io;
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+use std::os::unix::ffi::OsStrExt;
+use std::os::unix::fs::{FileTypeExt, MetadataExt, PermissionsExt};
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use crate::error::{ProtocolError, Result};
+
+/// Where the world listens.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Endpoint {
+    /// A UNIX stream socket at this path.
+    Unix(PathBuf),
+    /// `HOST:PORT` for TCP (kept as text: resolved at connect/bind time).
+    Tcp(String),
+}
+
+impl FromStr for Endpoint {
+    type Err = ProtocolError;
+    /// `unix:PATH`, `tcp:HOST:PORT`, or a bare path (= unix).
+    fn from_str(s: &str) -> Result<Self> {
+        if let Some(p) = s.strip_prefix("unix:") {
+            if p.is_empty() {
+                return Err(ProtocolError::BadEndpoint(s.into()));
+            }
+            Ok(Endpoint::Unix(p.into()))
+        } else if let Some(a) = s.strip_prefix("tcp:") {
+            match a.rsplit_once(':') {
+                Some((host, port)) if !host.is_empty() && port.parse::<u16>().is_ok() => {
+                    Ok(Endpoint::Tcp(a.into()))
+                }
+                _ => Err(ProtocolError::BadEndpoint(s.into())),
+            }
+        } else if s.is_empty() || s.contains("://") {
+            Err(ProtocolError::BadEndpoint(s.into()))
+        } else {
+            Ok(Endpoint::Unix(s.into()))
+        }
+    }
+}
+
+impl fmt::Display for Endpoint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Endpoint::Unix(p) => write!(f, "unix:{}", p.display()),
+            Endpoint::Tcp(a) => write!(f, "tcp:{a}"),
+        }
+    }
+}
+
+/// Binds a UNIX listener at `path` the way the thesis's controller does
+/// (Listing 4.7: unlink, bind, listen(1)) with three safety additions:
+/// - an existing socket file is removed only if nobody accepts on it (a
+///   stale file left by a crashed server); if a live server answers, the
+///   error says so instead of stealing its path;
+/// - a path that exists but is not a socket is never removed;
+/// - the socket is made mode 0600 *between* `bind` and `listen`, so no other
+///   user can connect even for an instant (std's `UnixListener::bind` listens
+///   immediately, hence the raw calls).
+pub(crate) fn bind_unix(path: &Path) -> Result<(UnixListener, u64)> {
+    remove_stale(path)?;
+    let bytes = path.as_os_str().as_bytes();
+    // SAFETY: plain socket syscalls on a zeroed sockaddr_un whose path we
+    // bound-check below; the fd is owned by `OwnedFd` from creation on, so it
+    // is closed on every error path.
+    unsafe {
+        let mut addr: libc::sockaddr_un = std::mem::zeroed();
+        if bytes.len() >= addr.sun_path.len() {
+            return Err(ProtocolError::Io(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!(
+                    "socket path {} is longer than the {} bytes a UNIX socket address holds",
+                    path.display(),
+                    addr.sun_path.len() - 1
+                ),
+            )));
+        }
+        addr.sun_family = libc::AF_UNIX as libc::sa_family_t;
+        for (d, s) in addr.sun_path.iter_mut().zip(bytes) {
+            *d = *s as libc::c_char;
+        }
+        let fd = libc::socket(libc::AF_UNIX, libc::SOCK_STREAM | libc::SOCK_CLOEXEC, 0);
+        if fd < 0 {
+            return Err(io::Error::last_os_error().into());
+        }
+        let fd = OwnedFd::from_raw_fd(fd);
+        let len = std::mem::size_of::<libc::sockaddr_un>() as libc::socklen_t;
+        if libc::bind(
+            fd.as_raw_fd(),
+            &addr as *const _ as *const libc::sockaddr,
+            len,
+        ) != 0
+        {
+            let e = io::Error::last_os_error();
+            return Err(if e.kind() == io::ErrorKind::AddrInUse {
+                ProtocolError::AddrInUse {
+                    path: path.display().to_string(),
+                }
+            } else {
+                ProtocolError::Io(io::Error::new(
+                    e.kind(),
+                    format!("cannot bind {}: {e}", path.display()),
+                ))
+            });
+        }
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600))?;
+        // Backlog 1: one client at a time, as the thesis's listen(fd, 1).
+        if libc::listen(fd.as_raw_fd(), 1) != 0 {
+            let e = io::Error::last_os_error();
+            let _ = std::fs::remove_file(path);
+            return Err(e.into());
+        }
+        let ino = std::fs::symlink_metadata(path)?.ino();
+        Ok((UnixListener::from(fd), ino))
+    }
+}
+
+fn remove_stale(path: &Path) -> Result<()> {
+    let meta = match std::fs::symlink_metadata(path) {
+        Ok(m) => m,
+        Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e.into()),
+    };
+    if !meta.file_type().is_socket() {
+        return Err(ProtocolError::Io(io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            format!(
+                "{} exists and is not a socket; refusing to remove it",
+                path.display()
+            ),
+        )));
+    }
+    match UnixStream::connect(path) {
+        Ok(_) => Err(ProtocolError::AddrInUse {
+            path: path.display().to_string(),
+        }),
+        Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
+            tracing::info!(path = %path.display(), "removing stale socket file");
+            std::fs::remove_file(path)?;
+            Ok(())
+        }
+        Err(e) => Err(ProtocolError::Io(io::Error::new(
+            e.kind(),
+            format!("cannot probe existing socket {}: {e}", path.display()),
+        ))),
+    }
+}
+
+/// Removes the socket file a server bound, unless something else replaced it
+/// since (compared by inode).
+pub(crate) fn unlink_if_ours(path: &Path, ino: u64) {
+    if let Ok(m) = std::fs::symlink_metadata(path) {
+        if m.ino() == ino {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_and_print() {
+        let e: Endpoint = "unix:/tmp/w.sock".parse().unwrap();
+        assert_eq!(e, Endpoint::Unix("/tmp/w.sock".into()));
+        assert_eq!(e.to_string(), "unix:/tmp/w.sock");
+        assert_eq!(
+            "w.sock".parse::<Endpoint>().unwrap(),
+            Endpoint::Unix("w.sock".into())
+        );
+        let t: Endpoint = "tcp:127.0.0.1:4000".parse().unwrap();
+        assert_eq!(t, Endpoint::Tcp("127.0.0.1:4000".into()));
+        assert_eq!(t.to_string(), "tcp:127.0.0.1:4000");
+        assert_eq!(
+            "tcp:[::1]:4000".parse::<Endpoint>().unwrap(),
+            Endpoint::Tcp("[::1]:4000".into())
+        );
+        for bad in [
+            "",
+            "unix:",
+            "tcp:",
+            "tcp:host",
+            "tcp::80",
+            "tcp:h:99999",
+            "http://x",
+        ] {
+            assert!(
+                matches!(bad.parse::<Endpoint>(), Err(ProtocolError::BadEndpoint(_))),
+                "{bad:?}"
+            );
+        }
+    }
+}

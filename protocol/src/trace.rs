@@ -1,0 +1,322 @@
+//! Traces (DESIGN.md §2): one JSON line per frame,
+//! `{"seq":N,"dir":"to_world"|"to_platform","len":L,"msg":{…},"world_ms":T}`
+//! (or `"platform_ps"`, whichever binary writes it). `msg` is the frame body
+//! itself — the bytes that crossed the socket, not a re-serialisation — so the
+//! two traces of one run hold identical messages; only an image's `data` is
+//! replaced by `"sha256"` of the pixels unless images are kept.
+//!
+//! The writer is buffered; every record is one complete line handed to the
+//! buffer at once, and [`TraceWriter::flush`] pushes it out. A crash can
+//! leave at most a partial last line, which [`TraceReader`] reports and skips.
+
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::dump::{write_key, write_object, write_str, write_u64, Val};
+use crate::image::{sha256_hex, Image};
+
+/// Direction of a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Direction {
+    /// Platform → world (requests).
+    ToWorld,
+    /// World → platform (replies).
+    ToPlatform,
+}
+
+impl Direction {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Direction::ToWorld => "to_world",
+            Direction::ToPlatform => "to_platform",
+        }
+    }
+
+    pub fn reverse(self) -> Direction {
+        match self {
+            Direction::ToWorld => Direction::ToPlatform,
+            Direction::ToPlatform => Direction::ToWorld,
+        }
+    }
+}
+
+/// A frame as the transports show it to an observer.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameEvent<'a> {
+    pub dir: Direction,
+    /// The frame body (no length prefix), exactly as on the wire.
+    pub bytes: &'a [u8],
+    /// The decoded image when the frame is a `GET_IMAGE` reply (so tracing
+    /// can hash the pixels without decoding again).
+    pub image: Option<&'a Image>,
+    /// False when a received frame failed to decode (it is still traced).
+    pub valid: bool,
+}
+
+/// What transports call for every frame; an error aborts the operation.
+pub type Observer = Box<dyn FnMut(&FrameEvent<'_>) -> io::Result<()> + Send>;
+
+/// Whose clock a trace records.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TraceClock {
+    /// The world's time in ms (`"world_ms"`).
+    WorldMs,
+    /// The platform's time in ps (`"platform_ps"`).
+    PlatformPs,
+}
+
+impl TraceClock {
+    fn key(self) -> &'static str {
+        match self {
+            TraceClock::WorldMs => "world_ms",
+            TraceClock::PlatformPs => "platform_ps",
+        }
+    }
+}
+
+/// Writes a trace.
+pub struct TraceWriter<W: Write = BufWriter<File>> {
+    out: W,
+    clock: TraceClock,
+    keep_images: bool,
+    seq: u64,
+    line: Vec<u8>,
+}
+
+impl TraceWriter<BufWriter<File>> {
+    /// Creates (truncates) `path`.
+    pub fn create(path: &Path, clock: TraceClock, keep_images: bool) -> io::Result<Self> {
+        let f = File::create(path).map_err(|e| {
+            io::Error::new(
+                e.kind(),
+                format!("cannot create trace {}: {e}", path.display()),
+            )
+        })?;
+        Ok(Self::new(
+            BufWriter::with_capacity(1 << 20, f),
+            clock,
+            keep_images,
+        ))
+    }
+}
+
+impl<W: Write> TraceWriter<W> {
+    pub fn new(out: W, clock: TraceClock, keep_images: bool) -> Self {
+        TraceWriter {
+            out,
+            clock,
+            keep_images,
+            seq: 0,
+            line: Vec::new(),
+        }
+    }
+
+    /// Appends one record; `now` is the writer's clock (ms or ps).
+    pub fn record(&mut self, ev: &FrameEvent<'_>, now: u64) -> io::Result<()> {
+        let l = &mut self.line;
+        l.clear();
+        l.push(b'{');
+        write_key(l, "seq");
+        write_u64(l, self.seq);
+        l.push(b',');
+        write_key(l, "dir");
+        write_str(l, ev.dir.as_str());
+        l.push(b',');
+        write_key(l, "len");
+        write_u64(l, ev.bytes.len() as u64);
+        l.push(b',');
+        write_key(l, "msg");
+        match ev.image {
+            Some(img) if !self.keep_images => {
+                l.extend_from_slice(b"{\"camera\":");
+                write_object(
+                    l,
+                    &[
+                        ("height", Val::U64(img.height.into())),
+                        ("sha256", Val::Str(&sha256_hex(&img.data))),
+                        ("width", Val::U64(img.width.into())),
+                    ],
+                );
+                l.extend_from_slice(b",\"command\":\"GET_IMAGE\"}");
+            }
+            _ => write_msg(l, ev),
+        }
+        l.push(b',');
+        write_key(l, self.clock.key());
+        write_u64(l, now);
+        l.extend_from_slice(b"}\n");
+        self.out.write_all(l)?;
+        self.seq += 1;
+        Ok(())
+    }
+
+    /// Pushes buffered lines to the file.
+    pub fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+
+    /// Records written so far.
+    pub fn records(&self) -> u64 {
+        self.seq
+    }
+
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+}
+
+/// The frame body as the `msg` value: verbatim when it is a valid message
+/// on one line (our own frames always are); re-serialised compactly if a
+/// foreign peer sent JSON with newlines; a JSON string of the (lossy) text
+/// for a frame that failed to decode, so the line stays valid JSON.
+fn write_msg(l: &mut Vec<u8>, ev: &FrameEvent<'_>) {
+    if ev.valid {
+        if !ev.bytes.iter().any(|&b| b == b'\n' || b == b'\r') {
+            l.extend_from_slice(ev.bytes);
+            return;
+        }
+        if let Ok(v) = serde_json::from_slice::<Value>(ev.bytes) {
+            serde_json::to_writer(&mut *l, &v).expect("writing to a Vec cannot fail");
+            return;
+        }
+    }
+    l.extend_from_slice(b"{\"invalid_frame\":");
+    write_str(l, &String::from_utf8_lossy(ev.bytes));
+    l.push(b'}');
+}
+
+/// One trace line.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TraceRecord {
+    pub seq: u64,
+    pub dir: Direction,
+    pub len: u64,
+    pub msg: Value,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub world_ms: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub platform_ps: Option<u64>,
+}
+
+impl TraceRecord {
+    /// The message's `"command"`, if any.
+    pub fn command(&self) -> Option<&str> {
+        self.msg.get("command").and_then(Value::as_str)
+    }
+}
+
+/// Why a trace could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum TraceError {
+    #[error("trace I/O error: {0}")]
+    Io(#[from] io::Error),
+    #[error("trace line {line}: {detail}")]
+    BadLine { line: usize, detail: String },
+}
+
+/// A partial last line (a writer that crashed mid-line).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TruncatedLine {
+    /// 1-based line number.
+    pub line: usize,
+    /// Bytes in the partial line.
+    pub bytes: usize,
+}
+
+/// Reads a trace: an iterator of records. A last line without its newline
+/// that does not parse is not an error: iteration ends and
+/// [`TraceReader::truncated`] reports it.
+pub struct TraceReader<R> {
+    r: R,
+    buf: Vec<u8>,
+    line: usize,
+    truncated: Option<TruncatedLine>,
+    done: bool,
+}
+
+impl TraceReader<BufReader<File>> {
+    pub fn open(path: &Path) -> io::Result<Self> {
+        let f = File::open(path).map_err(|e| {
+            io::Error::new(
+                e.kind(),
+                format!("cannot open trace {}: {e}", path.display()),
+            )
+        })?;
+        Ok(Self::new(BufReader::new(f)))
+    }
+}
+
+impl<R: BufRead> TraceReader<R> {
+    pub fn new(r: R) -> Self {
+        TraceReader {
+            r,
+            buf: Vec::new(),
+            line: 0,
+            truncated: None,
+            done: false,
+        }
+    }
+
+    /// Set once iteration met a partial last line.
+    pub fn truncated(&self) -> Option<TruncatedLine> {
+        self.truncated
+    }
+}
+
+impl<R: BufRead> Iterator for TraceReader<R> {
+    type Item = Result<TraceRecord, TraceError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        loop {
+            self.buf.clear();
+            let n = match self.r.read_until(b'\n', &mut self.buf) {
+                Ok(n) => n,
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e.into()));
+                }
+            };
+            if n == 0 {
+                self.done = true;
+                return None;
+            }
+            self.line += 1;
+            let complete = self.buf.last() == Some(&b'\n');
+            let text = self.buf.trim_ascii();
+            if text.is_empty() {
+                continue;
+            }
+            return match serde_json::from_slice::<TraceRecord>(text) {
+                Ok(r) => Some(Ok(r)),
+                Err(_) if !complete => {
+                    self.done = true;
+                    self.truncated = Some(TruncatedLine {
+                        line: self.line,
+                        bytes: self.buf.len(),
+                    });
+                    tracing::warn!(
+                        line = self.line,
+                        bytes = self.buf.len(),
+                        "trace ends with a partial line (writer interrupted?); ignored"
+                    );
+                    None
+                }
+                Err(e) => {
+                    self.done = true;
+                    Some(Err(TraceError::BadLine {
+                        line: self.line,
+                        detail: e.to_string(),
+                    }))
+                }
+            };
+        }
+    }
+}
