@@ -1,0 +1,408 @@
+//! The drone's camera: a software renderer of the 320×320 grey image
+//! (DESIGN.md §5: at (0.03, 0, 0.01) m in the body, looking along body +x,
+//! horizontal field of view 0.87 rad, grey = mean of R, G, B).
+//!
+//! Written by hand rather than with a rendering crate because a race renders
+//! about 4,200 frames and the whole race must run in seconds: one frame has a
+//! budget of 0.3 ms on one core, which no general-purpose software rasteriser
+//! meets. The scene is tiny — a checkered ground plane, a uniform sky and a
+//! few dozen boxes — so:
+//!
+//! * the ground is mapped row by row: along a row the ray direction is affine
+//!   in the column, so the horizon is one crossing point per row, sky pixels
+//!   are a `fill`, and each ground pixel costs one division and two floors;
+//! * boxes are clipped against the near plane and rasterised as convex
+//!   polygons with a depth test on 1/z, which is affine in screen space for a
+//!   plane (and also written by the ground, so depth ordering holds between
+//!   everything);
+//! * nothing is allocated per frame.
+//!
+//! Shading: box faces with a horizontal normal have exactly the object's grey
+//! level (so a gate seen head-on shows its grey), top faces are 15 % brighter
+//! and bottom faces 25 % darker, so edges stay visible. There is no lighting
+//! model beyond that, and no anti-aliasing.
+
+use std::io::BufWriter;
+use std::path::Path;
+
+use rapier3d::glamx::{DQuat, DVec3};
+
+use crate::crazyflie::{CAMERA_FOV, CAMERA_HEIGHT, CAMERA_POSITION, CAMERA_WIDTH};
+use crate::scene::SceneBox;
+use crate::world_file::WorldDesc;
+
+/// Webots Camera's default `near` (m).
+const NEAR: f64 = 0.01;
+/// Beyond this distance the checkerboard would alias into noise; it is drawn
+/// as the mean of its two greys instead (m).
+const GROUND_FAR: f32 = 60.0;
+const TOP_FACE_GAIN: f32 = 1.15;
+const BOTTOM_FACE_GAIN: f32 = 0.75;
+
+/// One face of a box, world frame, corners counter-clockwise seen from outside.
+#[derive(Debug, Clone, Copy)]
+struct Face {
+    corners: [DVec3; 4],
+    normal: DVec3,
+    grey: u8,
+}
+
+/// A box's faces and its bounding sphere (for frustum culling).
+#[derive(Debug, Clone)]
+struct Solid {
+    centre: DVec3,
+    radius: f64,
+    faces: [Face; 6],
+}
+
+/// The camera and its scene; owns its image and depth buffers.
+pub struct Camera {
+    width: usize,
+    height: usize,
+    /// Focal length in pixels.
+    focal: f64,
+    solids: Vec<Solid>,
+    tile: f32,
+    grey_dark: u8,
+    grey_light: u8,
+    sky: u8,
+    image: Vec<u8>,
+    /// 1 / depth along the optical axis; 0 is infinitely far (sky).
+    inv_depth: Vec<f32>,
+}
+
+impl Camera {
+    /// A 320×320 camera seeing the static scene of `desc` (`boxes` as built by
+    /// [`crate::scene::scene_boxes`]).
+    pub fn new(desc: &WorldDesc, boxes: &[SceneBox]) -> Camera {
+        let (width, height) = (CAMERA_WIDTH, CAMERA_HEIGHT);
+        Camera {
+            width,
+            height,
+            focal: (width as f64 / 2.0) / (CAMERA_FOV / 2.0).tan(),
+            solids: boxes.iter().map(solid_of).collect(),
+            tile: desc.ground.tile.0 as f32,
+            grey_dark: desc.ground.grey_dark,
+            grey_light: desc.ground.grey_light,
+            sky: desc.sky.grey,
+            image: vec![0; width * height],
+            inv_depth: vec![0.0; width * height],
+        }
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The last rendered image, row-major, top row first.
+    pub fn image(&self) -> &[u8] {
+        &self.image
+    }
+
+    /// Renders what the camera of a drone at `position`/`rotation` (body pose) sees.
+    pub fn render(&mut self, position: DVec3, rotation: DQuat) -> &[u8] {
+        let eye = position + rotation * DVec3::from_array(CAMERA_POSITION);
+        let view = View {
+            eye,
+            fwd: rotation * DVec3::X,
+            right: rotation * -DVec3::Y,
+            up: rotation * DVec3::Z,
+            focal: self.focal,
+            half_w: self.width as f64 / 2.0,
+            half_h: self.height as f64 / 2.0,
+        };
+        self.draw_ground_and_sky(&view);
+        // Moved out for the loop (no allocation) so faces can be drawn into `self`.
+        let solids = std::mem::take(&mut self.solids);
+        for solid in &solids {
+            self.draw_solid(&view, solid);
+        }
+        self.solids = solids;
+        &self.image
+    }
+
+    fn draw_ground_and_sky(&mut self, v: &View) {
+        let (w, f) = (self.width, v.focal);
+        // Height above the ground; kept positive so a camera resting on the
+        // ground still sees it.
+        let h = v.eye.z.max(1e-4);
+        let inv_tile = 1.0 / self.tile as f64;
+        let mean = ((self.grey_dark as u16 + self.grey_light as u16) / 2) as u8;
+        let inv_far = 1.0 / GROUND_FAR;
+        let greys = [self.grey_dark, self.grey_light];
+        for row in 0..self.height {
+            let vv = v.half_h - (row as f64 + 0.5);
+            // Ray direction for column u is a + u·right, with a = f·fwd + v·up.
+            let a = v.fwd * f + v.up * vv;
+            let u0 = 0.5 - v.half_w;
+            let start = row * w;
+            let img = &mut self.image[start..start + w];
+            let dep = &mut self.inv_depth[start..start + w];
+            // dz(u) = a.z + u·right.z is affine: ground where dz < 0.
+            let (first, last) = ground_span(a.z + u0 * v.right.z, v.right.z, w);
+            img[..first].fill(self.sky);
+            dep[..first].fill(0.0);
+            img[last..].fill(self.sky);
+            dep[last..].fill(0.0);
+            if first >= last {
+                continue;
+            }
+            // Pixel k of the row: direction a + (u0 + k)·right. In f32 from
+            // here on: the ground needs millimetres, not nanometres.
+            let (ax, ay, az) = (a.x as f32, a.y as f32, a.z as f32);
+            let (rx, ry, rz) = (v.right.x as f32, v.right.y as f32, v.right.z as f32);
+            let (ex, ey) = ((v.eye.x * inv_tile) as f32, (v.eye.y * inv_tile) as f32);
+            let neg_h = -(h as f32);
+            let inv_hf = 1.0 / (h * f) as f32;
+            let inv_tile = inv_tile as f32;
+            for (k, (px, d)) in img[first..last]
+                .iter_mut()
+                .zip(dep[first..last].iter_mut())
+                .enumerate()
+            {
+                let u = u0 as f32 + (first + k) as f32;
+                let dz = az + u * rz;
+                let t = neg_h / dz;
+                let gx = ex + t * inv_tile * (ax + u * rx);
+                let gy = ey + t * inv_tile * (ay + u * ry);
+                let inv_z = -dz * inv_hf;
+                // floor() by the i32 conversion of a shifted positive value
+                // (the shift is even, so the checker parity is unchanged; 4096
+                // tiles keep f32 precision under a millimetre, and beyond
+                // GROUND_FAR the mean grey is drawn anyway).
+                let cx = (gx + 4096.0) as i32;
+                let cy = (gy + 4096.0) as i32;
+                let checker = greys[((cx ^ cy) & 1) as usize];
+                *px = if inv_z < inv_far { mean } else { checker };
+                *d = inv_z;
+            }
+        }
+    }
+
+    fn draw_solid(&mut self, v: &View, solid: &Solid) {
+        let c = v.to_camera(solid.centre);
+        if !v.sphere_visible(c, solid.radius) {
+            return;
+        }
+        for face in &solid.faces {
+            // Back-face culling: the eye must be on the outer side.
+            if (face.corners[0] - v.eye).dot(face.normal) >= 0.0 {
+                continue;
+            }
+            let grey = shade(face.grey, face.normal.z);
+            let mut poly = [DVec3::ZERO; 8];
+            let n = clip_near(&face.corners.map(|p| v.to_camera(p)), &mut poly);
+            if n < 3 {
+                continue;
+            }
+            // 1/z over the screen: the face's plane n·P = d in camera space
+            // gives 1/z = (n.x·u + n.y·v + n.z·f) / (f·d) for pixel (u, v).
+            let nc = v.dir_to_camera(face.normal);
+            let d = nc.dot(poly[0]);
+            let k = 1.0 / (v.focal * d);
+            let plane = [nc.x * k, nc.y * k, nc.z * v.focal * k];
+            let mut screen = [(0.0f64, 0.0f64); 8];
+            for (s, p) in screen.iter_mut().zip(&poly[..n]) {
+                *s = (
+                    v.half_w + v.focal * p.x / p.z,
+                    v.half_h - v.focal * p.y / p.z,
+                );
+            }
+            self.fill_polygon(v, &screen[..n], plane, grey);
+        }
+    }
+
+    /// Fills a convex screen-space polygon with a depth test on 1/z.
+    fn fill_polygon(&mut self, v: &View, pts: &[(f64, f64)], plane: [f64; 3], grey: u8) {
+        let (w, hgt) = (self.width, self.height);
+        let ymin = pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+        let ymax = pts.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+        // Pixel rows whose centre (row + 0.5) lies in [ymin, ymax).
+        let r0 = ((ymin - 0.5).ceil().max(0.0)) as usize;
+        let r1 = ((ymax - 0.5).ceil().min(hgt as f64).max(0.0)) as usize;
+        for row in r0..r1 {
+            let y = row as f64 + 0.5;
+            let (mut xl, mut xr) = (f64::INFINITY, f64::NEG_INFINITY);
+            for i in 0..pts.len() {
+                let (a, b) = (pts[i], pts[(i + 1) % pts.len()]);
+                if (a.1 <= y && b.1 > y) || (b.1 <= y && a.1 > y) {
+                    let x = a.0 + (y - a.1) * (b.0 - a.0) / (b.1 - a.1);
+                    xl = xl.min(x);
+                    xr = xr.max(x);
+                }
+            }
+            if xl >= xr {
+                continue;
+            }
+            let c0 = ((xl - 0.5).ceil().max(0.0)) as usize;
+            let c1 = ((xr - 0.5).ceil().min(w as f64).max(0.0)) as usize;
+            if c0 >= c1 {
+                continue;
+            }
+            let vv = v.half_h - y;
+            let base = plane[1] * vv + plane[2];
+            let start = row * w;
+            for col in c0..c1 {
+                let u = col as f64 + 0.5 - v.half_w;
+                let inv_z = (plane[0] * u + base) as f32;
+                let i = start + col;
+                if inv_z > self.inv_depth[i] {
+                    self.inv_depth[i] = inv_z;
+                    self.image[i] = grey;
+                }
+            }
+        }
+    }
+}
+
+/// The columns `[first, last)` of a row whose rays go down (dz < 0), for
+/// dz(k) = dz0 + k·slope at pixel k.
+fn ground_span(dz0: f64, slope: f64, w: usize) -> (usize, usize) {
+    // A tiny margin keeps rays grazing the horizon (t → ∞) in the sky.
+    let limit = -1e-9;
+    if slope == 0.0 {
+        return if dz0 < limit { (0, w) } else { (0, 0) };
+    }
+    let k = (limit - dz0) / slope; // dz(k) == limit
+    if slope > 0.0 {
+        // dz grows with k: ground left of k.
+        let last = k.ceil().clamp(0.0, w as f64) as usize;
+        (0, last)
+    } else {
+        let first = (k.floor() + 1.0).clamp(0.0, w as f64) as usize;
+        (first, w)
+    }
+}
+
+fn shade(grey: u8, normal_z: f64) -> u8 {
+    let gain = if normal_z > 0.5 {
+        TOP_FACE_GAIN
+    } else if normal_z < -0.5 {
+        BOTTOM_FACE_GAIN
+    } else {
+        1.0
+    };
+    (grey as f32 * gain).round().min(255.0) as u8
+}
+
+/// Camera axes and intrinsics for one frame.
+struct View {
+    eye: DVec3,
+    fwd: DVec3,
+    right: DVec3,
+    up: DVec3,
+    focal: f64,
+    half_w: f64,
+    half_h: f64,
+}
+
+impl View {
+    /// World point to camera coordinates (x right, y up, z along the optical axis).
+    fn to_camera(&self, p: DVec3) -> DVec3 {
+        self.dir_to_camera(p - self.eye)
+    }
+
+    fn dir_to_camera(&self, d: DVec3) -> DVec3 {
+        DVec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.fwd))
+    }
+
+    /// False when the sphere is certainly outside the view frustum.
+    fn sphere_visible(&self, c: DVec3, r: f64) -> bool {
+        if c.z + r < NEAR {
+            return false;
+        }
+        let (f, hw, hh) = (self.focal, self.half_w, self.half_h);
+        let planes = [
+            DVec3::new(f, 0.0, -hw),
+            DVec3::new(-f, 0.0, -hw),
+            DVec3::new(0.0, f, -hh),
+            DVec3::new(0.0, -f, -hh),
+        ];
+        planes.iter().all(|n| n.dot(c) <= r * n.length())
+    }
+}
+
+/// Clips a camera-space quad against z ≥ NEAR (Sutherland–Hodgman); returns
+/// the number of vertices written to `out` (at most 5).
+fn clip_near(quad: &[DVec3; 4], out: &mut [DVec3; 8]) -> usize {
+    let mut n = 0;
+    for i in 0..4 {
+        let (a, b) = (quad[i], quad[(i + 1) % 4]);
+        let (ina, inb) = (a.z >= NEAR, b.z >= NEAR);
+        if ina {
+            out[n] = a;
+            n += 1;
+        }
+        if ina != inb {
+            let t = (NEAR - a.z) / (b.z - a.z);
+            out[n] = a + (b - a) * t;
+            n += 1;
+        }
+    }
+    n
+}
+
+/// The six faces of an oriented box.
+fn solid_of(b: &SceneBox) -> Solid {
+    let rot = DQuat::from_rotation_z(b.yaw);
+    let ax = [rot * DVec3::X, rot * DVec3::Y, DVec3::Z];
+    let h = [b.half.x, b.half.y, b.half.z];
+    let corner = |sx: f64, sy: f64, sz: f64| {
+        b.centre + ax[0] * (sx * h[0]) + ax[1] * (sy * h[1]) + ax[2] * (sz * h[2])
+    };
+    let face = |axis: usize, sign: f64| {
+        // Two in-face axes (u, v) with u × v = outward normal.
+        let (u, v) = match axis {
+            0 => (1, 2),
+            1 => (2, 0),
+            _ => (0, 1),
+        };
+        let (u, v) = if sign > 0.0 { (u, v) } else { (v, u) };
+        let mut s = [0.0; 3];
+        s[axis] = sign;
+        let mut corners = [DVec3::ZERO; 4];
+        for (k, (su, sv)) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut p = s;
+            p[u] = su;
+            p[v] = sv;
+            corners[k] = corner(p[0], p[1], p[2]);
+        }
+        Face {
+            corners,
+            normal: ax[axis] * sign,
+            grey: b.grey,
+        }
+    };
+    Solid {
+        centre: b.centre,
+        radius: b.half.length(),
+        faces: [
+            face(0, 1.0),
+            face(0, -1.0),
+            face(1, 1.0),
+            face(1, -1.0),
+            face(2, 1.0),
+            face(2, -1.0),
+        ],
+    }
+}
+
+/// Writes a grey image as an 8-bit greyscale PNG.
+pub fn write_png(path: &Path, width: usize, height: usize, data: &[u8]) -> std::io::Result<()> {
+    let file = std::fs::File::create(path)?;
+    let mut enc = png::Encoder::new(BufWriter::new(file), width as u32, height as u32);
+    enc.set_color(png::ColorType::Grayscale);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut writer = enc.write_header().map_err(std::io::Error::other)?;
+    writer
+        .write_image_data(data)
+        .map_err(std::io::Error::other)?;
+    writer.finish().map_err(std::io::Error::other)
+}
