@@ -1,0 +1,409 @@
+//! The run configuration: what the thesis's `simul_configs.hpp` holds
+//! (§4.2.4 "Configuration files and debug mode") plus the few knobs the
+//! platform needs, read from TOML and overridable key by key from the
+//! command line (`--set key=value`).
+//!
+//! Both paths go through [`RunConfig::set`], so a TOML file and a command
+//! line accept exactly the same names and values with the same messages.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use crate::power::battery::{BatteryModel, CurveAxis};
+use crate::power::models::{ModelParams, PowerModelKind};
+pub use crate::sync::SyncMode;
+
+use super::ConfigError;
+
+/// The thesis's debug levels (§4.2.4), mapped onto `tracing` levels:
+/// NONE → WARN (only the program's own output and problems), LOW → INFO
+/// (image sizes, bus operations), MED → DEBUG (world requests, sensor data
+/// during the PID), HIGH → TRACE (every frame exchanged on the socket).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default)]
+pub enum DebugLevel {
+    #[default]
+    None,
+    Low,
+    Med,
+    High,
+}
+
+impl DebugLevel {
+    /// The `tracing` level this debug level enables.
+    pub const fn tracing_level(self) -> tracing::Level {
+        match self {
+            DebugLevel::None => tracing::Level::WARN,
+            DebugLevel::Low => tracing::Level::INFO,
+            DebugLevel::Med => tracing::Level::DEBUG,
+            DebugLevel::High => tracing::Level::TRACE,
+        }
+    }
+
+    /// The same as an `EnvFilter` directive (`warn`, `info`, `debug`, `trace`).
+    pub const fn filter_directive(self) -> &'static str {
+        match self {
+            DebugLevel::None => "warn",
+            DebugLevel::Low => "info",
+            DebugLevel::Med => "debug",
+            DebugLevel::High => "trace",
+        }
+    }
+
+    /// HIGH logs every frame (§4.2.4).
+    pub const fn logs_every_frame(self) -> bool {
+        matches!(self, DebugLevel::High)
+    }
+
+    /// The thesis's name (`NONE`, `LOW`, `MED`, `HIGH`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            DebugLevel::None => "NONE",
+            DebugLevel::Low => "LOW",
+            DebugLevel::Med => "MED",
+            DebugLevel::High => "HIGH",
+        }
+    }
+}
+
+impl FromStr for DebugLevel {
+    type Err = String;
+    /// Accepts `NONE`/`LOW`/`MED`/`HIGH` in any case, with or without the
+    /// thesis's `DEBUG_LEVEL_` prefix, `MEDIUM`, and 0–3.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let upper = s.trim().to_ascii_uppercase();
+        let key = upper.strip_prefix("DEBUG_LEVEL_").unwrap_or(&upper);
+        match key {
+            "NONE" | "0" => Ok(DebugLevel::None),
+            "LOW" | "1" => Ok(DebugLevel::Low),
+            "MED" | "MEDIUM" | "2" => Ok(DebugLevel::Med),
+            "HIGH" | "3" => Ok(DebugLevel::High),
+            _ => Err(format!(
+                "unknown debug level {s:?} (expected NONE, LOW, MED or HIGH)"
+            )),
+        }
+    }
+}
+
+impl fmt::Display for DebugLevel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Every key with a one-line description (for `--help` texts and errors).
+pub const RUN_KEYS: [(&str, &str); 12] = [
+    (
+        "power_model",
+        "motor model that drains the battery: empirical | dandrea | stolaroff",
+    ),
+    (
+        "battery",
+        "lipol250 | ufx250 | cyclone300 | lipol350 | platform (the platform file's)",
+    ),
+    (
+        "battery_curve",
+        "variable of the v_oc/r_s polynomials: soc (thesis) | discharged (1 - SOC)",
+    ),
+    (
+        "debug_level",
+        "NONE | LOW | MED | HIGH (tracing warn | info | debug | trace)",
+    ),
+    ("tolerance", "PID target tolerance in m (0.1)"),
+    (
+        "target_cycles",
+        "PID iterations inside the tolerance to reach a target (100)",
+    ),
+    (
+        "unlock_cycles",
+        "PID iterations before an unreached target is bypassed (5000)",
+    ),
+    ("sync", "time bookkeeping: thesis | bounded"),
+    (
+        "dandrea_efficiency",
+        "D'Andrea power transfer efficiency (0.8; Table 4.4 says 0.9)",
+    ),
+    ("stolaroff_efficiency", "Stolaroff efficiency (0.8)"),
+    (
+        "stolaroff_factor",
+        "Stolaroff correction factor (5, section 5.1)",
+    ),
+    (
+        "platform",
+        "platform JSON file (default: the embedded Crazyflie)",
+    ),
+];
+
+/// The run configuration. [`RunConfig::default`] is the thesis's setting of
+/// §5.1: empirical model, LiPol 250 mAh, debug NONE, tolerance 0.1 m,
+/// TARGET_CYCLES 100, UNLOCK_CYCLES 5000.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunConfig {
+    /// The model whose current drains the battery.
+    pub power_model: PowerModelKind,
+    /// The battery; `None` takes the platform file's.
+    pub battery: Option<BatteryModel>,
+    /// Which variable the battery polynomials are evaluated at.
+    pub battery_curve: CurveAxis,
+    /// Debug level.
+    pub debug_level: DebugLevel,
+    /// PID tolerance in m.
+    pub tolerance: f64,
+    /// TARGET_CYCLES.
+    pub target_cycles: u32,
+    /// UNLOCK_CYCLES (at 32 ms; the PID scales it by 32/ts).
+    pub unlock_cycles: u32,
+    /// Time bookkeeping mode.
+    pub sync: SyncMode,
+    /// Motor model parameters.
+    pub models: ModelParams,
+    /// Platform file; `None` is the embedded Crazyflie.
+    pub platform: Option<PathBuf>,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        RunConfig {
+            power_model: PowerModelKind::Empirical,
+            battery: Some(BatteryModel::LiPol250),
+            battery_curve: CurveAxis::Soc,
+            debug_level: DebugLevel::None,
+            tolerance: 0.1,
+            target_cycles: 100,
+            unlock_cycles: 5000,
+            sync: SyncMode::Thesis,
+            models: ModelParams::default(),
+            platform: None,
+        }
+    }
+}
+
+fn parse<T: FromStr<Err = String>>(value: &str) -> Result<T, String> {
+    value.parse()
+}
+
+fn parse_number(value: &str) -> Result<f64, String> {
+    value
+        .trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| "expected a number".to_string())
+}
+
+fn parse_fraction(value: &str) -> Result<f64, String> {
+    let v = parse_number(value)?;
+    if v > 0.0 && v <= 1.0 {
+        Ok(v)
+    } else {
+        Err("expected an efficiency in (0, 1]".into())
+    }
+}
+
+fn parse_positive(value: &str) -> Result<f64, String> {
+    let v = parse_number(value)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err("expected a positive number".into())
+    }
+}
+
+fn parse_count(value: &str) -> Result<u32, String> {
+    match value.trim().parse::<u32>() {
+        Ok(0) | Err(_) => Err("expected a whole number of iterations, at least 1".into()),
+        Ok(v) => Ok(v),
+    }
+}
+
+impl RunConfig {
+    /// Sets one key from its text form (the command line's `--set key=value`).
+    pub fn set(&mut self, key: &str, value: &str) -> Result<(), ConfigError> {
+        let bad = |reason: String| ConfigError::BadValue {
+            key: key.to_string(),
+            value: value.to_string(),
+            reason,
+        };
+        match key {
+            "power_model" => self.power_model = parse(value).map_err(bad)?,
+            "battery" => {
+                self.battery = if value.trim().eq_ignore_ascii_case("platform") {
+                    None
+                } else {
+                    Some(parse(value).map_err(bad)?)
+                }
+            }
+            "battery_curve" => self.battery_curve = parse(value).map_err(bad)?,
+            "debug_level" => self.debug_level = parse(value).map_err(bad)?,
+            "tolerance" => self.tolerance = parse_positive(value).map_err(bad)?,
+            "target_cycles" => self.target_cycles = parse_count(value).map_err(bad)?,
+            "unlock_cycles" => self.unlock_cycles = parse_count(value).map_err(bad)?,
+            "sync" => self.sync = parse(value).map_err(bad)?,
+            "dandrea_efficiency" => {
+                self.models.dandrea_efficiency = parse_fraction(value).map_err(bad)?
+            }
+            "stolaroff_efficiency" => {
+                self.models.stolaroff_efficiency = parse_fraction(value).map_err(bad)?
+            }
+            "stolaroff_factor" => {
+                self.models.stolaroff_factor = parse_positive(value).map_err(bad)?
+            }
+            "platform" => {
+                if value.trim().is_empty() {
+                    return Err(bad("expected a file path".into()));
+                }
+                self.platform = Some(PathBuf::from(value))
+            }
+            _ => {
+                return Err(ConfigError::UnknownKey {
+                    key: key.to_string(),
+                    known: RUN_KEYS.map(|(k, _)| k).join(", "),
+                })
+            }
+        }
+        Ok(())
+    }
+
+    /// The text form of one key, as `set` accepts it.
+    pub fn get(&self, key: &str) -> Result<String, ConfigError> {
+        Ok(match key {
+            "power_model" => self.power_model.to_string(),
+            "battery" => self
+                .battery
+                .map_or_else(|| "platform".to_string(), |b| b.to_string()),
+            "battery_curve" => self.battery_curve.to_string(),
+            "debug_level" => self.debug_level.to_string(),
+            "tolerance" => self.tolerance.to_string(),
+            "target_cycles" => self.target_cycles.to_string(),
+            "unlock_cycles" => self.unlock_cycles.to_string(),
+            "sync" => match self.sync {
+                SyncMode::Thesis => "thesis",
+                SyncMode::Bounded => "bounded",
+            }
+            .to_string(),
+            "dandrea_efficiency" => self.models.dandrea_efficiency.to_string(),
+            "stolaroff_efficiency" => self.models.stolaroff_efficiency.to_string(),
+            "stolaroff_factor" => self.models.stolaroff_factor.to_string(),
+            "platform" => self
+                .platform
+                .as_ref()
+                .map_or_else(|| "embedded".to_string(), |p| p.display().to_string()),
+            _ => {
+                return Err(ConfigError::UnknownKey {
+                    key: key.to_string(),
+                    known: RUN_KEYS.map(|(k, _)| k).join(", "),
+                })
+            }
+        })
+    }
+
+    /// Applies `key=value` overrides in order (the command line's `--set`).
+    pub fn apply_overrides<S: AsRef<str>>(&mut self, overrides: &[S]) -> Result<(), ConfigError> {
+        for o in overrides {
+            let o = o.as_ref();
+            let (key, value) = o
+                .split_once('=')
+                .ok_or_else(|| ConfigError::BadOverride(o.to_string()))?;
+            self.set(key.trim(), value.trim())?;
+        }
+        Ok(())
+    }
+
+    /// Parses TOML (`origin` names it in errors): the thesis's defaults with
+    /// the file's keys set on top. Strings, numbers and booleans are given
+    /// to [`RunConfig::set`] in their text form.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<RunConfig, ConfigError> {
+        let table: toml::Table = toml::from_str(text).map_err(|e| ConfigError::Toml {
+            origin: origin.to_string(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        let mut cfg = RunConfig::default();
+        for (key, value) in &table {
+            let text = match value {
+                toml::Value::String(s) => s.clone(),
+                toml::Value::Integer(i) => i.to_string(),
+                toml::Value::Float(f) => f.to_string(),
+                toml::Value::Boolean(b) => b.to_string(),
+                other => {
+                    return Err(ConfigError::Invalid {
+                        origin: origin.to_string(),
+                        message: format!(
+                            "{key}: expected a string or a number, got a {}",
+                            other.type_str()
+                        ),
+                    })
+                }
+            };
+            cfg.set(key, &text).map_err(|e| ConfigError::Invalid {
+                origin: origin.to_string(),
+                message: e.to_string(),
+            })?;
+        }
+        Ok(cfg)
+    }
+
+    /// Reads a TOML run configuration file.
+    pub fn from_path(path: &Path) -> Result<RunConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        RunConfig::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// The whole configuration as TOML (every key, `set`'s text form).
+    pub fn to_toml(&self) -> String {
+        let mut table = toml::Table::new();
+        for (key, _) in RUN_KEYS {
+            let text = self.get(key).expect("RUN_KEYS are known keys");
+            let value = match key {
+                "tolerance"
+                | "dandrea_efficiency"
+                | "stolaroff_efficiency"
+                | "stolaroff_factor" => toml::Value::Float(text.parse().expect("a number")),
+                "target_cycles" | "unlock_cycles" => {
+                    toml::Value::Integer(text.parse().expect("an integer"))
+                }
+                _ => toml::Value::String(text),
+            };
+            table.insert(key.to_string(), value);
+        }
+        toml::to_string(&table).expect("a flat table serializes")
+    }
+
+    /// The platform file this run uses.
+    pub fn load_platform(&self) -> Result<super::PlatformConfig, ConfigError> {
+        match &self.platform {
+            None => Ok(super::PlatformConfig::default_crazyflie()),
+            Some(path) => super::PlatformConfig::from_path(path),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_thesis_settings() {
+        let c = RunConfig::default();
+        assert_eq!(c.power_model, PowerModelKind::Empirical);
+        assert_eq!(c.battery, Some(BatteryModel::LiPol250));
+        assert_eq!(c.debug_level, DebugLevel::None);
+        assert_eq!(c.tolerance, 0.1);
+        assert_eq!(c.target_cycles, 100);
+        assert_eq!(c.unlock_cycles, 5000);
+        assert_eq!(c.sync, SyncMode::Thesis);
+        assert_eq!(c.models.stolaroff_factor, 5.0);
+    }
+
+    #[test]
+    fn debug_levels_map_to_tracing() {
+        assert_eq!("DEBUG_LEVEL_HIGH".parse(), Ok(DebugLevel::High));
+        assert_eq!("med".parse(), Ok(DebugLevel::Med));
+        assert_eq!(DebugLevel::High.tracing_level(), tracing::Level::TRACE);
+        assert_eq!(DebugLevel::None.tracing_level(), tracing::Level::WARN);
+        assert!(DebugLevel::High.logs_every_frame());
+        assert!(!DebugLevel::Med.logs_every_frame());
+    }
+}

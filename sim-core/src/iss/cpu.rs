@@ -1,0 +1,1356 @@
+//! The core: architectural state, CSRs, traps, the timed interpreter loop and
+//! exact idle skipping.
+
+use std::io::Write;
+
+use thiserror::Error;
+
+use crate::units::{Cycles, Hertz, Picos};
+
+use super::decode::{self, op, Decoded};
+use super::mem::{AccessSize, Memory, Mmio, MmioError};
+use super::semihost::{self, Semihost};
+use super::timing::{self, BASE_CYCLES};
+
+/// The machine timer, a CLINT at its customary address (the GAP8 map has
+/// nothing there, DESIGN.md §4). `mtime` counts core clock cycles.
+pub const CLINT_BASE: u32 = 0x0200_0000;
+pub const CLINT_SIZE: u32 = 0x0001_0000;
+const CLINT_MSIP: u32 = 0x0000;
+const CLINT_MTIMECMP: u32 = 0x4000;
+const CLINT_MTIME: u32 = 0xbff8;
+
+/// Longest loop body (bytes from the branch target to the branch) the idle
+/// detector looks at; the thesis's polling loops are 2–4 instructions.
+pub const MAX_POLL_LOOP_BYTES: u32 = 64;
+
+/// How many MMIO reads one polling iteration may make.
+const MAX_POLL_READS: usize = 4;
+
+// mstatus bits.
+const MSTATUS_MIE: u32 = 1 << 3;
+const MSTATUS_MPIE: u32 = 1 << 7;
+const MSTATUS_MPP: u32 = 3 << 11;
+const MSTATUS_MPRV: u32 = 1 << 17;
+const MSTATUS_TW: u32 = 1 << 21;
+const MSTATUS_WRITABLE: u32 = MSTATUS_MIE | MSTATUS_MPIE | MSTATUS_MPP | MSTATUS_MPRV | MSTATUS_TW;
+
+// Interrupt bits in mip/mie, and their cause codes.
+const IRQ_MSI: u32 = 3;
+const IRQ_MTI: u32 = 7;
+const IRQ_MEI: u32 = 11;
+const MIE_WRITABLE: u32 = 1 << IRQ_MSI | 1 << IRQ_MTI | 1 << IRQ_MEI;
+
+/// misa: MXL = 1 (32-bit), extensions C, I, M, U.
+pub const MISA: u32 = 1 << 30 | 1 << 2 | 1 << 8 | 1 << 12 | 1 << 20;
+
+/// Exception causes (mcause values without the interrupt bit).
+pub mod cause {
+    pub const MISALIGNED_FETCH: u32 = 0;
+    pub const FETCH_ACCESS: u32 = 1;
+    pub const ILLEGAL_INSTRUCTION: u32 = 2;
+    pub const BREAKPOINT: u32 = 3;
+    pub const LOAD_ACCESS: u32 = 5;
+    pub const STORE_ACCESS: u32 = 7;
+    pub const ECALL_U: u32 = 8;
+    pub const ECALL_M: u32 = 11;
+    pub const INTERRUPT: u32 = 1 << 31;
+}
+
+/// Privilege level.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Privilege {
+    User = 0,
+    Machine = 3,
+}
+
+/// Core parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CpuConfig {
+    /// Core clock (platform file `core.frequency`; default 250 MHz).
+    pub clock: Hertz,
+    /// Extra cycles of every access to an MMIO window; the device sees the
+    /// access at `(issue cycle + latency) × period` (see `mem.rs`).
+    pub mmio_latency: Cycles,
+    /// Exact idle skipping of polling loops and `wfi` sleeps.
+    pub idle_skip: bool,
+    /// A plain (non-semihosting) `ebreak` stops the run with
+    /// [`StopReason::Breakpoint`] instead of trapping, like a debugger.
+    pub ebreak_stops: bool,
+    pub hart_id: u32,
+}
+
+impl Default for CpuConfig {
+    fn default() -> Self {
+        CpuConfig {
+            clock: Hertz(250_000_000),
+            mmio_latency: Cycles(0),
+            idle_skip: true,
+            ebreak_stops: false,
+            hart_id: 0,
+        }
+    }
+}
+
+/// Counters for reports and the power model. Cycles split into running,
+/// sleeping (in `wfi`) and polling (iterations of a loop proven to only
+/// re-read an unchanged device register, whether skipped or stepped; the
+/// count is the same with idle skipping on and off).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CoreStats {
+    pub instructions: u64,
+    pub cycles: u64,
+    pub sleep_cycles: u64,
+    pub poll_cycles: u64,
+    pub poll_instructions: u64,
+    /// Instructions not interpreted thanks to idle skipping (0 when off).
+    pub skipped_instructions: u64,
+}
+
+impl CoreStats {
+    /// Cycles neither sleeping nor polling.
+    pub fn running_cycles(&self) -> u64 {
+        self.cycles - self.sleep_cycles - self.poll_cycles
+    }
+}
+
+/// Why [`Cpu::run_until`] returned. In every case the core stopped on an
+/// instruction boundary and can be resumed with another `run_until`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StopReason {
+    /// Simulated time reached the limit.
+    Limit,
+    /// Simulated time reached the device's [`Mmio::next_event`].
+    Event,
+    /// An MMIO access asked to stop ([`Mmio::take_stop_request`]).
+    DeviceRequest,
+    /// The program ended (semihosting exit, or a `tohost` write).
+    Exit { code: i32 },
+    /// The instruction limit was reached.
+    InstructionLimit,
+    /// A plain `ebreak` with [`CpuConfig::ebreak_stops`]; `pc` is the ebreak.
+    Breakpoint { pc: u32 },
+    /// The core sleeps (or, with idle skipping, spins on a device register
+    /// that never changes) with nothing that could ever wake it.
+    Idle,
+    /// The run cannot continue.
+    Fatal(IssError),
+}
+
+/// Errors that end a run.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum IssError {
+    #[error("{} at pc {pc:#010x} (mtval {tval:#010x}) and the trap handler at {handler:#010x} is not in RAM", cause_name(*.cause))]
+    UnhandledTrap {
+        cause: u32,
+        pc: u32,
+        tval: u32,
+        handler: u32,
+    },
+    #[error(transparent)]
+    Device(#[from] MmioError),
+    #[error("console output failed: {0}")]
+    Console(String),
+}
+
+/// Human name of an mcause value.
+pub fn cause_name(c: u32) -> &'static str {
+    match c {
+        cause::MISALIGNED_FETCH => "misaligned instruction fetch",
+        cause::FETCH_ACCESS => "instruction fetch from unmapped memory",
+        cause::ILLEGAL_INSTRUCTION => "illegal instruction",
+        cause::BREAKPOINT => "breakpoint",
+        cause::LOAD_ACCESS => "load access fault",
+        cause::STORE_ACCESS => "store access fault",
+        cause::ECALL_U => "ecall from user mode",
+        cause::ECALL_M => "ecall from machine mode",
+        _ if c & cause::INTERRUPT != 0 => "interrupt",
+        _ => "exception",
+    }
+}
+
+/// One MMIO read made by the current loop iteration.
+#[derive(Debug, Clone, Copy, Default)]
+struct PollRead {
+    addr: u32,
+    size: u8,
+    issue: u64,
+}
+
+/// State of the polling-loop detector (see [`Cpu::on_back_branch`]).
+#[derive(Debug, Clone, Default)]
+struct PollTracker {
+    /// Some device register was read since the last backward branch.
+    touched: bool,
+    /// A loop is armed: its next iteration is being measured.
+    active: bool,
+    branch: u32,
+    target: u32,
+    body_len: u64,
+    snapshot: [u32; 32],
+    start_cycles: u64,
+    start_instret: u64,
+    reads: [PollRead; MAX_POLL_READS],
+    n_reads: usize,
+    /// A read this iteration that idle skipping cannot reason about
+    /// (too many reads, or the machine timer).
+    unskippable: bool,
+    /// The last loop the static check rejected, so hot compute loops are
+    /// checked only once.
+    rejected: (u32, u32),
+}
+
+/// The RV32IMC core.
+pub struct Cpu {
+    regs: [u32; 32],
+    pc: u32,
+    privilege: Privilege,
+    // CSRs.
+    mstatus: u32,
+    mie: u32,
+    mtvec: u32,
+    mscratch: u32,
+    mepc: u32,
+    mcause: u32,
+    mtval: u32,
+    mcounteren: u32,
+    mcycle_off: u64,
+    minstret_off: u64,
+    meip: bool,
+    msip: bool,
+    mtimecmp: u64,
+    mtime_off: u64,
+    // Counters.
+    cycles: u64,
+    instret: u64,
+    stats: CoreStats,
+    /// rd of the previous instruction if it was a load (0 otherwise).
+    load_rd: u8,
+    sleeping: bool,
+    // Run control.
+    deadline: u64,
+    instr_deadline: u64,
+    event_cycle: u64,
+    pending_stop: Option<StopReason>,
+    // Code cache window (a RAM region index and its bounds).
+    code_idx: usize,
+    code_base: u32,
+    code_size: u32,
+    period: u64,
+    latency: u64,
+    cfg: CpuConfig,
+    tohost: Option<u32>,
+    semihost: Semihost,
+    poll: PollTracker,
+}
+
+impl std::fmt::Debug for Cpu {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Cpu")
+            .field("pc", &format_args!("{:#010x}", self.pc))
+            .field("privilege", &self.privilege)
+            .field("cycles", &self.cycles)
+            .field("instret", &self.instret)
+            .finish_non_exhaustive()
+    }
+}
+
+#[inline(always)]
+fn div_ceil(a: u64, b: u64) -> u64 {
+    a.div_ceil(b)
+}
+
+impl Cpu {
+    /// A core in machine mode at pc 0 with all registers zero. The
+    /// semihosting console defaults to stdout; see [`Cpu::set_console`].
+    pub fn new(cfg: CpuConfig) -> Cpu {
+        Cpu {
+            regs: [0; 32],
+            pc: 0,
+            privilege: Privilege::Machine,
+            mstatus: 0,
+            mie: 0,
+            mtvec: 0,
+            mscratch: 0,
+            mepc: 0,
+            mcause: 0,
+            mtval: 0,
+            mcounteren: 0,
+            mcycle_off: 0,
+            minstret_off: 0,
+            meip: false,
+            msip: false,
+            mtimecmp: u64::MAX,
+            mtime_off: 0,
+            cycles: 0,
+            instret: 0,
+            stats: CoreStats::default(),
+            load_rd: 0,
+            sleeping: false,
+            deadline: 0,
+            instr_deadline: u64::MAX,
+            event_cycle: u64::MAX,
+            pending_stop: None,
+            code_idx: 0,
+            code_base: 0,
+            code_size: 0,
+            period: cfg.clock.period().0.max(1),
+            latency: cfg.mmio_latency.0,
+            cfg,
+            tohost: None,
+            semihost: Semihost::new(Box::new(std::io::stdout())),
+            poll: PollTracker::default(),
+        }
+    }
+
+    pub fn config(&self) -> &CpuConfig {
+        &self.cfg
+    }
+
+    /// Turn idle skipping on or off (e.g. for a comparison run).
+    pub fn set_idle_skip(&mut self, on: bool) {
+        self.cfg.idle_skip = on;
+    }
+
+    /// Where semihosting console output goes (the platform tees it to
+    /// `console.log` and stdout).
+    pub fn set_console(&mut self, console: Box<dyn Write + Send>) {
+        self.semihost.set_console(console);
+    }
+
+    /// Flush the console sink.
+    pub fn flush_console(&mut self) -> std::io::Result<()> {
+        self.semihost.flush()
+    }
+
+    /// Address of the `tohost` word (riscv-tests convention), if any.
+    pub fn set_tohost(&mut self, addr: Option<u32>) {
+        self.tohost = addr;
+    }
+
+    /// Stop with [`StopReason::InstructionLimit`] once this many instructions
+    /// have retired in total (skipped polling iterations included).
+    pub fn set_instruction_limit(&mut self, limit: Option<u64>) {
+        self.instr_deadline = limit.unwrap_or(u64::MAX);
+    }
+
+    pub fn pc(&self) -> u32 {
+        self.pc
+    }
+
+    /// Jump to `pc` (reset vector, ELF entry). Clears any sleep.
+    pub fn set_pc(&mut self, pc: u32) {
+        self.pc = pc & !1;
+        self.sleeping = false;
+        self.poll.active = false;
+    }
+
+    pub fn reg(&self, i: usize) -> u32 {
+        self.regs[i & 31]
+    }
+
+    pub fn set_reg(&mut self, i: usize, v: u32) {
+        if i & 31 != 0 {
+            self.regs[i & 31] = v;
+        }
+    }
+
+    pub fn regs(&self) -> &[u32; 32] {
+        &self.regs
+    }
+
+    pub fn privilege(&self) -> Privilege {
+        self.privilege
+    }
+
+    /// Elapsed core clock cycles (including cycles asleep), the time base.
+    pub fn cycles(&self) -> Cycles {
+        Cycles(self.cycles)
+    }
+
+    /// Retired instructions.
+    pub fn instret(&self) -> u64 {
+        self.instret
+    }
+
+    /// Simulated time of the core: cycles × clock period.
+    pub fn now(&self) -> Picos {
+        Picos(self.cycles * self.period)
+    }
+
+    pub fn stats(&self) -> CoreStats {
+        CoreStats {
+            instructions: self.instret,
+            cycles: self.cycles,
+            ..self.stats
+        }
+    }
+
+    /// Whether the core is asleep in `wfi`.
+    pub fn is_sleeping(&self) -> bool {
+        self.sleeping
+    }
+
+    /// The level of the external interrupt line (mip.MEIP).
+    pub fn set_external_irq(&mut self, level: bool) {
+        self.meip = level;
+    }
+
+    /// Read a CSR as machine mode would (tests, debugging).
+    pub fn csr(&self, csr: u16) -> Option<u32> {
+        self.csr_read(csr)
+    }
+
+    fn mtime(&self) -> u64 {
+        self.cycles.wrapping_add(self.mtime_off)
+    }
+
+    fn mip(&self) -> u32 {
+        (self.msip as u32) << IRQ_MSI
+            | ((self.mtime() >= self.mtimecmp) as u32) << IRQ_MTI
+            | (self.meip as u32) << IRQ_MEI
+    }
+
+    /// First cycle at which the timer interrupt becomes pending, if it is
+    /// enabled and not pending yet.
+    fn timer_deadline(&self) -> u64 {
+        if self.mie & (1 << IRQ_MTI) == 0 || self.mtime() >= self.mtimecmp {
+            u64::MAX
+        } else {
+            self.mtimecmp.wrapping_sub(self.mtime_off)
+        }
+    }
+
+    fn cycle_of(&self, t: Picos) -> u64 {
+        if t == Picos::MAX {
+            u64::MAX
+        } else {
+            div_ceil(t.0, self.period)
+        }
+    }
+
+    fn refresh_event(&mut self, dev: &dyn Mmio) {
+        self.event_cycle = dev.next_event().map_or(u64::MAX, |t| self.cycle_of(t));
+        self.deadline = self.deadline.min(self.event_cycle);
+    }
+
+    /// Run until simulated time reaches `limit` (the first instruction
+    /// boundary at or after it), or another [`StopReason`]. Like GVSoC's
+    /// `step_until` as MESSY's core adapter uses it.
+    pub fn run_until(&mut self, mem: &mut Memory, dev: &mut dyn Mmio, limit: Picos) -> StopReason {
+        let limit_cycle = self.cycle_of(limit);
+        self.refresh_event(dev);
+        loop {
+            if let Some(r) = self.pending_stop.take() {
+                return r;
+            }
+            let pending = self.mip() & self.mie;
+            if pending != 0 {
+                self.sleeping = false;
+                if self.privilege == Privilege::User || self.mstatus & MSTATUS_MIE != 0 {
+                    let code = [IRQ_MEI, IRQ_MSI, IRQ_MTI]
+                        .into_iter()
+                        .find(|&b| pending & (1 << b) != 0)
+                        .unwrap_or(IRQ_MTI);
+                    self.trap(mem, cause::INTERRUPT | code, 0, self.pc);
+                    continue;
+                }
+            }
+            if self.event_cycle <= self.cycles {
+                return StopReason::Event;
+            }
+            if self.cycles >= limit_cycle {
+                return StopReason::Limit;
+            }
+            if self.instret >= self.instr_deadline {
+                return StopReason::InstructionLimit;
+            }
+            let deadline = limit_cycle.min(self.event_cycle).min(self.timer_deadline());
+            if self.sleeping {
+                if deadline == u64::MAX {
+                    return StopReason::Idle;
+                }
+                let step = if self.cfg.idle_skip {
+                    deadline - self.cycles
+                } else {
+                    1
+                };
+                self.cycles += step;
+                self.stats.sleep_cycles += step;
+                continue;
+            }
+            self.deadline = deadline;
+            self.run_block(mem, dev);
+        }
+    }
+
+    fn run_block(&mut self, mem: &mut Memory, dev: &mut dyn Mmio) {
+        while self.cycles < self.deadline && self.instret < self.instr_deadline {
+            self.step(mem, dev);
+        }
+    }
+
+    /// Stop the inner loop after the current instruction.
+    #[inline(always)]
+    fn break_block(&mut self) {
+        self.deadline = 0;
+    }
+
+    fn stop(&mut self, r: StopReason) {
+        if self.pending_stop.is_none() {
+            self.pending_stop = Some(r);
+        }
+        self.break_block();
+    }
+
+    #[inline(always)]
+    fn fetch(&mut self, mem: &mut Memory, pc: u32) -> Option<u64> {
+        let off = pc.wrapping_sub(self.code_base);
+        if off < self.code_size {
+            let w = mem.regions[self.code_idx].decoded[(off >> 1) as usize];
+            if w != 0 {
+                return Some(w);
+            }
+        }
+        self.fetch_slow(mem, pc)
+    }
+
+    #[cold]
+    fn fetch_slow(&mut self, mem: &mut Memory, pc: u32) -> Option<u64> {
+        let Some((idx, off)) = mem.region_index(pc, 2) else {
+            self.trap(mem, cause::FETCH_ACCESS, pc, pc);
+            return None;
+        };
+        let r = &mem.regions[idx];
+        self.code_idx = idx;
+        self.code_base = r.base;
+        self.code_size = r.size;
+        let lo = u16::from_le_bytes([r.data[off], r.data[off + 1]]);
+        let hi = || {
+            r.offset_of(pc.wrapping_add(2), 2)
+                .map(|o| u16::from_le_bytes([r.data[o], r.data[o + 1]]))
+        };
+        match decode::decode(lo, hi) {
+            Some(d) => {
+                let w = d.pack();
+                mem.regions[idx].decoded[off >> 1] = w;
+                Some(w)
+            }
+            None => {
+                // The second half of a 32-bit instruction is not in RAM.
+                let a = pc.wrapping_add(2);
+                self.trap(mem, cause::FETCH_ACCESS, a, pc);
+                None
+            }
+        }
+    }
+
+    /// Enter the trap handler. `epc` is the pc to save in mepc.
+    fn trap(&mut self, mem: &mut Memory, mcause: u32, tval: u32, epc: u32) {
+        self.mepc = epc & !1;
+        self.mcause = mcause;
+        self.mtval = tval;
+        let mie = (self.mstatus & MSTATUS_MIE) != 0;
+        self.mstatus &= !(MSTATUS_MIE | MSTATUS_MPIE | MSTATUS_MPP);
+        self.mstatus |= ((mie as u32) * MSTATUS_MPIE) | ((self.privilege as u32) << 11);
+        self.privilege = Privilege::Machine;
+        let base = self.mtvec & !3;
+        self.pc = if self.mtvec & 3 == 1 && mcause & cause::INTERRUPT != 0 {
+            base.wrapping_add(4 * (mcause & 0x3ff))
+        } else {
+            base
+        };
+        self.cycles += timing::TRAP_ENTRY;
+        self.load_rd = 0;
+        self.poll.active = false;
+        self.break_block();
+        if !mem.is_ram(self.pc, 2) {
+            self.stop(StopReason::Fatal(IssError::UnhandledTrap {
+                cause: mcause,
+                pc: epc,
+                tval,
+                handler: self.pc,
+            }));
+        }
+        tracing::trace!(mcause, tval, epc, "trap");
+    }
+
+    #[inline(always)]
+    fn step(&mut self, mem: &mut Memory, dev: &mut dyn Mmio) {
+        let pc = self.pc;
+        let Some(w) = self.fetch(mem, pc) else {
+            return;
+        };
+        let opc = w as u8;
+        let rd = ((w >> 8) as u8 & 31) as usize;
+        let rs1 = ((w >> 16) as u8 & 31) as usize;
+        let rs2 = ((w >> 24) as u8 & 31) as usize;
+        let imm = (w >> 32) as u32;
+        let len = 4 - (((w >> 30) as u32) & 2);
+
+        // Timing: table cost plus the load-use stall.
+        let lu = self.load_rd as usize;
+        let stall = (lu != 0 && (lu == rs1 || lu == rs2)) as u64;
+        self.cycles += BASE_CYCLES[opc as usize] as u64 + stall * timing::LOAD_USE_STALL;
+        self.load_rd = 0;
+
+        let a = self.regs[rs1];
+        let b = self.regs[rs2];
+        let mut next = pc.wrapping_add(len);
+        let mut val = 0u32;
+        let mut write = true;
+        macro_rules! branch {
+            ($cond:expr) => {{
+                write = false;
+                if $cond {
+                    next = pc.wrapping_add(imm);
+                    self.cycles += timing::BRANCH_TAKEN_EXTRA;
+                }
+            }};
+        }
+        macro_rules! load {
+            ($size:expr, $conv:expr) => {{
+                match self.load(mem, dev, a.wrapping_add(imm), $size, pc) {
+                    Some(v) => {
+                        val = $conv(v);
+                        self.load_rd = rd as u8;
+                    }
+                    None => return,
+                }
+            }};
+        }
+        macro_rules! store {
+            ($size:expr) => {{
+                write = false;
+                if !self.store(mem, dev, a.wrapping_add(imm), $size, b, pc) {
+                    return;
+                }
+            }};
+        }
+        match opc {
+            op::LUI => val = imm,
+            op::AUIPC => val = pc.wrapping_add(imm),
+            op::JAL => {
+                val = next;
+                next = pc.wrapping_add(imm);
+            }
+            op::JALR => {
+                val = next;
+                next = a.wrapping_add(imm) & !1;
+            }
+            op::BEQ => branch!(a == b),
+            op::BNE => branch!(a != b),
+            op::BLT => branch!((a as i32) < (b as i32)),
+            op::BGE => branch!((a as i32) >= (b as i32)),
+            op::BLTU => branch!(a < b),
+            op::BGEU => branch!(a >= b),
+            op::LB => load!(AccessSize::Byte, |v: u32| v as u8 as i8 as i32 as u32),
+            op::LH => load!(AccessSize::Half, |v: u32| v as u16 as i16 as i32 as u32),
+            op::LW => load!(AccessSize::Word, |v: u32| v),
+            op::LBU => load!(AccessSize::Byte, |v: u32| v),
+            op::LHU => load!(AccessSize::Half, |v: u32| v),
+            op::SB => store!(AccessSize::Byte),
+            op::SH => store!(AccessSize::Half),
+            op::SW => store!(AccessSize::Word),
+            op::ADDI => val = a.wrapping_add(imm),
+            op::SLTI => val = ((a as i32) < (imm as i32)) as u32,
+            op::SLTIU => val = (a < imm) as u32,
+            op::XORI => val = a ^ imm,
+            op::ORI => val = a | imm,
+            op::ANDI => val = a & imm,
+            op::SLLI => val = a << (imm & 31),
+            op::SRLI => val = a >> (imm & 31),
+            op::SRAI => val = ((a as i32) >> (imm & 31)) as u32,
+            op::ADD => val = a.wrapping_add(b),
+            op::SUB => val = a.wrapping_sub(b),
+            op::SLL => val = a << (b & 31),
+            op::SLT => val = ((a as i32) < (b as i32)) as u32,
+            op::SLTU => val = (a < b) as u32,
+            op::XOR => val = a ^ b,
+            op::SRL => val = a >> (b & 31),
+            op::SRA => val = ((a as i32) >> (b & 31)) as u32,
+            op::OR => val = a | b,
+            op::AND => val = a & b,
+            op::MUL => val = a.wrapping_mul(b),
+            op::MULH => val = ((a as i32 as i64 * b as i32 as i64) >> 32) as u32,
+            op::MULHSU => val = ((a as i32 as i64 * b as i64) >> 32) as u32,
+            op::MULHU => val = ((a as u64 * b as u64) >> 32) as u32,
+            op::DIV | op::REM => {
+                self.cycles += b.unsigned_abs_i32().leading_zeros() as u64;
+                let (x, y) = (a as i32, b as i32);
+                val = match (opc == op::DIV, y) {
+                    (true, 0) => u32::MAX,
+                    (false, 0) => a,
+                    (true, _) => x.wrapping_div(y) as u32,
+                    (false, _) => x.wrapping_rem(y) as u32,
+                };
+            }
+            op::DIVU | op::REMU => {
+                self.cycles += b.leading_zeros() as u64;
+                val = match (opc == op::DIVU, b) {
+                    (true, 0) => u32::MAX,
+                    (false, 0) => a,
+                    (true, _) => a / b,
+                    (false, _) => a % b,
+                };
+            }
+            op::FENCE | op::FENCE_I => {
+                // Stores keep the decoded cache coherent, so fence.i has
+                // nothing left to flush; it only costs its cycles.
+                write = false;
+            }
+            _ => match self.step_system(mem, dev, Decoded::unpack(w), pc, a) {
+                Sys::Trapped => return,
+                Sys::Next(v) => {
+                    write = v.is_some();
+                    val = v.unwrap_or(0);
+                }
+                Sys::Jump(t) => {
+                    write = false;
+                    next = t;
+                }
+            },
+        }
+        if write {
+            self.regs[rd] = val;
+            self.regs[0] = 0;
+        }
+        self.pc = next;
+        self.instret += 1;
+        if next < pc && pc - next <= MAX_POLL_LOOP_BYTES && (op::BEQ..=op::BGEU).contains(&opc) {
+            self.on_back_branch(mem, dev, pc, next);
+        }
+    }
+}
+
+/// `|x|` of a register read as signed, as an unsigned magnitude.
+trait AbsI32 {
+    fn unsigned_abs_i32(self) -> u32;
+}
+impl AbsI32 for u32 {
+    #[inline(always)]
+    fn unsigned_abs_i32(self) -> u32 {
+        (self as i32).unsigned_abs()
+    }
+}
+
+/// Outcome of a system instruction.
+enum Sys {
+    /// It trapped (or stopped); the instruction does not retire.
+    Trapped,
+    /// It retired; write this value to rd if any.
+    Next(Option<u32>),
+    /// It retired and jumps to this pc (mret).
+    Jump(u32),
+}
+
+const CSR_MSTATUS: u16 = 0x300;
+const CSR_MISA: u16 = 0x301;
+const CSR_MIE: u16 = 0x304;
+const CSR_MTVEC: u16 = 0x305;
+const CSR_MCOUNTEREN: u16 = 0x306;
+const CSR_MSTATUSH: u16 = 0x310;
+const CSR_MSCRATCH: u16 = 0x340;
+const CSR_MEPC: u16 = 0x341;
+const CSR_MCAUSE: u16 = 0x342;
+const CSR_MTVAL: u16 = 0x343;
+const CSR_MIP: u16 = 0x344;
+const CSR_MCYCLE: u16 = 0xb00;
+const CSR_MINSTRET: u16 = 0xb02;
+const CSR_MCYCLEH: u16 = 0xb80;
+const CSR_MINSTRETH: u16 = 0xb82;
+const CSR_CYCLE: u16 = 0xc00;
+const CSR_TIME: u16 = 0xc01;
+const CSR_INSTRET: u16 = 0xc02;
+const CSR_CYCLEH: u16 = 0xc80;
+const CSR_TIMEH: u16 = 0xc81;
+const CSR_INSTRETH: u16 = 0xc82;
+const CSR_MVENDORID: u16 = 0xf11;
+const CSR_MARCHID: u16 = 0xf12;
+const CSR_MIMPID: u16 = 0xf13;
+const CSR_MHARTID: u16 = 0xf14;
+
+impl Cpu {
+    /// mcycle counts only cycles the core is awake: CV32E40P's counters run
+    /// on the gated clock, which `wfi` stops (manual, "Performance
+    /// Counters").
+    fn mcycle(&self) -> u64 {
+        (self.cycles - self.stats.sleep_cycles).wrapping_add(self.mcycle_off)
+    }
+
+    fn minstret(&self) -> u64 {
+        self.instret.wrapping_add(self.minstret_off)
+    }
+
+    fn csr_read(&self, csr: u16) -> Option<u32> {
+        Some(match csr {
+            CSR_MSTATUS => self.mstatus,
+            CSR_MISA => MISA,
+            CSR_MIE => self.mie,
+            CSR_MTVEC => self.mtvec,
+            CSR_MCOUNTEREN => self.mcounteren,
+            CSR_MSTATUSH => 0,
+            CSR_MSCRATCH => self.mscratch,
+            CSR_MEPC => self.mepc,
+            CSR_MCAUSE => self.mcause,
+            CSR_MTVAL => self.mtval,
+            CSR_MIP => self.mip(),
+            CSR_MCYCLE | CSR_CYCLE => self.mcycle() as u32,
+            CSR_MCYCLEH | CSR_CYCLEH => (self.mcycle() >> 32) as u32,
+            CSR_MINSTRET | CSR_INSTRET => self.minstret() as u32,
+            CSR_MINSTRETH | CSR_INSTRETH => (self.minstret() >> 32) as u32,
+            CSR_TIME => self.mtime() as u32,
+            CSR_TIMEH => (self.mtime() >> 32) as u32,
+            CSR_MVENDORID | CSR_MARCHID | CSR_MIMPID => 0,
+            CSR_MHARTID => self.cfg.hart_id,
+            _ => return None,
+        })
+    }
+
+    fn csr_write(&mut self, csr: u16, v: u32) {
+        // Writes that may enable an interrupt end the block so the run loop
+        // re-evaluates pending interrupts and the timer deadline.
+        self.break_block();
+        match csr {
+            CSR_MSTATUS => {
+                let mut new = (self.mstatus & !MSTATUS_WRITABLE) | (v & MSTATUS_WRITABLE);
+                // MPP is WARL with legal values U (0) and M (3); keep the
+                // old value on anything else.
+                let mpp = (new & MSTATUS_MPP) >> 11;
+                if mpp != 0 && mpp != 3 {
+                    new = (new & !MSTATUS_MPP) | (self.mstatus & MSTATUS_MPP);
+                }
+                self.mstatus = new;
+            }
+            CSR_MIE => self.mie = v & MIE_WRITABLE,
+            // Modes 0 (direct) and 1 (vectored); reserved modes read as 0.
+            CSR_MTVEC => self.mtvec = if v & 3 >= 2 { v & !3 } else { v },
+            CSR_MCOUNTEREN => self.mcounteren = v & 7,
+            CSR_MSCRATCH => self.mscratch = v,
+            CSR_MEPC => self.mepc = v & !1,
+            CSR_MCAUSE => self.mcause = v,
+            CSR_MTVAL => self.mtval = v,
+            CSR_MCYCLE => {
+                let new = (self.mcycle() & !0xffff_ffff) | v as u64;
+                self.mcycle_off = new.wrapping_sub(self.cycles - self.stats.sleep_cycles);
+            }
+            CSR_MCYCLEH => {
+                let new = (self.mcycle() & 0xffff_ffff) | (v as u64) << 32;
+                self.mcycle_off = new.wrapping_sub(self.cycles - self.stats.sleep_cycles);
+            }
+            // minstret is written by an instruction that itself retires
+            // afterwards; the value written is what the next instruction
+            // reads, so compensate for that increment.
+            CSR_MINSTRET => {
+                let new = (self.minstret() & !0xffff_ffff) | v as u64;
+                self.minstret_off = new.wrapping_sub(self.instret + 1);
+            }
+            CSR_MINSTRETH => {
+                let new = (self.minstret() & 0xffff_ffff) | (v as u64) << 32;
+                self.minstret_off = new.wrapping_sub(self.instret + 1);
+            }
+            // misa, mstatush, mip and the ID registers ignore writes.
+            _ => {}
+        }
+    }
+
+    fn illegal(&mut self, mem: &mut Memory, raw: u32, pc: u32) -> Sys {
+        self.trap(mem, cause::ILLEGAL_INSTRUCTION, raw, pc);
+        Sys::Trapped
+    }
+
+    #[cold]
+    fn step_system(
+        &mut self,
+        mem: &mut Memory,
+        _dev: &mut dyn Mmio,
+        d: Decoded,
+        pc: u32,
+        a: u32,
+    ) -> Sys {
+        let machine = self.privilege == Privilege::Machine;
+        match d.op {
+            op::ECALL => {
+                let c = if machine {
+                    cause::ECALL_M
+                } else {
+                    cause::ECALL_U
+                };
+                self.trap(mem, c, 0, pc);
+                Sys::Trapped
+            }
+            op::EBREAK => {
+                let around = (
+                    mem.read_u32(pc.wrapping_sub(4)),
+                    mem.read_u32(pc.wrapping_add(4)),
+                );
+                if !d.compressed
+                    && around == (Some(semihost::SEMIHOST_PRE), Some(semihost::SEMIHOST_POST))
+                {
+                    return self.semihosting(mem);
+                }
+                if self.cfg.ebreak_stops {
+                    self.stop(StopReason::Breakpoint { pc });
+                    return Sys::Trapped;
+                }
+                self.trap(mem, cause::BREAKPOINT, pc, pc);
+                Sys::Trapped
+            }
+            op::MRET if machine => {
+                let mpie = self.mstatus & MSTATUS_MPIE != 0;
+                self.privilege = if self.mstatus & MSTATUS_MPP == MSTATUS_MPP {
+                    Privilege::Machine
+                } else {
+                    Privilege::User
+                };
+                self.mstatus &= !(MSTATUS_MIE | MSTATUS_MPP);
+                self.mstatus |= MSTATUS_MPIE | ((mpie as u32) * MSTATUS_MIE);
+                // MPRV is cleared when returning to a less-privileged mode.
+                if self.privilege == Privilege::User {
+                    self.mstatus &= !MSTATUS_MPRV;
+                }
+                self.break_block();
+                Sys::Jump(self.mepc)
+            }
+            // wfi in user mode traps at once: the spec allows an
+            // implementation-defined time limit, ours is zero.
+            op::WFI if machine => {
+                if self.mip() & self.mie == 0 {
+                    self.sleeping = true;
+                    self.break_block();
+                }
+                Sys::Next(None)
+            }
+            op::CSRRW | op::CSRRS | op::CSRRC | op::CSRRWI | op::CSRRSI | op::CSRRCI => {
+                let csr = (d.imm & 0xfff) as u16;
+                let imm_form = d.op >= op::CSRRWI;
+                let src = if imm_form {
+                    (d.imm as u32 >> 12) & 31
+                } else {
+                    a
+                };
+                let writes = match d.op {
+                    op::CSRRW | op::CSRRWI => true,
+                    op::CSRRS | op::CSRRC => d.rs1 != 0,
+                    _ => src != 0,
+                };
+                let raw = self.raw_at(mem, pc, d);
+                let level = (csr >> 8) & 3;
+                if level > self.privilege as u16 || (writes && csr >> 10 == 3) {
+                    return self.illegal(mem, raw, pc);
+                }
+                // User access to the counters needs mcounteren.
+                if !machine && (CSR_CYCLE..=CSR_INSTRETH).contains(&csr) {
+                    let bit = (csr & 0x1f) as u32;
+                    if bit > 2 || self.mcounteren & (1 << bit) == 0 {
+                        return self.illegal(mem, raw, pc);
+                    }
+                }
+                let Some(old) = self.csr_read(csr) else {
+                    return self.illegal(mem, raw, pc);
+                };
+                if timing::slow_csr(csr) {
+                    self.cycles += timing::SLOW_CSR_EXTRA;
+                }
+                if writes {
+                    let new = match d.op {
+                        op::CSRRW | op::CSRRWI => src,
+                        op::CSRRS | op::CSRRSI => old | src,
+                        _ => old & !src,
+                    };
+                    self.csr_write(csr, new);
+                }
+                Sys::Next(Some(old))
+            }
+            _ => {
+                let raw = if d.op == op::ILLEGAL {
+                    d.imm as u32
+                } else {
+                    self.raw_at(mem, pc, d)
+                };
+                self.illegal(mem, raw, pc)
+            }
+        }
+    }
+
+    /// The raw bits of the instruction at pc (for mtval on illegal
+    /// instructions that decoded to a known op, e.g. mret in user mode).
+    fn raw_at(&self, mem: &Memory, pc: u32, d: Decoded) -> u32 {
+        let mut b = [0u8; 4];
+        let n = d.len() as usize;
+        if mem.read_bytes(pc, &mut b[..n]).is_err() {
+            return 0;
+        }
+        u32::from_le_bytes(b)
+    }
+
+    #[cold]
+    fn semihosting(&mut self, mem: &mut Memory) -> Sys {
+        let clock = semihost::Clock {
+            now: self.now(),
+            cycles: self.cycles,
+            hz: self.cfg.clock.0,
+        };
+        match self.semihost.call(self.regs[10], self.regs[11], mem, clock) {
+            Ok(semihost::Outcome::Return(v)) => {
+                self.regs[10] = v;
+                Sys::Next(None)
+            }
+            Ok(semihost::Outcome::Exit(code)) => {
+                self.stop(StopReason::Exit { code });
+                Sys::Next(None)
+            }
+            Err(e) => {
+                self.stop(StopReason::Fatal(IssError::Console(e.to_string())));
+                Sys::Trapped
+            }
+        }
+    }
+
+    /// Extra cycle of an access that needs two bus transactions (crosses a
+    /// word boundary).
+    #[inline(always)]
+    fn split_cost(addr: u32, size: AccessSize) -> u64 {
+        ((addr & 3) + size.bytes() > 4) as u64 * timing::SPLIT_ACCESS_EXTRA
+    }
+
+    #[inline(always)]
+    fn load(
+        &mut self,
+        mem: &mut Memory,
+        dev: &mut dyn Mmio,
+        addr: u32,
+        size: AccessSize,
+        pc: u32,
+    ) -> Option<u32> {
+        if let Some(v) = mem.load_ram(addr, size) {
+            self.cycles += Self::split_cost(addr, size);
+            return Some(v);
+        }
+        self.load_slow(mem, dev, addr, size, pc)
+    }
+
+    /// The cycle at which the current load/store issued: the table charges
+    /// loads and stores 1 cycle, already added.
+    fn issue_cycle(&self) -> u64 {
+        self.cycles - 1
+    }
+
+    fn mmio_time(&self, issue: u64) -> Picos {
+        Picos((issue + self.latency) * self.period)
+    }
+
+    fn after_mmio(&mut self, dev: &mut dyn Mmio) {
+        if dev.take_stop_request() {
+            self.stop(StopReason::DeviceRequest);
+        }
+        self.refresh_event(dev);
+    }
+
+    #[cold]
+    fn load_slow(
+        &mut self,
+        mem: &mut Memory,
+        dev: &mut dyn Mmio,
+        addr: u32,
+        size: AccessSize,
+        pc: u32,
+    ) -> Option<u32> {
+        let issue = self.issue_cycle();
+        if addr.wrapping_sub(CLINT_BASE) < CLINT_SIZE {
+            self.poll.touched = true;
+            self.poll.unskippable = true;
+            if let Some(v) = self.clint_read(addr - CLINT_BASE, size) {
+                return Some(v);
+            }
+        } else if mem.is_mmio(addr) {
+            self.cycles += self.latency;
+            let now = self.mmio_time(issue);
+            match dev.read(addr, size, now) {
+                Ok(v) => {
+                    self.record_poll_read(addr, size, issue);
+                    self.after_mmio(dev);
+                    return Some(v);
+                }
+                Err(MmioError::AccessFault { .. }) => {}
+                Err(e) => {
+                    self.stop(StopReason::Fatal(e.into()));
+                    return None;
+                }
+            }
+        }
+        self.trap(mem, cause::LOAD_ACCESS, addr, pc);
+        None
+    }
+
+    /// Returns false if the store trapped.
+    #[inline(always)]
+    fn store(
+        &mut self,
+        mem: &mut Memory,
+        dev: &mut dyn Mmio,
+        addr: u32,
+        size: AccessSize,
+        value: u32,
+        pc: u32,
+    ) -> bool {
+        if let Some(th) = self.tohost {
+            if addr.wrapping_sub(th) < 8 {
+                return self.store_slow(mem, dev, addr, size, value, pc);
+            }
+        }
+        if mem.store_ram(addr, size, value) {
+            self.cycles += Self::split_cost(addr, size);
+            return true;
+        }
+        self.store_slow(mem, dev, addr, size, value, pc)
+    }
+
+    #[cold]
+    fn store_slow(
+        &mut self,
+        mem: &mut Memory,
+        dev: &mut dyn Mmio,
+        addr: u32,
+        size: AccessSize,
+        value: u32,
+        pc: u32,
+    ) -> bool {
+        let issue = self.issue_cycle();
+        if mem.store_ram(addr, size, value) {
+            self.cycles += Self::split_cost(addr, size);
+            if let Some(th) = self.tohost {
+                // riscv-tests: a non-zero tohost ends the test; 1 is a pass,
+                // any other odd value v a failure of test v >> 1.
+                match mem.read_u32(th) {
+                    Some(0) | None => {}
+                    Some(1) => self.stop(StopReason::Exit { code: 0 }),
+                    Some(v) if v & 1 == 1 => self.stop(StopReason::Exit {
+                        code: ((v >> 1) as i32).max(1),
+                    }),
+                    Some(v) => tracing::warn!(value = v, "even tohost value ignored"),
+                }
+            }
+            return true;
+        }
+        if addr.wrapping_sub(CLINT_BASE) < CLINT_SIZE {
+            if self.clint_write(addr - CLINT_BASE, size, value) {
+                return true;
+            }
+        } else if mem.is_mmio(addr) {
+            self.cycles += self.latency;
+            let now = self.mmio_time(issue);
+            match dev.write(addr, size, value, now) {
+                Ok(()) => {
+                    self.after_mmio(dev);
+                    return true;
+                }
+                Err(MmioError::AccessFault { .. }) => {}
+                Err(e) => {
+                    self.stop(StopReason::Fatal(e.into()));
+                    return false;
+                }
+            }
+        }
+        self.trap(mem, cause::STORE_ACCESS, addr, pc);
+        false
+    }
+
+    fn clint_read(&self, off: u32, size: AccessSize) -> Option<u32> {
+        if size != AccessSize::Word {
+            return None;
+        }
+        Some(match off {
+            CLINT_MSIP => self.msip as u32,
+            CLINT_MTIMECMP => self.mtimecmp as u32,
+            o if o == CLINT_MTIMECMP + 4 => (self.mtimecmp >> 32) as u32,
+            CLINT_MTIME => self.mtime() as u32,
+            o if o == CLINT_MTIME + 4 => (self.mtime() >> 32) as u32,
+            _ => return None,
+        })
+    }
+
+    fn clint_write(&mut self, off: u32, size: AccessSize, v: u32) -> bool {
+        if size != AccessSize::Word {
+            return false;
+        }
+        let lo = |x: u64| (x & !0xffff_ffff) | v as u64;
+        let hi = |x: u64| (x & 0xffff_ffff) | (v as u64) << 32;
+        match off {
+            CLINT_MSIP => self.msip = v & 1 != 0,
+            CLINT_MTIMECMP => self.mtimecmp = lo(self.mtimecmp),
+            o if o == CLINT_MTIMECMP + 4 => self.mtimecmp = hi(self.mtimecmp),
+            CLINT_MTIME => self.mtime_off = lo(self.mtime()).wrapping_sub(self.cycles),
+            o if o == CLINT_MTIME + 4 => {
+                self.mtime_off = hi(self.mtime()).wrapping_sub(self.cycles)
+            }
+            _ => return false,
+        }
+        self.break_block();
+        true
+    }
+
+    fn record_poll_read(&mut self, addr: u32, size: AccessSize, issue: u64) {
+        let p = &mut self.poll;
+        p.touched = true;
+        if p.n_reads < MAX_POLL_READS {
+            p.reads[p.n_reads] = PollRead {
+                addr,
+                size: size as u8,
+                issue,
+            };
+            p.n_reads += 1;
+        } else {
+            p.unskippable = true;
+        }
+    }
+
+    /// Called after a taken backward branch from `branch` to `target` has
+    /// retired (pc = target). Detects loops whose iterations are fixed
+    /// points — straight-line bodies without stores, CSR or system
+    /// instructions, that read device registers and end with the same
+    /// register file they started with — counts their cycles as polling and,
+    /// with idle skipping on, jumps over as many whole iterations as the
+    /// devices guarantee to be identical.
+    #[inline(always)]
+    fn on_back_branch(&mut self, mem: &Memory, dev: &mut dyn Mmio, branch: u32, target: u32) {
+        if !self.poll.touched && !self.poll.active {
+            return;
+        }
+        self.poll_slow(mem, dev, branch, target);
+    }
+
+    #[cold]
+    fn poll_slow(&mut self, mem: &Memory, dev: &mut dyn Mmio, branch: u32, target: u32) {
+        let p = &self.poll;
+        let verified = p.active
+            && p.branch == branch
+            && p.target == target
+            && self.instret - p.start_instret == p.body_len
+            && p.n_reads > 0
+            && !p.unskippable
+            && p.snapshot == self.regs;
+        if verified {
+            let iter_cycles = self.cycles - p.start_cycles;
+            let body_len = p.body_len;
+            self.stats.poll_cycles += iter_cycles;
+            self.stats.poll_instructions += body_len;
+            if self.cfg.idle_skip {
+                self.skip_iterations(dev, iter_cycles, body_len);
+            }
+            let p = &mut self.poll;
+            p.start_cycles = self.cycles;
+            p.start_instret = self.instret;
+        } else {
+            let arm = self.poll.touched
+                && self.poll.rejected != (branch, target)
+                && !self.poll.unskippable;
+            let body = if arm {
+                straight_line_body(mem, target, branch)
+            } else {
+                None
+            };
+            let p = &mut self.poll;
+            match body {
+                Some(len) => {
+                    p.active = true;
+                    p.branch = branch;
+                    p.target = target;
+                    p.body_len = len;
+                    p.snapshot = self.regs;
+                    p.start_cycles = self.cycles;
+                    p.start_instret = self.instret;
+                }
+                None => {
+                    if arm {
+                        p.rejected = (branch, target);
+                    }
+                    p.active = false;
+                }
+            }
+        }
+        let p = &mut self.poll;
+        p.touched = false;
+        p.n_reads = 0;
+        p.unskippable = false;
+    }
+
+    /// Skip whole iterations of a verified polling loop: as many as fit
+    /// before the run's deadline and before any polled register may change.
+    fn skip_iterations(&mut self, dev: &mut dyn Mmio, iter_cycles: u64, body_len: u64) {
+        let c0 = self.cycles;
+        let start = self.poll.start_cycles;
+        let mut n = self.deadline.saturating_sub(c0) / iter_cycles;
+        n = n.min((self.instr_deadline - self.instret) / body_len);
+        let mut bounded = self.deadline != u64::MAX || self.instr_deadline != u64::MAX;
+        for r in &self.poll.reads[..self.poll.n_reads] {
+            let size = match r.size {
+                1 => AccessSize::Byte,
+                2 => AccessSize::Half,
+                _ => AccessSize::Word,
+            };
+            let t = self.mmio_time(r.issue);
+            let stable = dev.stable_until(r.addr, size, t);
+            if stable <= t {
+                return;
+            }
+            if stable == Picos::MAX {
+                continue;
+            }
+            bounded = true;
+            // Latest issue cycle whose access time is still before `stable`.
+            let Some(c_max) = div_ceil(stable.0, self.period).checked_sub(1 + self.latency) else {
+                return;
+            };
+            let first = c0 + (r.issue - start);
+            if c_max < first {
+                return;
+            }
+            n = n.min((c_max - first) / iter_cycles + 1);
+        }
+        if !bounded {
+            // A step-by-step run would spin here forever.
+            self.stop(StopReason::Idle);
+            return;
+        }
+        if n == 0 {
+            return;
+        }
+        self.cycles += n * iter_cycles;
+        self.instret += n * body_len;
+        self.stats.poll_cycles += n * iter_cycles;
+        self.stats.poll_instructions += n * body_len;
+        self.stats.skipped_instructions += n * body_len;
+    }
+}
+
+/// If `[target, branch]` is a straight-line loop body that only computes and
+/// loads (no store, jump, other branch, CSR or system instruction) and ends
+/// with the branch at `branch`, its length in instructions.
+fn straight_line_body(mem: &Memory, target: u32, branch: u32) -> Option<u64> {
+    let mut pc = target;
+    let mut n = 0;
+    loop {
+        let lo = mem.load_ram(pc, AccessSize::Half)? as u16;
+        let d = decode::decode(lo, || {
+            mem.load_ram(pc.wrapping_add(2), AccessSize::Half)
+                .map(|h| h as u16)
+        })?;
+        n += 1;
+        if pc == branch {
+            return (op::BEQ..=op::BGEU).contains(&d.op).then_some(n);
+        }
+        let pure = matches!(
+            d.op,
+            op::LUI | op::AUIPC | op::LB | op::LH | op::LW | op::LBU | op::LHU
+        ) || (op::ADDI..=op::AND).contains(&d.op)
+            || (op::MUL..=op::REMU).contains(&d.op);
+        if !pure {
+            return None;
+        }
+        pc = pc.wrapping_add(d.len());
+        if pc > branch {
+            return None;
+        }
+    }
+}
