@@ -17,7 +17,7 @@ pub use camera::Camera;
 pub use motors::Motors;
 pub use power_state::DevicePower;
 pub use stm32::Stm32;
-pub use world_link::{LinkError, WorldLink};
+pub use world_link::{LinkError, LinkStats, SocketWorld, WorldLink};
 
 use thiserror::Error;
 

@@ -44,3 +44,132 @@ pub trait WorldLink {
     fn send(&mut self, request: &Request, now: Picos) -> Result<(), LinkError>;
     fn stats(&self) -> LinkStats;
 }
+
+/// The world server at the other end of a socket, with an optional trace
+/// of every frame (`--trace`, DESIGN.md §2).
+pub struct SocketWorld {
+    conn: protocol::blocking::Connection,
+    counters: std::sync::Arc<Counters>,
+    trace: Option<std::sync::Arc<std::sync::Mutex<protocol::trace::TraceWriter>>>,
+}
+
+/// Shared between the link and its frame observer (which must be `Send`).
+#[derive(Default)]
+struct Counters {
+    messages: std::sync::atomic::AtomicU64,
+    to_world: std::sync::atomic::AtomicU64,
+    to_platform: std::sync::atomic::AtomicU64,
+    /// The platform's time of the frame being sent or received (ps).
+    now_ps: std::sync::atomic::AtomicU64,
+}
+
+impl SocketWorld {
+    /// Connects to `endpoint`, retrying for `patience` (the world may start
+    /// second), and traces to `trace` if given.
+    pub fn connect(
+        endpoint: &protocol::Endpoint,
+        patience: std::time::Duration,
+        trace: Option<(&std::path::Path, bool)>,
+    ) -> Result<SocketWorld, LinkError> {
+        use std::sync::atomic::Ordering::Relaxed;
+        use std::sync::{Arc, Mutex};
+        let mut conn = protocol::blocking::Client::connect_retry(
+            endpoint,
+            protocol::blocking::Options::default(),
+            patience,
+        )?;
+        let counters = Arc::new(Counters::default());
+        let trace = match trace {
+            Some((path, keep_images)) => Some(Arc::new(Mutex::new(
+                protocol::trace::TraceWriter::create(
+                    path,
+                    protocol::trace::TraceClock::PlatformPs,
+                    keep_images,
+                )
+                .map_err(protocol::ProtocolError::Io)?,
+            ))),
+            None => None,
+        };
+        let c = Arc::clone(&counters);
+        let t = trace.clone();
+        conn.set_observer(Box::new(move |ev| {
+            c.messages.fetch_add(1, Relaxed);
+            let bytes = ev.bytes.len() as u64 + 4;
+            match ev.dir {
+                protocol::Direction::ToWorld => c.to_world.fetch_add(bytes, Relaxed),
+                protocol::Direction::ToPlatform => c.to_platform.fetch_add(bytes, Relaxed),
+            };
+            if let Some(t) = &t {
+                let now = c.now_ps.load(Relaxed);
+                t.lock().expect("trace lock").record(ev, now)?;
+            }
+            Ok(())
+        }));
+        Ok(SocketWorld {
+            conn,
+            counters,
+            trace,
+        })
+    }
+
+    /// Flushes the trace (also done when the link is dropped).
+    pub fn flush_trace(&self) -> std::io::Result<()> {
+        match &self.trace {
+            Some(t) => t.lock().expect("trace lock").flush(),
+            None => Ok(()),
+        }
+    }
+
+    fn map(request: &Request, e: protocol::ProtocolError) -> LinkError {
+        match e {
+            protocol::ProtocolError::Remote(message) => LinkError::Remote {
+                request: request.command(),
+                message,
+            },
+            protocol::ProtocolError::Closed(_) => LinkError::Closed {
+                request: request.command(),
+            },
+            other => LinkError::Protocol(other),
+        }
+    }
+}
+
+impl Drop for SocketWorld {
+    fn drop(&mut self) {
+        if let Err(e) = self.flush_trace() {
+            tracing::error!("cannot flush the trace: {e}");
+        }
+    }
+}
+
+impl WorldLink for SocketWorld {
+    fn call(&mut self, request: &Request, now: Picos) -> Result<Reply, LinkError> {
+        self.counters
+            .now_ps
+            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+        match self.conn.request(request) {
+            Ok(Some(reply)) => Ok(reply),
+            Ok(None) => Err(LinkError::Unexpected {
+                request: request.command(),
+                reply: "no reply",
+            }),
+            Err(e) => Err(Self::map(request, e)),
+        }
+    }
+
+    fn send(&mut self, request: &Request, now: Picos) -> Result<(), LinkError> {
+        self.counters
+            .now_ps
+            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+        self.conn.send(request).map_err(|e| Self::map(request, e))
+    }
+
+    fn stats(&self) -> LinkStats {
+        use std::sync::atomic::Ordering::Relaxed;
+        LinkStats {
+            messages: self.counters.messages.load(Relaxed),
+            bytes_to_world: self.counters.to_world.load(Relaxed),
+            bytes_to_platform: self.counters.to_platform.load(Relaxed),
+        }
+    }
+}

@@ -99,6 +99,9 @@ pub struct Stm32Stats {
     pub stop: Option<(f64, u64)>,
     /// Times of PRINT_SIMUL_TIME (platform time), for the summary.
     pub printed_at: Option<Picos>,
+    /// Contacts begun in the world, from GET_STATE just before STOP (None
+    /// if the world does not implement that extension).
+    pub collisions: Option<u64>,
 }
 
 /// What the STM32 does on its own between core accesses.
@@ -511,6 +514,13 @@ impl Stm32 {
 
     /// End of the landing: STOP, the motors' stop time, then GO_DOWN done.
     fn stop_world(&mut self, at: Picos, ctx: &mut DeviceCtx<'_>) -> Result<(), DeviceError> {
+        // GET_STATE is our extension: a world that answers ERROR to it
+        // (e.g. one written for the thesis's protocol only) is fine.
+        match ctx.world.call(&Request::GetState, at) {
+            Ok(Reply::State(state)) => self.stats.collisions = Some(state.collisions),
+            Ok(_) | Err(LinkError::Remote { .. }) => {}
+            Err(e) => return Err(world_err(e)),
+        }
         let reply = ctx.world.call(&Request::Stop, at).map_err(world_err)?;
         let Reply::Stop {
             time_s,

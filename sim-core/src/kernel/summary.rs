@@ -1,0 +1,196 @@
+//! `summary.json` (DESIGN.md §6): the figures of one run.
+
+use std::io;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::{KernelConfig, KernelError};
+use crate::bus::Platform;
+use crate::iss::Cpu;
+use crate::peripherals::WorldLink;
+use crate::power::{PowerModelKind, PowerNetwork};
+use crate::sync::TimeReport;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BatterySummary {
+    pub model: String,
+    pub soc_end: f64,
+    pub low_battery: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EnergySummary {
+    pub empirical: f64,
+    pub dandrea: f64,
+    pub stolaroff: f64,
+    /// Energy drawn from the battery (selected motor model + VCC through the LDO).
+    pub total: f64,
+}
+
+/// The contract of DESIGN.md §6, plus a few figures that help reading it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub completed: bool,
+    pub exit_code: i32,
+    /// Why the run failed, if it did.
+    pub error: Option<String>,
+    pub targets_total: u32,
+    pub targets_reached: u32,
+    pub targets_bypassed: u32,
+    pub targets_skipped_low_battery: u32,
+    pub platform_time_s: f64,
+    /// The world's time at STOP (null when the run did not get there).
+    pub world_time_s: Option<f64>,
+    pub world_time_estimate_s: f64,
+    pub estimate_error_pct: Option<f64>,
+    pub sensors_offset_ms: f64,
+    pub sim_off_accum_ms: f64,
+    pub stop_time_ms: Option<u64>,
+    pub instructions: u64,
+    pub cycles: u64,
+    pub wall_time_s: f64,
+    pub realtime_factor: f64,
+    pub battery: BatterySummary,
+    pub energy_j: EnergySummary,
+    pub power_model: String,
+    pub sync: String,
+    pub timestep_ms: u64,
+    pub image_encoding: String,
+    pub frames: u64,
+    pub pid_iterations: u64,
+    pub messages: u64,
+    pub bytes_to_world: u64,
+    pub bytes_to_platform: u64,
+    /// Contacts begun in the world (GET_STATE before STOP; null if unknown).
+    pub collisions: Option<u64>,
+}
+
+impl Summary {
+    /// The summary of a run that could not start (bad firmware or platform).
+    pub fn failed_before_start(cfg: &KernelConfig) -> Summary {
+        Summary {
+            completed: false,
+            exit_code: 1,
+            error: None,
+            targets_total: 0,
+            targets_reached: 0,
+            targets_bypassed: 0,
+            targets_skipped_low_battery: 0,
+            platform_time_s: 0.0,
+            world_time_s: None,
+            world_time_estimate_s: 0.0,
+            estimate_error_pct: None,
+            sensors_offset_ms: 0.0,
+            sim_off_accum_ms: 0.0,
+            stop_time_ms: None,
+            instructions: 0,
+            cycles: 0,
+            wall_time_s: 0.0,
+            realtime_factor: 0.0,
+            battery: BatterySummary {
+                model: cfg
+                    .run
+                    .battery
+                    .map(|b| b.to_string())
+                    .unwrap_or_else(|| cfg.platform.battery().model.to_string()),
+                soc_end: cfg.platform.battery().soc_init / 100.0,
+                low_battery: false,
+            },
+            energy_j: EnergySummary {
+                empirical: 0.0,
+                dandrea: 0.0,
+                stolaroff: 0.0,
+                total: 0.0,
+            },
+            power_model: cfg.run.power_model.name().to_string(),
+            sync: format!("{:?}", cfg.run.sync).to_lowercase(),
+            timestep_ms: 0,
+            image_encoding: cfg.image_encoding.as_str().to_string(),
+            frames: 0,
+            pid_iterations: 0,
+            messages: 0,
+            bytes_to_world: 0,
+            bytes_to_platform: 0,
+            collisions: None,
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn build<W: WorldLink>(
+        cfg: &KernelConfig,
+        cpu: &Cpu,
+        platform: &Platform<W>,
+        power: &PowerNetwork,
+        time: TimeReport,
+        exit_code: Option<i32>,
+        error: Option<&KernelError>,
+        wall_time_s: f64,
+    ) -> Summary {
+        let mut s = Summary::failed_before_start(cfg);
+        let stats = &platform.stm32.stats;
+        let link = platform.world.stats();
+        let energy = power.energy();
+        let platform_time_s = time.platform_time.as_secs_f64();
+        let world_time_s = stats.stop.map(|(t, _)| t);
+        s.exit_code = match (error, exit_code) {
+            (None, Some(code)) => code,
+            (None, None) => 1,
+            (Some(_), Some(code)) if code != 0 => code,
+            (Some(_), _) => 1,
+        };
+        s.error = error.map(|e| e.to_string());
+        s.completed = error.is_none() && exit_code == Some(0) && stats.stop.is_some();
+        s.targets_total = stats.targets_total;
+        s.targets_reached = stats.targets_reached;
+        s.targets_bypassed = stats.targets_bypassed;
+        s.targets_skipped_low_battery = stats.targets_skipped_low_battery;
+        s.platform_time_s = platform_time_s;
+        s.world_time_s = world_time_s;
+        s.world_time_estimate_s = time.world_time_estimate_ms / 1000.0;
+        s.estimate_error_pct = world_time_s
+            .filter(|w| *w > 0.0)
+            .map(|w| (s.world_time_estimate_s - w) / w * 100.0);
+        s.sensors_offset_ms = time.sensors_offset_ms;
+        s.sim_off_accum_ms = time.sim_off_accum_ms;
+        s.stop_time_ms = stats.stop.map(|(_, ms)| ms);
+        let core = cpu.stats();
+        s.instructions = core.instructions;
+        s.cycles = core.cycles;
+        s.wall_time_s = wall_time_s;
+        s.realtime_factor = if wall_time_s > 0.0 {
+            platform_time_s / wall_time_s
+        } else {
+            0.0
+        };
+        let battery = power.battery();
+        s.battery = BatterySummary {
+            model: battery.model().to_string(),
+            soc_end: battery.soc(),
+            low_battery: power.low_battery(),
+        };
+        s.energy_j = EnergySummary {
+            empirical: energy.model(PowerModelKind::Empirical).0,
+            dandrea: energy.model(PowerModelKind::DAndrea).0,
+            stolaroff: energy.model(PowerModelKind::Stolaroff).0,
+            total: energy.battery.0,
+        };
+        s.timestep_ms = platform.time.timestep().0;
+        s.frames = platform.camera.frames;
+        s.pid_iterations = stats.pid_iterations;
+        s.messages = link.messages;
+        s.bytes_to_world = link.bytes_to_world;
+        s.bytes_to_platform = link.bytes_to_platform;
+        s.collisions = stats.collisions;
+        s
+    }
+
+    /// Writes the summary as pretty JSON (atomically: a temporary file
+    /// renamed, so a reader never sees half a summary).
+    pub fn write(&self, path: &Path) -> io::Result<()> {
+        let text = serde_json::to_string_pretty(self).map_err(io::Error::other)?;
+        let tmp = path.with_extension("json.tmp");
+        std::fs::write(&tmp, text + "\n")?;
+        std::fs::rename(&tmp, path)
+    }
+}
