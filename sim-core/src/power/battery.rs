@@ -184,12 +184,7 @@ impl FromStr for BatteryModel {
     type Err = String;
     /// Accepts our names and the thesis's (part numbers, capacities).
     fn from_str(s: &str) -> Result<Self, String> {
-        let key: String = s
-            .chars()
-            .filter(|c| c.is_ascii_alphanumeric())
-            .collect::<String>()
-            .to_ascii_lowercase();
-        match key.as_str() {
+        match super::name_key(s).as_str() {
             "lipol250" | "lphd6520030" | "lipol" | "lipolbattery" | "default" | "crazyflie" => {
                 Ok(BatteryModel::LiPol250)
             }

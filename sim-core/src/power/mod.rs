@@ -40,6 +40,15 @@ pub use log::PowerLogger;
 use models::{ModelOutput, MotorModels};
 pub use models::{MotorState, PowerModelKind};
 
+/// A name reduced to lower-case letters and digits, so that `D'Andrea`,
+/// `dandrea` and `LPHD-6520030` compare as their configuration names do.
+fn name_key(s: &str) -> String {
+    s.chars()
+        .filter(char::is_ascii_alphanumeric)
+        .collect::<String>()
+        .to_ascii_lowercase()
+}
+
 /// Resistance in ohms.
 #[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]
 pub struct Ohms(pub f64);

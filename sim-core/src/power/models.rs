@@ -91,12 +91,7 @@ impl FromStr for PowerModelKind {
     type Err = String;
     /// Accepts our names, the thesis's spellings and its model numbers 1–3.
     fn from_str(s: &str) -> Result<Self, String> {
-        let key: String = s
-            .chars()
-            .filter(|c| c.is_ascii_alphanumeric())
-            .collect::<String>()
-            .to_ascii_lowercase();
-        match key.as_str() {
+        match super::name_key(s).as_str() {
             "empirical" | "1" | "model1" | "empiricalmodel" => Ok(PowerModelKind::Empirical),
             "dandrea" | "2" | "model2" | "dandreamodel" => Ok(PowerModelKind::DAndrea),
             "stolaroff" | "3" | "model3" | "stolaroffmodel" => Ok(PowerModelKind::Stolaroff),
@@ -235,11 +230,7 @@ impl DAndreaModel {
         if state.motors_off() {
             return ModelOutput::default();
         }
-        let power = self.power_at(state.horizontal_speed);
-        ModelOutput {
-            current: current_from_power(power, v_bus),
-            power,
-        }
+        ModelOutput::from_power(self.power_at(state.horizontal_speed), v_bus)
     }
 }
 
@@ -309,20 +300,20 @@ impl StolaroffModel {
         if state.motors_off() {
             return ModelOutput::default();
         }
-        let power = self.power_at(state.pitch);
-        ModelOutput {
-            current: current_from_power(power, v_bus),
-            power,
-        }
+        ModelOutput::from_power(self.power_at(state.pitch), v_bus)
     }
 }
 
-/// `P / V`, or zero on a dead bus.
-fn current_from_power(p: Watts, v: Volts) -> Amps {
-    if v.0 > 0.0 {
-        Amps(p.0 / v.0)
-    } else {
-        Amps(0.0)
+impl ModelOutput {
+    /// A power drawn from a bus at `v_bus`: current `P / V`, or zero on a
+    /// dead bus.
+    pub fn from_power(power: Watts, v_bus: Volts) -> ModelOutput {
+        let current = if v_bus.0 > 0.0 {
+            Amps(power.0 / v_bus.0)
+        } else {
+            Amps(0.0)
+        };
+        ModelOutput { current, power }
     }
 }
 
