@@ -2,7 +2,8 @@
  * The thesis's GVSoC program (§4.3, Algorithm 4, Appendix D): the drone
  * takes off, flies through the 10 gates NUM_OF_CIRCUIT_LOOPS times (or, built
  * with -DCORNERS_TEST=N, to the corners of the map; with -DHOVER_TEST, holds
- * the start point until the battery is low), lands and prints the
+ * the start point until the battery is low; with -DSHORT_TEST, one nearby
+ * target), lands and prints the
  * simulated time. Every operation uses the register protocol of Listing 4.6:
  * write the opcode to the control register, poll the status register until
  * it shows the same code, then clear both.
@@ -136,6 +137,9 @@ int main(void)
     }
     stm32_control = 0;
     stm32_status = 0;
+#elif defined(SHORT_TEST)
+    /* A short flight for tests: one target a metre away, then land. */
+    set_target(-2.6, 1.0, 1.0);
 #elif defined(CORNERS_TEST)
 #if CORNERS_TEST > 0
     printf("[GVoC] Reaching the first target corner\n");
