@@ -341,6 +341,7 @@ impl Client {
     }
 }
 
+#[derive(Debug)]
 enum ListenerKind {
     Unix {
         l: UnixListener,
@@ -351,6 +352,7 @@ enum ListenerKind {
 }
 
 /// Server side (the world): binds, then accepts one client at a time.
+#[derive(Debug)]
 pub struct Server {
     kind: ListenerKind,
     opts: Options,

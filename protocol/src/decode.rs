@@ -166,15 +166,17 @@ fn parse_camera(body: &[u8], mut pos: usize) -> std::result::Result<(Image, usiz
                     match k {
                         "width" => width = Some(dimension("width", &v)?),
                         "height" => height = Some(dimension("height", &v)?),
-                        "encoding" => encoding = Some(
-                            v.as_str()
-                                .and_then(|s| s.parse::<ImageEncoding>().ok())
-                                .ok_or_else(|| {
-                                    format!(
+                        "encoding" => {
+                            encoding = Some(
+                                v.as_str()
+                                    .and_then(|s| s.parse::<ImageEncoding>().ok())
+                                    .ok_or_else(|| {
+                                        format!(
                                         "camera.encoding must be \"array\" or \"base64\", got {v}"
                                     )
-                                })?,
-                        ),
+                                    })?,
+                            )
+                        }
                         _ => {} // unknown keys are ignored
                     }
                 }

@@ -305,6 +305,7 @@ pub type ServerFramed = Framed<AsyncStream, ServerCodec>;
 /// The platform's end of a connection.
 pub type ClientFramed = Framed<AsyncStream, ClientCodec>;
 
+#[derive(Debug)]
 enum Kind {
     Unix {
         l: UnixListener,
@@ -315,6 +316,7 @@ enum Kind {
 }
 
 /// Listens on an endpoint; accept one client at a time.
+#[derive(Debug)]
 pub struct Listener {
     kind: Kind,
     max_frame: usize,

@@ -134,7 +134,7 @@ fn replies_match_write_on_channel() {
             altitude: 0.25,
             roll: -0.001,
             pitch: 2.5e-7,
-            yaw: 1.5707963267948966,
+            yaw: std::f64::consts::FRAC_PI_2,
             roll_rate: 0.0,
             pitch_rate: -0.0,
             yaw_rate: 12.5,
