@@ -1,4 +1,125 @@
-fn main() {
-    eprintln!("world-server: not built yet");
-    std::process::exit(2);
+//! `world-server`: the physics world that replaces Webots (DESIGN.md §2, §5).
+//!
+//! `world-server --socket PATH [--world FILE] [--timestep MS] [--substeps N]
+//! [--trace FILE] [--trace-images] [--frames-dir DIR] [--tcp HOST:PORT]
+//! [--trajectory FILE]`
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{bail, Context};
+use clap::Parser;
+use protocol::Endpoint;
+use world_server::server::{serve, ServerConfig};
+use world_server::{Millis, StepConfig, WorldDesc};
+
+/// The physics world of crazyflie-cosim: the Webots Crazyflie in rapier3d,
+/// its sensors, its camera and the gate course, served over a socket.
+#[derive(Parser, Debug)]
+#[command(name = "world-server", version)]
+struct Cli {
+    /// UNIX socket to listen on (the thesis's transport).
+    #[arg(long, value_name = "PATH", required_unless_present = "tcp")]
+    socket: Option<PathBuf>,
+    /// Listen on TCP instead (HOST:PORT).
+    #[arg(long, value_name = "HOST:PORT", conflicts_with = "socket")]
+    tcp: Option<String>,
+    /// World file (TOML). Default: the thesis's 10-gate course.
+    #[arg(long, value_name = "FILE")]
+    world: Option<PathBuf>,
+    /// basicTimeStep in ms (Webots's default is 32).
+    #[arg(long, value_name = "MS", default_value_t = 32)]
+    timestep: u64,
+    /// Physics steps per basicTimeStep.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    substeps: u32,
+    /// Write every frame to this JSON-lines trace (clock: world ms).
+    #[arg(long, value_name = "FILE")]
+    trace: Option<PathBuf>,
+    /// Keep image data in the trace instead of its SHA-256.
+    #[arg(long, requires = "trace")]
+    trace_images: bool,
+    /// Write every camera frame served as a PNG into this directory.
+    #[arg(long, value_name = "DIR")]
+    frames_dir: Option<PathBuf>,
+    /// Write one CSV row per world step (time, pose, velocities, motors, collisions).
+    #[arg(long, value_name = "FILE")]
+    trajectory: Option<PathBuf>,
+}
+
+/// The course shipped in `scenarios/worlds/`, found from the executable
+/// (target/<profile>/world-server → repository root) or the working directory.
+fn default_world() -> anyhow::Result<PathBuf> {
+    const REL: &str = "scenarios/worlds/thesis-course.toml";
+    let mut candidates = vec![PathBuf::from(REL)];
+    if let Ok(exe) = std::env::current_exe() {
+        candidates.extend(exe.ancestors().skip(1).map(|d| d.join(REL)));
+    }
+    candidates.push(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("..")
+            .join(REL),
+    );
+    match candidates.into_iter().find(|p| p.is_file()) {
+        Some(p) => Ok(p),
+        None => bail!("no --world given and the default world {REL} was not found"),
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    if cli.timestep == 0 {
+        bail!("--timestep must be at least 1 ms");
+    }
+    if cli.substeps == 0 {
+        bail!("--substeps must be at least 1");
+    }
+    let endpoint = match (&cli.socket, &cli.tcp) {
+        (_, Some(addr)) => format!("tcp:{addr}").parse::<Endpoint>()?,
+        (Some(path), None) => Endpoint::Unix(path.clone()),
+        (None, None) => bail!("one of --socket or --tcp is required"),
+    };
+    let world_path = match cli.world {
+        Some(p) => p,
+        None => default_world()?,
+    };
+    let world = WorldDesc::load(&world_path)?;
+    tracing::info!(world = %world_path.display(), gates = world.gates.len(), boxes = world.boxes.len(), "world loaded");
+    let cfg = ServerConfig {
+        endpoint,
+        world,
+        step: StepConfig {
+            timestep: Millis(cli.timestep),
+            substeps: cli.substeps,
+        },
+        trace: cli.trace,
+        trace_images: cli.trace_images,
+        frames_dir: cli.frames_dir,
+        trajectory: cli.trajectory,
+    };
+    // One thread: the world is lockstep with one client, and a single thread
+    // keeps it deterministic and off the other cores.
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the tokio runtime")?;
+    rt.block_on(serve(cfg))?;
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("world-server: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
 }

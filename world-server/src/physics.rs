@@ -174,22 +174,30 @@ impl World {
     /// multiple of every timestep (32 ms: 62.5 steps), so the warm-up ends
     /// with one shorter step of the remainder. It is the only step that is not
     /// a whole basicTimeStep, and it happens before any request is served.
-    pub fn warm_up(&mut self) {
+    pub fn warm_up(&mut self, mut on_step: impl FnMut(&World)) {
         use crazyflie::{SPIN_SIGNS, WARMUP_MS, WARMUP_SPEED};
         self.motors
             .set_signed_targets(SPIN_SIGNS.map(|s| s * WARMUP_SPEED));
         let ts = self.cfg.timestep.0;
         for _ in 0..WARMUP_MS / ts {
             self.step();
+            on_step(self);
         }
         let rest = WARMUP_MS % ts;
         if rest > 0 {
             self.step_ms(Millis(rest));
+            on_step(self);
         }
     }
 
-    /// Advances `ms` milliseconds holding the motor targets (ADVANCE_TIME).
-    pub fn advance(&mut self, ms: u64) -> Result<(), WorldError> {
+    /// Advances `ms` milliseconds holding the motor targets (ADVANCE_TIME);
+    /// `on_step` sees every step. Nothing happens if `ms` is not a multiple
+    /// of the timestep.
+    pub fn advance_observed(
+        &mut self,
+        ms: u64,
+        mut on_step: impl FnMut(&World),
+    ) -> Result<(), WorldError> {
         let ts = self.cfg.timestep.0;
         if !ms.is_multiple_of(ts) {
             return Err(WorldError::NotMultiple {
@@ -199,8 +207,14 @@ impl World {
         }
         for _ in 0..ms / ts {
             self.step();
+            on_step(self);
         }
         Ok(())
+    }
+
+    /// [`World::advance_observed`] without an observer.
+    pub fn advance(&mut self, ms: u64) -> Result<(), WorldError> {
+        self.advance_observed(ms, |_| {})
     }
 
     /// Sets every target to 0 and steps until all propellers have stopped

@@ -137,7 +137,7 @@ fn left_motors_faster_roll_the_drone_right_side_down() {
 #[test]
 fn warm_up_rests_on_the_ground_for_two_seconds() {
     let mut w = world(EMPTY, 32, 1);
-    w.warm_up();
+    w.warm_up(|_| {});
     assert_eq!(w.time(), Millis(2000));
     let s = w.state();
     assert!((s.position[2] - 0.015).abs() < 0.003, "{s:?}");
