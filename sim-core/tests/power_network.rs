@@ -244,3 +244,51 @@ fn same_inputs_same_bits() {
     };
     assert_eq!(run(), run());
 }
+
+#[test]
+fn low_battery_is_raised_once_at_ten_percent() {
+    // Start at 10.05 %: 0.05 % of 250 mAh = 0.45 A·s, ≈ 0.16 s at hover.
+    let platform = platform_with(|v| {
+        v["peripherals"]["harvesters"]["battery"]["soc_init"] = serde_json::json!(10.05);
+    });
+    let mut net = PowerNetwork::new(&platform, &RunConfig::default()).unwrap();
+    let mut crossings = Vec::new();
+    for k in 1..=400u64 {
+        let s = net
+            .sample(Picos::from_ms(k), &flight_loads(), &hover_state())
+            .unwrap();
+        if s.low_battery_crossed {
+            crossings.push((k, s.soc));
+        }
+        assert_eq!(s.low_battery, s.soc < 0.10);
+    }
+    assert_eq!(crossings.len(), 1, "{crossings:?}");
+    let (k, soc) = crossings[0];
+    assert!(soc < 0.10);
+    // 0.45 A·s / I, to the millisecond.
+    let i = net.last_sample().unwrap().i_battery.0;
+    assert!((k as f64 / 1000.0 - 0.45 / i).abs() <= 0.001, "k = {k}");
+    assert!(net.low_battery());
+}
+
+#[test]
+fn share_of_the_battery_used_in_160_s_at_hover_is_recorded() {
+    // Thesis §5.1: "about 50 % of the battery charge was consumed in about
+    // 160 s" with the empirical model. Recorded, not tuned: we check our
+    // network against its own closed form and print the comparison.
+    let mut net =
+        PowerNetwork::new(&PlatformConfig::default_crazyflie(), &RunConfig::default()).unwrap();
+    let s = net
+        .advance_to(Picos::from_ms(160_000), &flight_loads(), &hover_state())
+        .unwrap()
+        .unwrap();
+    let used = 1.0 - s.soc;
+    // MESSY's trapezoid starts from i_prev = 0, so the first millisecond
+    // counts half: charge = I·(160 − 0.0005) A·s.
+    let closed_form = s.i_battery.0 * (160.0 - 0.0005) / 900.0;
+    assert!((used - closed_form).abs() < 1e-9);
+    println!(
+        "LiPol 250 mAh used in 160 s at the world's hover: {:.1} % (thesis, moving: ~50 %)",
+        used * 100.0
+    );
+}
