@@ -1,1 +1,72 @@
-//! End-to-end tests live in `tests/tests/`.
+//! Helpers for the end-to-end tests in `tests/tests/`: they start the real
+//! binaries (`sim-core`, `world-server`, `cosim`) over real sockets.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Mutex;
+
+/// The repository's root (the workspace).
+pub fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ has a parent")
+        .to_path_buf()
+}
+
+/// The directory cargo puts binaries in for the profile this test was
+/// built with (`target/debug` or `target/release`, or under
+/// `CARGO_TARGET_DIR`).
+fn bin_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    // target/<profile>/deps/<test>-<hash>
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("test executable lives in target/<profile>/deps")
+        .to_path_buf()
+}
+
+static BUILD: Mutex<()> = Mutex::new(());
+
+/// The path of a workspace binary, built first if needed: a test of
+/// `e2e-tests` alone does not make cargo build the other packages' binaries,
+/// so we ask cargo (a no-op when they are up to date).
+pub fn binary(package: &str, name: &str) -> PathBuf {
+    let dir = bin_dir();
+    let path = dir.join(name);
+    let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let release = dir.file_name().is_some_and(|n| n == "release");
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(repo_root())
+        .args(["build", "--quiet", "-p", package, "--bin", name]);
+    if release {
+        cmd.arg("--release");
+    }
+    // Build into the same target directory as this test.
+    if let Some(target) = dir.parent() {
+        cmd.env("CARGO_TARGET_DIR", target);
+    }
+    let status = cmd.status().expect("run cargo build");
+    assert!(
+        status.success(),
+        "cargo build -p {package} --bin {name} failed"
+    );
+    assert!(path.exists(), "{} was not built", path.display());
+    path
+}
+
+/// A committed firmware ELF (`sim-core/firmware/bin/NAME.elf`).
+pub fn firmware(name: &str) -> PathBuf {
+    let p = repo_root()
+        .join("sim-core/firmware/bin")
+        .join(format!("{name}.elf"));
+    assert!(p.exists(), "{} is missing", p.display());
+    p
+}
+
+/// A world file in `scenarios/worlds/`.
+pub fn world_file(name: &str) -> PathBuf {
+    repo_root()
+        .join("scenarios/worlds")
+        .join(format!("{name}.toml"))
+}
