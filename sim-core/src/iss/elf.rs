@@ -3,7 +3,9 @@
 
 use std::collections::BTreeMap;
 
-use object::{Architecture, Object, ObjectSegment, ObjectSymbol};
+use object::elf;
+use object::read::elf::{ElfFile32, ProgramHeader};
+use object::{Architecture, Endianness, Object, ObjectSymbol};
 use thiserror::Error;
 
 use super::mem::{MemError, Memory};
@@ -15,6 +17,8 @@ pub enum ElfError {
     Parse(#[from] object::Error),
     #[error("not a 32-bit RISC-V ELF (architecture {0:?})")]
     WrongArchitecture(Architecture),
+    #[error("segment at {addr:#x} lies beyond the end of the file (truncated ELF?)")]
+    Truncated { addr: u64 },
     #[error("segment at {addr:#x} ({len} bytes) does not fit in 32-bit addresses")]
     SegmentOutOfRange { addr: u64, len: u64 },
     #[error("segment at {addr:#010x} ({len} bytes) is outside every RAM region")]
@@ -45,16 +49,27 @@ pub fn load_elf(bytes: &[u8]) -> Result<LoadedElf, ElfError> {
     if file.architecture() != Architecture::Riscv32 || !file.is_little_endian() {
         return Err(ElfError::WrongArchitecture(file.architecture()));
     }
+    // Segments are placed at their physical (load) address, as QEMU and
+    // debug probes do for bare-metal images: a `.data` linked to run in RAM
+    // but stored after the code is loaded where the start file copies it
+    // from.
+    let elf = ElfFile32::<Endianness>::parse(bytes)?;
+    let endian = elf.endian();
     let mut segments = Vec::new();
-    for seg in file.segments() {
-        let addr = seg.address();
-        let mem_size = seg.size();
+    for ph in elf.elf_program_headers() {
+        if ph.p_type(endian) != elf::PT_LOAD {
+            continue;
+        }
+        let addr = ph.p_paddr(endian) as u64;
+        let mem_size = ph.p_memsz(endian) as u64;
         if mem_size == 0 {
             continue;
         }
-        let data = seg.data()?.to_vec();
-        let fits = addr.checked_add(mem_size).is_some_and(|end| end <= 1 << 32)
-            && (data.len() as u64) <= mem_size;
+        let data = ph
+            .data(endian, bytes)
+            .map_err(|()| ElfError::Truncated { addr })?
+            .to_vec();
+        let fits = addr + mem_size <= 1 << 32 && (data.len() as u64) <= mem_size;
         if !fits {
             return Err(ElfError::SegmentOutOfRange {
                 addr,
