@@ -3,6 +3,8 @@
  * plus a default trap handler so that a stray trap ends the program with a
  * clear exit status (128 + mcause) instead of looping.
  */
+    /* A fixed file name: the default is a temporary file (not reproducible). */
+    .file "start.S"
     .section .text.init.enter, "ax"
     .globl _start
     .type _start, @function
