@@ -443,4 +443,75 @@ mod tests {
         assert_eq!(decode32(0x4000_d093).op, op::SRAI);
         assert_eq!(decode32(0x0200_0033).op, op::MUL);
     }
+
+    /// (compressed, expanded) pairs assembled by GNU as (rv32imc, no
+    /// relaxation): each 16-bit form next to its 32-bit equivalent.
+    const RVC_PAIRS: &[(u16, u32)] = &[
+        (0x0020, 0x00810413), // c.addi4spn s0, sp, 8
+        (0x1ffc, 0x3fc10793), // c.addi4spn a5, sp, 1020
+        (0x4188, 0x0005a503), // c.lw a0, 0(a1)
+        (0x5fe4, 0x07c7a483), // c.lw s1, 124(a5)
+        (0xc030, 0x04c42023), // c.sw a2, 64(s0)
+        (0xc35c, 0x00f72223), // c.sw a5, 4(a4)
+        (0x1501, 0xfe050513), // c.addi a0, -32
+        (0x0ffd, 0x01ff8f93), // c.addi t6, 31
+        (0x0001, 0x00000013), // c.nop
+        (0x2ffd, 0x7fe000ef), // c.jal .+2046
+        (0x3001, 0x801ff0ef), // c.jal .-2048
+        (0x557d, 0xfff00513), // c.li a0, -1
+        (0x42c5, 0x01100293), // c.li t0, 17
+        (0x7101, 0xe0010113), // c.addi16sp sp, -512
+        (0x617d, 0x1f010113), // c.addi16sp sp, 496
+        (0x7501, 0xfffe0537), // c.lui a0, 0xfffe0
+        (0x6dfd, 0x0001fdb7), // c.lui s11, 0x1f
+        (0x817d, 0x01f55513), // c.srli a0, 31
+        (0x8485, 0x4014d493), // c.srai s1, 1
+        (0x9a81, 0xfe06f693), // c.andi a3, -32
+        (0x8a9d, 0x0076f693), // c.andi a3, 7
+        (0x8c1d, 0x40f40433), // c.sub s0, a5
+        (0x8db1, 0x00c5c5b3), // c.xor a1, a2
+        (0x8f45, 0x00976733), // c.or a4, s1
+        (0x8fe9, 0x00a7f7b3), // c.and a5, a0
+        (0xbffd, 0xfffff06f), // c.j .-2
+        (0xa6e5, 0x3e80006f), // c.j .+1000
+        (0xd101, 0xf00500e3), // c.beqz a0, .-256
+        (0xccfd, 0x0e048f63), // c.beqz s1, .+254
+        (0xeb81, 0x00079863), // c.bnez a5, .+16
+        (0x02fe, 0x01f29293), // c.slli t0, 31
+        (0x50fe, 0x0fc12083), // c.lwsp ra, 252(sp)
+        (0x4502, 0x00012503), // c.lwsp a0, 0(sp)
+        (0x8082, 0x00008067), // c.jr ra
+        (0x8e02, 0x000e0067), // c.jr t3
+        (0x854a, 0x01200533), // c.mv a0, s2
+        (0x9002, 0x00100073), // c.ebreak
+        (0x9782, 0x000780e7), // c.jalr a5
+        (0x9346, 0x01130333), // c.add t1, a7
+        (0xdfa2, 0x0e812e23), // c.swsp s0, 252(sp)
+        (0xc402, 0x00012423), // c.swsp zero, 8(sp)
+    ];
+
+    #[test]
+    fn compressed_expand_to_the_assemblers_32_bit_form() {
+        for &(c, full) in RVC_PAIRS {
+            assert_eq!(expand_compressed(c), Some(full), "{c:#06x}");
+            let d = decode(c, || None).unwrap();
+            let mut want = decode32(full);
+            want.compressed = true;
+            assert_eq!(d, want, "{c:#06x}");
+            assert_eq!(d.len(), 2);
+        }
+    }
+
+    #[test]
+    fn reserved_compressed_encodings_are_illegal() {
+        // All-zero halfword, c.addi16sp 0, c.lui x1 0, c.lwsp x0, c.jr x0,
+        // RV32 c.srli with shamt[5], and the F/D loads and stores.
+        for c in [
+            0x0000u16, 0x6101, 0x6081, 0x4002, 0x8002, 0x9001, 0x2000, 0x6000, 0xe000, 0x2002,
+        ] {
+            assert_eq!(expand_compressed(c), None, "{c:#06x}");
+            let d = decode(c, || None).unwrap();
+            assert_eq!((d.op, d.imm as u32, d.len()), (op::ILLEGAL, c as u32, 2));
+        }
+    }
 }

@@ -1,0 +1,62 @@
+//! Helpers shared by the ISS integration tests.
+#![allow(dead_code)]
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use sim_core::iss::run_elf::{build_memory, RamSpec};
+use sim_core::iss::{load_elf, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason};
+use sim_core::units::Picos;
+
+/// A console sink the test can read back.
+#[derive(Clone, Default)]
+pub struct Console(pub Arc<Mutex<Vec<u8>>>);
+
+impl Write for Console {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Console {
+    pub fn text(&self) -> String {
+        String::from_utf8_lossy(&self.0.lock().unwrap()).into_owned()
+    }
+}
+
+pub fn firmware(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("firmware/bin")
+        .join(format!("{name}.elf"))
+}
+
+/// A core and memory with the ELF loaded as `run-elf` would.
+pub fn load(name: &str, cfg: CpuConfig, ram: &[RamSpec]) -> (Cpu, Memory, LoadedElf, Console) {
+    let bytes =
+        std::fs::read(firmware(name)).expect("firmware ELF (run make -C sim-core/firmware)");
+    let elf = load_elf(&bytes).unwrap();
+    let mut mem = build_memory(ram, elf.lowest_address()).unwrap();
+    elf.load_into(&mut mem).unwrap();
+    let mut cpu = Cpu::new(cfg);
+    cpu.set_pc(elf.entry);
+    cpu.set_tohost(elf.symbol("tohost"));
+    let console = Console::default();
+    cpu.set_console(Box::new(console.clone()));
+    (cpu, mem, elf, console)
+}
+
+/// Run a firmware to its end; returns the exit code and the console text.
+pub fn run_firmware(name: &str) -> (i32, String, Cpu) {
+    let (mut cpu, mut mem, _, console) = load(name, CpuConfig::default(), &[]);
+    cpu.set_instruction_limit(Some(200_000_000));
+    let code = match cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX) {
+        StopReason::Exit { code } => code,
+        other => panic!("{name}: unexpected stop {other:?} at pc {:#x}", cpu.pc()),
+    };
+    (code, console.text(), cpu)
+}
