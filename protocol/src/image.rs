@@ -151,63 +151,137 @@ pub(crate) type PixelError = String;
 
 /// Parses a JSON array of integers 0–255 starting at `s[pos] == b'['`.
 /// Returns the pixels and the position after `]`.
-pub(crate) fn parse_pixel_array(s: &[u8], mut pos: usize) -> Result<(Vec<u8>, usize), PixelError> {
+pub(crate) fn parse_pixel_array(s: &[u8], pos: usize) -> Result<(Vec<u8>, usize), PixelError> {
     debug_assert_eq!(s[pos], b'[');
-    pos += 1;
-    // Each pixel takes at least 2 bytes ("0,"), so this never reallocates and
-    // never over-reserves more than 2×.
-    let mut out = Vec::with_capacity((s.len() - pos) / 2 + 1);
+    match parse_compact_array(s, pos) {
+        Some(done) => Ok(done),
+        None => parse_any_array(s, pos),
+    }
+}
+
+/// The fast path, for the compact spelling (`[d,dd,ddd,...]`, digits and
+/// commas only — what nlohmann and our encoder write). `None` means "not
+/// that spelling, or invalid": the general parser then decides and names
+/// the problem.
+///
+/// Each step loads 8 bytes and takes two numbers out of them at once
+/// ("ddd,ddd," fits in 8 bytes), branch-free in the numbers' lengths: with
+/// random pixel values a per-digit branch would mispredict about every
+/// other pixel. (Measured alternatives on the dev box, 320×320 random
+/// pixels: per-digit branches 0.31 GB/s, one number per load 0.54 GB/s,
+/// two per load 0.66 GB/s; interleaving several cursors was slower.)
+#[inline(never)] // own register allocation: inlined into the caller it spills
+fn parse_compact_array(s: &[u8], open: usize) -> Option<(Vec<u8>, usize)> {
+    let start = open + 1;
+    let close = start + memchr::memchr(b']', &s[start..])?;
+    let body = &s[start..close];
+    // Only digits and commas? (Branch-free fold: vectorises.)
+    let odd = body.iter().fold(0u8, |acc, &b| {
+        acc | u8::from((b.wrapping_sub(b'0') > 9) & (b != b','))
+    });
+    // The 8-byte loads need 8 readable bytes from any number's start; the
+    // frame goes on after ']' (at least `,"height":…}}`), and an image too
+    // small for that does not need this path.
+    if odd != 0 || body.is_empty() || close + 8 > s.len() {
+        return None;
+    }
+    let mut out = Vec::with_capacity(body.len() / 2 + 1);
+    let mut bad = false;
+    let mut p = start;
+    // Two numbers per load while the window cannot reach past ']'.
+    while p + 8 <= close {
+        let (v1, v2, adv, ok) = swar_two_numbers(s, p);
+        bad |= !ok;
+        out.push(v1);
+        out.push(v2);
+        p += adv;
+    }
+    // The last few, one at a time.
+    while p <= close {
+        let (v, n, ok) = swar_number(s, p);
+        bad |= !ok;
+        out.push(v);
+        p += n + 1;
+    }
+    // The last number must end exactly at ']'.
+    if bad || p != close + 1 {
+        return None;
+    }
+    Some((out, close + 1))
+}
+
+const LANES: u64 = 0x0101_0101_0101_0101;
+
+/// The 8 bytes at `pos` as digit lanes (0–9 where the byte is an ASCII
+/// digit) and a mask with the high bit of every non-digit lane set.
+#[inline(always)]
+fn digit_lanes(s: &[u8], pos: usize) -> (u64, u64) {
+    let w = u64::from_le_bytes(s[pos..pos + 8].try_into().expect("8 bytes"));
+    let x = w ^ (0x30 * LANES);
+    // Lane ≥ 10 ⇔ high bit after adding 0x76 to its low 7 bits (no carry
+    // crosses lanes) or its own high bit set.
+    let non_digit = (((x & (0x7F * LANES)) + (0x76 * LANES)) | x) & (0x80 * LANES);
+    (x, non_digit)
+}
+
+/// The number made of the first `n` digit lanes of `x`, and whether it is a
+/// valid pixel: 1–3 digits, no leading zero, ≤ 255. Branch-free.
+#[inline(always)]
+fn lanes_value(x: u64, n: usize) -> (u8, bool) {
+    let nn = n.clamp(1, 3);
+    // Right-align the digits in 3 lanes, most significant first.
+    let a = (x << (8 * (3 - nn))) & 0xFF_FFFF;
+    let v = (a & 0xFF) * 100 + ((a >> 8) & 0xFF) * 10 + (a >> 16);
+    let ok = (n.wrapping_sub(1) < 3) & ((n == 1) | (x & 0xFF != 0)) & (v <= 255);
+    (v as u8, ok)
+}
+
+/// One number at `pos` (8 readable bytes guaranteed by the caller): value,
+/// digit count (the caller advances by count + 1, so even a bad "number"
+/// moves the cursor) and validity.
+#[inline(always)]
+fn swar_number(s: &[u8], pos: usize) -> (u8, usize, bool) {
+    let (x, non_digit) = digit_lanes(s, pos);
+    let n = (non_digit.trailing_zeros() / 8) as usize;
+    let (v, ok) = lanes_value(x, n);
+    (v, n, ok)
+}
+
+/// Two numbers at `pos`: "ddd,ddd," is at most 8 bytes, so one load holds
+/// both. Returns both values, the advance past the second comma, and
+/// validity (both numbers valid, each followed by a comma).
+#[inline(always)]
+fn swar_two_numbers(s: &[u8], pos: usize) -> (u8, u8, usize, bool) {
+    let (x, non_digit) = digit_lanes(s, pos);
+    let n1 = (non_digit.trailing_zeros() / 8) as usize;
+    let second = non_digit & non_digit.wrapping_sub(1);
+    let end2 = (second.trailing_zeros() / 8) as usize; // 8 if absent
+    let (v1, ok1) = lanes_value(x, n1);
+    let (v2, ok2) = lanes_value(
+        x.wrapping_shr(8 * (n1 as u32 + 1)),
+        end2.wrapping_sub(n1 + 1),
+    );
+    // Only digits and commas reach here, so a non-digit lane is a comma.
+    (v1, v2, end2 + 1, ok1 & ok2 & (end2 < 8))
+}
+
+/// The general parser: any valid JSON spelling of the array, precise errors.
+fn parse_any_array(s: &[u8], mut pos: usize) -> Result<(Vec<u8>, usize), PixelError> {
+    let mut out = Vec::new();
     let at = |i: usize| -> u8 { s.get(i).copied().unwrap_or(0) };
-    pos = skip_ws(s, pos);
+    pos = skip_ws(s, pos + 1);
     if at(pos) == b']' {
         return Ok((out, pos + 1));
     }
     loop {
-        // Fast path: 1–3 plain digits, no sign, fraction or exponent.
-        let c = at(pos);
-        let mut v = c.wrapping_sub(b'0') as u32;
-        let start = pos;
-        let mut plain = v < 10;
-        if plain {
-            pos += 1;
-            if v != 0 {
-                let d = at(pos).wrapping_sub(b'0') as u32;
-                if d < 10 {
-                    v = v * 10 + d;
-                    pos += 1;
-                    let d = at(pos).wrapping_sub(b'0') as u32;
-                    if d < 10 {
-                        v = v * 10 + d;
-                        pos += 1;
-                    }
-                }
-            }
-            // A digit, '.', 'e' or 'E' right after means a longer number
-            // (or an invalid one such as `01`): take the careful path.
-            plain = !matches!(at(pos), b'0'..=b'9' | b'.' | b'e' | b'E');
-        }
-        if !plain {
-            let (val, end) = parse_general_number(s, start)?;
-            v = val;
-            pos = end;
-        }
+        let (v, end) = parse_general_number(s, pos)?;
         if v > 255 {
             return Err(format!("pixel {} is {v}, above 255", out.len()));
         }
         out.push(v as u8);
-        // Separator: `,` right after the number is the common case.
-        let mut c = at(pos);
-        if c != b',' && c != b']' {
-            pos = skip_ws(s, pos);
-            c = at(pos);
-        }
-        match c {
-            b',' => {
-                pos += 1;
-                if !at(pos).is_ascii_digit() {
-                    pos = skip_ws(s, pos);
-                }
-            }
+        pos = skip_ws(s, end);
+        match at(pos) {
+            b',' => pos = skip_ws(s, pos + 1),
             b']' => return Ok((out, pos + 1)),
             _ => {
                 return Err(format!(
