@@ -62,6 +62,7 @@ fn sort_kernel(r: &mut Lcg) -> u32 {
         .fold(0u32, |s, &x| s.wrapping_mul(31).wrapping_add(x))
 }
 
+#[allow(clippy::needless_range_loop)] // mirrors the C source
 fn matmul_kernel(r: &mut Lcg) -> u32 {
     const N: usize = 24;
     let mut ma = [[0i32; N]; N];

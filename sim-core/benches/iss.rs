@@ -1,0 +1,128 @@
+//! ISS speed: MIPS with timing on for the CPU-bound benchmark firmware, and
+//! the idle-polling firmware with idle skipping on and off. Prints MIPS
+//! (interpreted instructions per wall second) next to criterion's numbers.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use sim_core::iss::run_elf::build_memory;
+use sim_core::iss::{load_elf, AccessSize, Cpu, CpuConfig, Mmio, MmioError, StopReason};
+use sim_core::units::Picos;
+
+fn elf(name: &str) -> Vec<u8> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("firmware/bin/{name}.elf"));
+    std::fs::read(p).expect("firmware ELF")
+}
+
+/// The register protocol device of the idle test: an operation completes
+/// `op` ms after its control write.
+#[derive(Default)]
+struct OpDevice {
+    ctrl: u8,
+    status: u8,
+    pending: Option<(u8, Picos)>,
+}
+
+impl OpDevice {
+    fn settle(&mut self, now: Picos) {
+        if let Some((op, at)) = self.pending {
+            if now >= at {
+                self.status = op;
+                self.pending = None;
+            }
+        }
+    }
+}
+
+impl Mmio for OpDevice {
+    fn read(&mut self, addr: u32, _s: AccessSize, now: Picos) -> Result<u32, MmioError> {
+        self.settle(now);
+        Ok(match addr {
+            0x2000_0000 => self.ctrl as u32 | (self.status as u32) << 8,
+            0x2000_0001 => self.status as u32,
+            _ => return Err(MmioError::AccessFault { addr }),
+        })
+    }
+    fn write(&mut self, addr: u32, _s: AccessSize, v: u32, now: Picos) -> Result<(), MmioError> {
+        self.settle(now);
+        match addr {
+            0x2000_0000 => {
+                self.ctrl = v as u8;
+                if v != 0 {
+                    self.pending = Some((v as u8, now + Picos::from_ms(v as u64)));
+                }
+            }
+            0x2000_0001 => self.status = v as u8,
+            _ => return Err(MmioError::AccessFault { addr }),
+        }
+        Ok(())
+    }
+    fn stable_until(&self, _a: u32, _s: AccessSize, now: Picos) -> Picos {
+        match self.pending {
+            Some((_, at)) if at > now => at,
+            Some(_) => now,
+            None => Picos::MAX,
+        }
+    }
+}
+
+/// Run once; returns (instructions retired, instructions interpreted).
+fn run(bytes: &[u8], skip: bool) -> (u64, u64) {
+    let elf = load_elf(bytes).unwrap();
+    let mut mem = build_memory(&[], elf.lowest_address()).unwrap();
+    elf.load_into(&mut mem).unwrap();
+    let mut cpu = Cpu::new(CpuConfig {
+        idle_skip: skip,
+        ..CpuConfig::default()
+    });
+    cpu.set_console(Box::new(std::io::sink()));
+    cpu.set_pc(elf.entry);
+    let mut dev = OpDevice::default();
+    match cpu.run_until(&mut mem, &mut dev, Picos::MAX) {
+        StopReason::Exit { .. } => {}
+        other => panic!("{other:?}"),
+    }
+    let s = cpu.stats();
+    (s.instructions, s.instructions - s.skipped_instructions)
+}
+
+fn report_mips(label: &str, bytes: &[u8], skip: bool) {
+    let start = Instant::now();
+    let mut interpreted = 0;
+    let mut retired = 0;
+    let mut runs = 0;
+    while start.elapsed() < Duration::from_secs(2) || runs < 3 {
+        let (r, i) = run(bytes, skip);
+        retired += r;
+        interpreted += i;
+        runs += 1;
+    }
+    let secs = start.elapsed().as_secs_f64();
+    eprintln!(
+        "{label}: {:.0} MIPS interpreted, {:.0} MIPS simulated ({} instructions per run, {runs} runs)",
+        interpreted as f64 / secs / 1e6,
+        retired as f64 / secs / 1e6,
+        retired / runs,
+    );
+}
+
+fn benches(c: &mut Criterion) {
+    let bench = elf("bench");
+    let idle = elf("idle");
+    report_mips("bench.elf (timing on)", &bench, true);
+    report_mips("idle.elf, idle skipping on", &idle, true);
+    report_mips("idle.elf, idle skipping off", &idle, false);
+
+    let mut g = c.benchmark_group("iss");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(run(&bench, true).0));
+    g.bench_function("bench_elf", |b| b.iter(|| run(&bench, true)));
+    g.throughput(Throughput::Elements(run(&idle, true).0));
+    g.bench_function("idle_elf_skip_on", |b| b.iter(|| run(&idle, true)));
+    g.bench_function("idle_elf_skip_off", |b| b.iter(|| run(&idle, false)));
+    g.finish();
+}
+
+criterion_group!(iss, benches);
+criterion_main!(iss);
