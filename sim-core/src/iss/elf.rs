@@ -13,8 +13,10 @@ use super::mem::{MemError, Memory};
 /// Why an ELF could not be loaded.
 #[derive(Debug, Error)]
 pub enum ElfError {
+    // The object error is part of the message, not a `source`, so that
+    // `{:#}` chains do not print it twice.
     #[error("not a valid ELF file: {0}")]
-    Parse(#[from] object::Error),
+    Parse(object::Error),
     #[error("not a 32-bit RISC-V ELF (architecture {0:?})")]
     WrongArchitecture(Architecture),
     #[error("segment at {addr:#x} lies beyond the end of the file (truncated ELF?)")]
@@ -23,6 +25,12 @@ pub enum ElfError {
     SegmentOutOfRange { addr: u64, len: u64 },
     #[error("segment at {addr:#010x} ({len} bytes) is outside every RAM region")]
     SegmentOutsideRam { addr: u32, len: u64 },
+}
+
+impl From<object::Error> for ElfError {
+    fn from(e: object::Error) -> Self {
+        ElfError::Parse(e)
+    }
 }
 
 /// One loadable segment: `data` (file contents) followed by zeros up to
