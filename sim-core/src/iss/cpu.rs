@@ -177,7 +177,7 @@ struct PollRead {
     issue: u64,
 }
 
-/// State of the polling-loop detector (see [`Cpu::on_back_branch`]).
+/// State of the polling-loop detector (see `Cpu::poll_slow`).
 #[derive(Debug, Clone, Default)]
 struct PollTracker {
     /// Some device register was read since the last backward branch.
@@ -485,9 +485,35 @@ impl Cpu {
     }
 
     fn run_block(&mut self, mem: &mut Memory, dev: &mut dyn Mmio) {
-        while self.cycles < self.deadline && self.instret < self.instr_deadline {
-            self.step(mem, dev);
+        // Every step costs at least one cycle and retires at most one
+        // instruction, so bounding cycles by the remaining instruction budget
+        // stops the block no later than the instruction limit, with a single
+        // comparison per instruction; the run loop checks the limit itself.
+        let budget = self.instr_deadline - self.instret;
+        self.deadline = self.deadline.min(self.cycles.saturating_add(budget));
+        let mut h = self.hot();
+        while h.cycles < self.deadline {
+            self.step(&mut h, mem, dev);
         }
+        self.set_hot(h);
+    }
+
+    #[inline(always)]
+    fn hot(&self) -> Hot {
+        Hot {
+            pc: self.pc,
+            cycles: self.cycles,
+            instret: self.instret,
+            load_rd: self.load_rd,
+        }
+    }
+
+    #[inline(always)]
+    fn set_hot(&mut self, h: Hot) {
+        self.pc = h.pc;
+        self.cycles = h.cycles;
+        self.instret = h.instret;
+        self.load_rd = h.load_rd;
     }
 
     /// Stop the inner loop after the current instruction.
@@ -501,18 +527,6 @@ impl Cpu {
             self.pending_stop = Some(r);
         }
         self.break_block();
-    }
-
-    #[inline(always)]
-    fn fetch(&mut self, mem: &mut Memory, pc: u32) -> Option<u64> {
-        let off = pc.wrapping_sub(self.code_base);
-        if off < self.code_size {
-            let w = mem.regions[self.code_idx].decoded[(off >> 1) as usize];
-            if w != 0 {
-                return Some(w);
-            }
-        }
-        self.fetch_slow(mem, pc)
     }
 
     #[cold]
@@ -575,12 +589,32 @@ impl Cpu {
         tracing::trace!(mcause, tval, epc, "trap");
     }
 
+    /// Execute one instruction. The state that changes on every
+    /// instruction lives in `h` (host registers); every slow path is called
+    /// through `slow!`, which hands it the up-to-date state and takes back
+    /// what it changed.
     #[inline(always)]
-    fn step(&mut self, mem: &mut Memory, dev: &mut dyn Mmio) {
-        let pc = self.pc;
-        let Some(w) = self.fetch(mem, pc) else {
-            return;
-        };
+    fn step(&mut self, h: &mut Hot, mem: &mut Memory, dev: &mut dyn Mmio) {
+        macro_rules! slow {
+            ($e:expr) => {{
+                self.set_hot(*h);
+                let r = $e;
+                *h = self.hot();
+                r
+            }};
+        }
+        let pc = h.pc;
+        let off = pc.wrapping_sub(self.code_base);
+        let mut w = 0;
+        if off < self.code_size {
+            w = mem.regions[self.code_idx].decoded[(off >> 1) as usize];
+        }
+        if w == 0 {
+            match slow!(self.fetch_slow(mem, pc)) {
+                Some(x) => w = x,
+                None => return,
+            }
+        }
         let opc = w as u8;
         let rd = ((w >> 8) as u8 & 31) as usize;
         let rs1 = ((w >> 16) as u8 & 31) as usize;
@@ -588,11 +622,12 @@ impl Cpu {
         let imm = (w >> 32) as u32;
         let len = 4 - (((w >> 30) as u32) & 2);
 
-        // Timing: table cost plus the load-use stall.
-        let lu = self.load_rd as usize;
-        let stall = (lu != 0 && (lu == rs1 || lu == rs2)) as u64;
-        self.cycles += BASE_CYCLES[opc as usize] as u64 + stall * timing::LOAD_USE_STALL;
-        self.load_rd = 0;
+        // Timing: table cost plus the load-use stall (branch-free: this runs
+        // for every instruction).
+        let lu = h.load_rd as usize;
+        let stall = ((lu != 0) & ((lu == rs1) | (lu == rs2))) as u64;
+        h.cycles += BASE_CYCLES[opc as usize] as u64 + stall * timing::LOAD_USE_STALL;
+        h.load_rd = 0;
 
         let a = self.regs[rs1];
         let b = self.regs[rs2];
@@ -604,25 +639,35 @@ impl Cpu {
                 write = false;
                 if $cond {
                     next = pc.wrapping_add(imm);
-                    self.cycles += timing::BRANCH_TAKEN_EXTRA;
+                    h.cycles += timing::BRANCH_TAKEN_EXTRA;
                 }
             }};
         }
         macro_rules! load {
             ($size:expr, $conv:expr) => {{
-                match self.load(mem, dev, a.wrapping_add(imm), $size, pc) {
+                let addr = a.wrapping_add(imm);
+                let v = match mem.load_ram(addr, $size) {
                     Some(v) => {
-                        val = $conv(v);
-                        self.load_rd = rd as u8;
+                        h.cycles += Self::split_cost(addr, $size);
+                        v
                     }
-                    None => return,
-                }
+                    None => match slow!(self.load_slow(mem, dev, addr, $size, pc)) {
+                        Some(v) => v,
+                        None => return,
+                    },
+                };
+                val = $conv(v);
+                h.load_rd = rd as u8;
             }};
         }
         macro_rules! store {
             ($size:expr) => {{
                 write = false;
-                if !self.store(mem, dev, a.wrapping_add(imm), $size, b, pc) {
+                let addr = a.wrapping_add(imm);
+                let watched = self.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
+                if !watched && mem.store_ram(addr, $size, b) {
+                    h.cycles += Self::split_cost(addr, $size);
+                } else if !slow!(self.store_slow(mem, dev, addr, $size, b, pc)) {
                     return;
                 }
             }};
@@ -676,7 +721,7 @@ impl Cpu {
             op::MULHSU => val = ((a as i32 as i64 * b as i64) >> 32) as u32,
             op::MULHU => val = ((a as u64 * b as u64) >> 32) as u32,
             op::DIV | op::REM => {
-                self.cycles += b.unsigned_abs_i32().leading_zeros() as u64;
+                h.cycles += b.unsigned_abs_i32().leading_zeros() as u64;
                 let (x, y) = (a as i32, b as i32);
                 val = match (opc == op::DIV, y) {
                     (true, 0) => u32::MAX,
@@ -686,7 +731,7 @@ impl Cpu {
                 };
             }
             op::DIVU | op::REMU => {
-                self.cycles += b.leading_zeros() as u64;
+                h.cycles += b.leading_zeros() as u64;
                 val = match (opc == op::DIVU, b) {
                     (true, 0) => u32::MAX,
                     (false, 0) => a,
@@ -699,7 +744,7 @@ impl Cpu {
                 // nothing left to flush; it only costs its cycles.
                 write = false;
             }
-            _ => match self.step_system(mem, dev, Decoded::unpack(w), pc, a) {
+            _ => match slow!(self.step_system(mem, dev, Decoded::unpack(w), pc, a)) {
                 Sys::Trapped => return,
                 Sys::Next(v) => {
                     write = v.is_some();
@@ -715,12 +760,26 @@ impl Cpu {
             self.regs[rd] = val;
             self.regs[0] = 0;
         }
-        self.pc = next;
-        self.instret += 1;
-        if next < pc && pc - next <= MAX_POLL_LOOP_BYTES && (op::BEQ..=op::BGEU).contains(&opc) {
-            self.on_back_branch(mem, dev, pc, next);
+        h.pc = next;
+        h.instret += 1;
+        if next < pc
+            && pc - next <= MAX_POLL_LOOP_BYTES
+            && (op::BEQ..=op::BGEU).contains(&opc)
+            && (self.poll.touched || self.poll.active)
+        {
+            slow!(self.poll_slow(mem, dev, pc, next));
         }
     }
+}
+
+/// The state that changes on every instruction, kept in host registers
+/// while a block runs (see [`Cpu::step`]).
+#[derive(Debug, Clone, Copy)]
+struct Hot {
+    pc: u32,
+    cycles: u64,
+    instret: u64,
+    load_rd: u8,
 }
 
 /// `|x|` of a register read as signed, as an unsigned magnitude.
@@ -1014,22 +1073,6 @@ impl Cpu {
         ((addr & 3) + size.bytes() > 4) as u64 * timing::SPLIT_ACCESS_EXTRA
     }
 
-    #[inline(always)]
-    fn load(
-        &mut self,
-        mem: &mut Memory,
-        dev: &mut dyn Mmio,
-        addr: u32,
-        size: AccessSize,
-        pc: u32,
-    ) -> Option<u32> {
-        if let Some(v) = mem.load_ram(addr, size) {
-            self.cycles += Self::split_cost(addr, size);
-            return Some(v);
-        }
-        self.load_slow(mem, dev, addr, size, pc)
-    }
-
     /// The cycle at which the current load/store issued: the table charges
     /// loads and stores 1 cycle, already added.
     fn issue_cycle(&self) -> u64 {
@@ -1081,29 +1124,6 @@ impl Cpu {
         }
         self.trap(mem, cause::LOAD_ACCESS, addr, pc);
         None
-    }
-
-    /// Returns false if the store trapped.
-    #[inline(always)]
-    fn store(
-        &mut self,
-        mem: &mut Memory,
-        dev: &mut dyn Mmio,
-        addr: u32,
-        size: AccessSize,
-        value: u32,
-        pc: u32,
-    ) -> bool {
-        if let Some(th) = self.tohost {
-            if addr.wrapping_sub(th) < 8 {
-                return self.store_slow(mem, dev, addr, size, value, pc);
-            }
-        }
-        if mem.store_ram(addr, size, value) {
-            self.cycles += Self::split_cost(addr, size);
-            return true;
-        }
-        self.store_slow(mem, dev, addr, size, value, pc)
     }
 
     #[cold]
@@ -1212,14 +1232,6 @@ impl Cpu {
     /// register file they started with — counts their cycles as polling and,
     /// with idle skipping on, jumps over as many whole iterations as the
     /// devices guarantee to be identical.
-    #[inline(always)]
-    fn on_back_branch(&mut self, mem: &Memory, dev: &mut dyn Mmio, branch: u32, target: u32) {
-        if !self.poll.touched && !self.poll.active {
-            return;
-        }
-        self.poll_slow(mem, dev, branch, target);
-    }
-
     #[cold]
     fn poll_slow(&mut self, mem: &Memory, dev: &mut dyn Mmio, branch: u32, target: u32) {
         let p = &self.poll;

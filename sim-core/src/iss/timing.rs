@@ -31,9 +31,10 @@ pub const SLOW_CSR_EXTRA: u64 = 3;
 /// no row for it, so we charge a jump's 2 cycles (assumption).
 pub const TRAP_ENTRY: u64 = 2;
 
-/// Base cycles of every op (index = op code).
-pub const BASE_CYCLES: [u8; op::COUNT] = {
-    let mut t = [1u8; op::COUNT];
+/// Base cycles of every op (index = op code; 256 entries so that indexing
+/// with a `u8` needs no bounds check).
+pub const BASE_CYCLES: [u8; 256] = {
+    let mut t = [1u8; 256];
     t[op::JAL as usize] = 2;
     t[op::JALR as usize] = 2;
     t[op::MULH as usize] = 5;
@@ -49,9 +50,9 @@ pub const BASE_CYCLES: [u8; op::COUNT] = {
     t[op::FENCE_I as usize] = 2;
     // mret is a jump to mepc (assumption: jump cost).
     t[op::MRET as usize] = 2;
-    // Traps charge TRAP_ENTRY themselves.
+    // Traps charge TRAP_ENTRY themselves. ebreak keeps its 1 cycle because
+    // as a semihosting call it retires (every retiring step costs >= 1).
     t[op::ECALL as usize] = 0;
-    t[op::EBREAK as usize] = 0;
     t[op::ILLEGAL as usize] = 0;
     t
 };
