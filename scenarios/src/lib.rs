@@ -1,1 +1,122 @@
-//! Scenario files and the `cosim` launcher.
+//! Scenario files and the `cosim` launcher (DESIGN.md §1, §6).
+//!
+//! - [`scenario`]: `scenarios/*.toml`, `--set` overrides, checks.
+//! - [`launch`]: the two processes on a private socket, supervised.
+//! - [`report`]: outputs read back, plots, the printed summary.
+//! - [`sweep`]: cartesian products of parameters run in parallel.
+//! - [`replay`]: a world server that answers from a recorded trace.
+//! - [`tracetool`]: `cosim trace show` and `cosim trace-check`.
+//! - [`plot`]: the PNG figures.
+
+pub mod launch;
+pub mod plot;
+pub mod replay;
+pub mod report;
+pub mod scenario;
+pub mod sweep;
+pub mod tracetool;
+
+use std::path::{Path, PathBuf};
+
+pub use launch::{launch, Binaries, LaunchError, LaunchOptions, RunStatus};
+pub use scenario::{Scenario, ScenarioError};
+use sim_core::kernel::Summary;
+
+/// Everything one `cosim run` produced.
+#[derive(Debug)]
+pub struct RunOutcome {
+    pub status: RunStatus,
+    /// `summary.json` as read back (None if sim-core never wrote it).
+    pub summary: Option<Summary>,
+    /// SOC at the start (from `power.csv`).
+    pub soc_init: f64,
+    pub plots: Vec<PathBuf>,
+    /// Why the outputs could not be read or drawn, if so.
+    pub report_error: Option<String>,
+    /// The printed summary (also in `report.txt`).
+    pub text: String,
+}
+
+impl RunOutcome {
+    /// A run succeeded when both processes ended cleanly, the firmware
+    /// completed and the report could be made.
+    pub fn ok(&self) -> bool {
+        self.status.ok()
+            && self.report_error.is_none()
+            && self.summary.as_ref().is_some_and(|s| s.completed)
+    }
+
+    /// The first thing that went wrong, in one line.
+    pub fn error(&self) -> Option<String> {
+        if let Some(e) = &self.status.error {
+            return Some(e.clone());
+        }
+        if let Some(e) = &self.report_error {
+            return Some(e.clone());
+        }
+        match &self.summary {
+            Some(s) if !s.completed => Some(s.error.clone().unwrap_or_else(|| {
+                format!("the run did not complete (exit code {})", s.exit_code)
+            })),
+            _ => None,
+        }
+    }
+}
+
+/// Runs a scenario into `out`, then reads the outputs, draws the plots and
+/// writes `report.txt`. Launch errors (a binary missing) are errors; a run
+/// that failed is an outcome with its error.
+pub fn run_scenario(
+    scenario: &Scenario,
+    bins: &Binaries,
+    out: &Path,
+    opts: &LaunchOptions,
+    draw: bool,
+) -> Result<RunOutcome, LaunchError> {
+    let status = launch(scenario, bins, out, opts)?;
+    let summary = report::read_summary(out);
+    let power: Vec<report::PowerRow> =
+        report::read_csv(&out.join(sim_core::power::log::POWER_CSV)).unwrap_or_default();
+    let soc_init = report::initial_soc(&power);
+    drop(power);
+    let mut report_error = None;
+    let mut plots = Vec::new();
+    let summary = match summary {
+        Ok(s) => Some(s),
+        Err(e) => {
+            report_error = Some(e.to_string());
+            None
+        }
+    };
+    if draw && summary.is_some() {
+        match report::draw_run_plots(scenario, out) {
+            Ok(p) => plots = p,
+            Err(e) => report_error = Some(e.to_string()),
+        }
+    }
+    let text = match &summary {
+        Some(s) => report::summary_text(scenario, s, &status, soc_init, out, &plots),
+        None => format!(
+            "== {} — FAILED: {}\n   outputs        {} (see {})\n",
+            scenario.name,
+            status
+                .error
+                .clone()
+                .or_else(|| report_error.clone())
+                .unwrap_or_default(),
+            out.display(),
+            launch::files::LOG
+        ),
+    };
+    // The report is a convenience copy of what is printed; failing to
+    // write it must not hide the run's result.
+    let _ = std::fs::write(out.join(launch::files::REPORT), &text);
+    Ok(RunOutcome {
+        status,
+        summary,
+        soc_init,
+        plots,
+        report_error,
+        text,
+    })
+}

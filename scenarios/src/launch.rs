@@ -1,0 +1,536 @@
+//! Starting and supervising one run: `world-server` first, `sim-core`
+//! second (it retries connecting), on a fresh private socket, both logs
+//! forwarded with a prefix; if one dies the other is killed.
+
+use std::ffi::OsString;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crate::scenario::Scenario;
+
+/// Output file names of a run (DESIGN.md §6 plus the launcher's own).
+pub mod files {
+    pub const SUMMARY: &str = "summary.json";
+    pub const TRAJECTORY: &str = "trajectory.csv";
+    pub const CONSOLE: &str = "console.log";
+    pub const WORLD_TRACE: &str = "world.trace";
+    pub const PLATFORM_TRACE: &str = "platform.trace";
+    pub const RUN_CONFIG: &str = "run.toml";
+    pub const SCENARIO: &str = "scenario.toml";
+    pub const LOG: &str = "cosim.log";
+    pub const REPORT: &str = "report.txt";
+    pub const FRAMES: &str = "frames";
+}
+
+/// Why a run could not be carried out.
+#[derive(Debug, thiserror::Error)]
+pub enum LaunchError {
+    #[error("{what} not found at {path} ({hint})")]
+    MissingBinary {
+        what: &'static str,
+        path: PathBuf,
+        hint: String,
+    },
+    #[error("cannot start {what} ({path}): {source}")]
+    Spawn {
+        what: &'static str,
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{0}")]
+    Io(String),
+    #[error("`cargo build` of sim-core and world-server failed ({0})")]
+    Build(String),
+}
+
+fn io_err(what: impl std::fmt::Display, e: std::io::Error) -> LaunchError {
+    LaunchError::Io(format!("{what}: {e}"))
+}
+
+/// Where the two binaries are.
+#[derive(Debug, Clone)]
+pub struct Binaries {
+    pub sim_core: PathBuf,
+    pub world_server: PathBuf,
+}
+
+impl Binaries {
+    /// `--sim-core`/`--world-server`, else `COSIM_SIM_CORE`/`COSIM_WORLD_SERVER`,
+    /// else next to this executable (cargo puts all three in one directory).
+    /// When cosim was started by `cargo run` (the `CARGO` variable is set) and
+    /// neither binary was given, the two are first brought up to date with
+    /// `cargo build` for the same profile and target directory, unless
+    /// `build` is false: `cargo run -p scenarios --bin cosim` alone does not
+    /// build the other packages' binaries.
+    pub fn locate(
+        sim_core: Option<PathBuf>,
+        world_server: Option<PathBuf>,
+        build: bool,
+    ) -> Result<Binaries, LaunchError> {
+        let env = |k: &str| std::env::var_os(k).map(PathBuf::from);
+        let sim_core = sim_core.or_else(|| env("COSIM_SIM_CORE"));
+        let world_server = world_server.or_else(|| env("COSIM_WORLD_SERVER"));
+        let exe_dir = std::env::current_exe()
+            .ok()
+            .and_then(|p| p.parent().map(Path::to_path_buf))
+            .unwrap_or_else(|| PathBuf::from("."));
+        if build && (sim_core.is_none() || world_server.is_none()) {
+            if let Some(cargo) = std::env::var_os("CARGO") {
+                cargo_build(&cargo, &exe_dir)?;
+            }
+        }
+        let exe = |name: &str| exe_dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+        let b = Binaries {
+            sim_core: sim_core.unwrap_or_else(|| exe("sim-core")),
+            world_server: world_server.unwrap_or_else(|| exe("world-server")),
+        };
+        for (what, path, flag) in [
+            ("sim-core", &b.sim_core, "--sim-core"),
+            ("world-server", &b.world_server, "--world-server"),
+        ] {
+            if !path.is_file() {
+                return Err(LaunchError::MissingBinary {
+                    what,
+                    path: path.clone(),
+                    hint: format!(
+                        "build it with `cargo build --release --workspace`, or pass {flag} PATH"
+                    ),
+                });
+            }
+        }
+        Ok(b)
+    }
+}
+
+/// `cargo build -p sim-core -p world-server` into the profile directory
+/// `exe_dir` (target/<profile>) of the running cosim.
+fn cargo_build(cargo: &OsString, exe_dir: &Path) -> Result<(), LaunchError> {
+    let mut cmd = Command::new(cargo);
+    cmd.args(["build", "--quiet", "-p", "sim-core", "-p", "world-server"]);
+    match exe_dir.file_name().and_then(|n| n.to_str()) {
+        Some("debug") => {}
+        Some("release") => {
+            cmd.arg("--release");
+        }
+        Some(other) => {
+            cmd.args(["--profile", other]);
+        }
+        None => return Ok(()),
+    }
+    if let Some(target) = exe_dir.parent() {
+        cmd.env("CARGO_TARGET_DIR", target);
+    }
+    // Build from the source tree cosim itself was built from.
+    cmd.current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."));
+    tracing::info!("bringing sim-core and world-server up to date with cargo build");
+    let status = cmd
+        .status()
+        .map_err(|e| LaunchError::Build(e.to_string()))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(LaunchError::Build(status.to_string()))
+    }
+}
+
+/// How a run is launched.
+#[derive(Debug, Clone)]
+pub struct LaunchOptions {
+    /// Echo the prefixed logs on stderr (always written to `cosim.log`).
+    pub echo: bool,
+    /// Write `world.trace` and `platform.trace`.
+    pub traces: bool,
+    /// Keep image pixels in the traces (needed by replay without frames).
+    pub trace_images: bool,
+    /// Let the world write every camera frame as a PNG into `OUT/frames`
+    /// (what replay needs for a trace without pixels).
+    pub frames: bool,
+    /// Wall-clock limit for the whole run (a safety net, not a result).
+    pub timeout: Option<Duration>,
+    /// Extra arguments for sim-core (e.g. `--no-idle-skip`).
+    pub sim_core_args: Vec<String>,
+}
+
+impl Default for LaunchOptions {
+    fn default() -> Self {
+        LaunchOptions {
+            echo: true,
+            traces: true,
+            trace_images: false,
+            frames: false,
+            timeout: None,
+            sim_core_args: Vec::new(),
+        }
+    }
+}
+
+/// How the two processes ended.
+#[derive(Debug, Clone)]
+pub struct RunStatus {
+    /// sim-core's exit code (`None`: killed by a signal).
+    pub sim_core: Option<i32>,
+    /// world-server's exit code (`None`: killed, by us or a signal).
+    pub world: Option<i32>,
+    /// What went wrong, in one line (None when both ended cleanly).
+    pub error: Option<String>,
+    /// Wall time of the whole launch.
+    pub wall: Duration,
+}
+
+impl RunStatus {
+    pub fn ok(&self) -> bool {
+        self.error.is_none()
+    }
+}
+
+/// Shared log file + optional echo, one line at a time so lines of the two
+/// processes never interleave mid-line.
+#[derive(Clone)]
+struct LogSink {
+    file: Arc<Mutex<File>>,
+    echo: bool,
+}
+
+impl LogSink {
+    fn line(&self, prefix: &str, line: &str) {
+        let text = format!("[{prefix}] {line}\n");
+        if let Ok(mut f) = self.file.lock() {
+            // A failing log write must not stop the run; the run's own
+            // outputs are what matter.
+            let _ = f.write_all(text.as_bytes());
+        }
+        if self.echo {
+            eprint!("{text}");
+        }
+    }
+
+    fn forward(&self, prefix: &'static str, stream: impl Read + Send + 'static) -> JoinHandle<()> {
+        let sink = self.clone();
+        std::thread::spawn(move || {
+            let mut r = BufReader::new(stream);
+            let mut buf = Vec::new();
+            loop {
+                buf.clear();
+                match r.read_until(b'\n', &mut buf) {
+                    Ok(0) | Err(_) => break,
+                    Ok(_) => {
+                        let text = String::from_utf8_lossy(&buf);
+                        sink.line(prefix, text.trim_end_matches(['\n', '\r']));
+                    }
+                }
+            }
+        })
+    }
+}
+
+/// A child process with its log forwarders.
+struct Supervised {
+    what: &'static str,
+    child: Child,
+    status: Option<ExitStatus>,
+    forwarders: Vec<JoinHandle<()>>,
+}
+
+impl Supervised {
+    fn spawn(what: &'static str, mut cmd: Command, sink: &LogSink) -> Result<Self, LaunchError> {
+        tracing::debug!(?cmd, "starting {what}");
+        let mut child = cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|source| LaunchError::Spawn {
+                what,
+                path: PathBuf::from(cmd.get_program()),
+                source,
+            })?;
+        let mut forwarders = Vec::new();
+        if let Some(out) = child.stdout.take() {
+            forwarders.push(sink.forward(what, out));
+        }
+        if let Some(err) = child.stderr.take() {
+            forwarders.push(sink.forward(what, err));
+        }
+        Ok(Supervised {
+            what,
+            child,
+            status: None,
+            forwarders,
+        })
+    }
+
+    fn poll(&mut self) -> Option<ExitStatus> {
+        if self.status.is_none() {
+            self.status = self.child.try_wait().ok().flatten();
+        }
+        self.status
+    }
+
+    fn kill(&mut self) {
+        if self.poll().is_none() {
+            let _ = self.child.kill();
+            self.status = self.child.wait().ok();
+        }
+    }
+
+    /// Waits up to `grace` for the process to end by itself, then kills it.
+    fn finish_within(&mut self, grace: Duration) -> bool {
+        let until = Instant::now() + grace;
+        while Instant::now() < until {
+            if self.poll().is_some() {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        tracing::warn!("{} did not exit within {grace:?}; killing it", self.what);
+        self.kill();
+        false
+    }
+
+    fn join(self) -> Option<ExitStatus> {
+        for f in self.forwarders {
+            let _ = f.join();
+        }
+        self.status
+    }
+}
+
+fn describe(status: Option<ExitStatus>) -> String {
+    match status {
+        Some(s) => match s.code() {
+            Some(c) => format!("exit code {c}"),
+            None => format!("{s}"),
+        },
+        None => "still running".into(),
+    }
+}
+
+/// Runs one scenario into `out` (created). Returns how the processes ended;
+/// the outputs they wrote stay in `out` whatever happened.
+pub fn launch(
+    scenario: &Scenario,
+    bins: &Binaries,
+    out: &Path,
+    opts: &LaunchOptions,
+) -> Result<RunStatus, LaunchError> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| io_err(format!("cannot create {}", out.display()), e))?;
+    let out = out
+        .canonicalize()
+        .map_err(|e| io_err(format!("cannot resolve {}", out.display()), e))?;
+    write_inputs(scenario, &out)?;
+    let log = File::create(out.join(files::LOG))
+        .map_err(|e| io_err(format!("cannot create {}", files::LOG), e))?;
+    let sink = LogSink {
+        file: Arc::new(Mutex::new(log)),
+        echo: opts.echo,
+    };
+    // A private directory (mode 0700, tempfile's default) for the socket: no
+    // other user can connect, and two runs never share a path.
+    let sock_dir = tempfile::Builder::new()
+        .prefix("cosim-")
+        .tempdir()
+        .map_err(|e| io_err("cannot create a private socket directory", e))?;
+    let socket = sock_dir.path().join("world.sock");
+
+    let mut world_cmd = Command::new(&bins.world_server);
+    world_cmd
+        .arg("--socket")
+        .arg(&socket)
+        .arg("--world")
+        .arg(&scenario.world)
+        .arg("--timestep")
+        .arg(scenario.timestep_ms.to_string())
+        .arg("--substeps")
+        .arg(scenario.substeps.to_string())
+        .arg("--trajectory")
+        .arg(out.join(files::TRAJECTORY));
+    let mut sim_cmd = Command::new(&bins.sim_core);
+    sim_cmd
+        .arg("--socket")
+        .arg(&socket)
+        .arg("--firmware")
+        .arg(&scenario.firmware)
+        .arg("--config")
+        .arg(out.join(files::RUN_CONFIG))
+        .arg("--out")
+        .arg(&out)
+        .arg("--image-encoding")
+        .arg(scenario.image_encoding.as_str())
+        .arg("--no-progress");
+    if let Some(t) = scenario.max_time_s {
+        sim_cmd.arg("--max-time").arg(t.to_string());
+    }
+    if opts.traces {
+        world_cmd.arg("--trace").arg(out.join(files::WORLD_TRACE));
+        sim_cmd.arg("--trace").arg(out.join(files::PLATFORM_TRACE));
+        if opts.trace_images {
+            world_cmd.arg("--trace-images");
+            sim_cmd.arg("--trace-images");
+        }
+    }
+    if opts.frames {
+        let frames = out.join(files::FRAMES);
+        std::fs::create_dir_all(&frames)
+            .map_err(|e| io_err(format!("cannot create {}", frames.display()), e))?;
+        world_cmd.arg("--frames-dir").arg(frames);
+    }
+    sim_cmd.args(&opts.sim_core_args);
+
+    let started = Instant::now();
+    let mut world = Supervised::spawn("world", world_cmd, &sink)?;
+    // Wait for the socket so that sim-core's connection does not depend on
+    // its retry patience; a world that dies here is reported as such.
+    let mut error = None;
+    let socket_until = Instant::now() + Duration::from_secs(30);
+    while !socket.exists() {
+        if let Some(st) = world.poll() {
+            error = Some(format!(
+                "world-server exited before listening ({})",
+                describe(Some(st))
+            ));
+            break;
+        }
+        if Instant::now() > socket_until {
+            error = Some("world-server did not create its socket within 30 s".into());
+            world.kill();
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    if let Some(error) = error {
+        let w = world.join();
+        return Ok(RunStatus {
+            sim_core: None,
+            world: w.and_then(|s| s.code()),
+            error: Some(error),
+            wall: started.elapsed(),
+        });
+    }
+    let mut sim = match Supervised::spawn("sim-core", sim_cmd, &sink) {
+        Ok(s) => s,
+        Err(e) => {
+            world.kill();
+            world.join();
+            return Err(e);
+        }
+    };
+
+    let mut error: Option<String> = None;
+    loop {
+        if let Some(st) = sim.poll() {
+            // The world exits by itself after STOP; after a failure it may
+            // wait for a request forever.
+            let grace = if st.success() { 10 } else { 1 };
+            if !world.finish_within(Duration::from_secs(grace)) && st.success() {
+                error = Some("world-server did not exit after the run ended".into());
+            }
+            break;
+        }
+        if let Some(st) = world.poll() {
+            if !st.success() {
+                error = Some(format!(
+                    "world-server failed ({}); sim-core killed",
+                    describe(Some(st))
+                ));
+                // Let sim-core report the broken link itself first.
+                sim.finish_within(Duration::from_secs(2));
+                break;
+            }
+            // The world ended cleanly (after STOP): sim-core writes its outputs.
+            sim.finish_within(Duration::from_secs(60));
+            break;
+        }
+        if let Some(limit) = opts.timeout {
+            if started.elapsed() > limit {
+                error = Some(format!(
+                    "timed out after {limit:?} of wall time; both killed"
+                ));
+                sim.kill();
+                world.kill();
+                break;
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let sim_status = sim.join();
+    let world_status = world.join();
+    if error.is_none() {
+        match (
+            sim_status.map(|s| s.success()),
+            world_status.map(|s| s.success()),
+        ) {
+            (Some(true), Some(true)) => {}
+            (Some(true), _) => {
+                error = Some(format!(
+                    "world-server ended with {}",
+                    describe(world_status)
+                ))
+            }
+            _ => error = Some(format!("sim-core failed ({})", describe(sim_status))),
+        }
+    }
+    Ok(RunStatus {
+        sim_core: sim_status.and_then(|s| s.code()),
+        world: world_status.and_then(|s| s.code()),
+        error,
+        wall: started.elapsed(),
+    })
+}
+
+/// Writes the resolved scenario and run configuration into the output
+/// directory: sim-core reads `run.toml`, and a user can rerun from both.
+fn write_inputs(scenario: &Scenario, out: &Path) -> Result<(), LaunchError> {
+    let write = |name: &str, text: String| {
+        std::fs::write(out.join(name), text).map_err(|e| io_err(format!("cannot write {name}"), e))
+    };
+    write(files::RUN_CONFIG, run_toml(scenario))?;
+    let resolved = format!(
+        "# Resolved from {} {}\ndescription = {:?}\nworld = {:?}\nfirmware = {:?}\ntimestep_ms = {}\nsubsteps = {}\nimage_encoding = {:?}\n{}targets = {:?}\n",
+        scenario.path.display(),
+        scenario.overrides_label(),
+        scenario.description,
+        abs(&scenario.world),
+        abs(&scenario.firmware),
+        scenario.timestep_ms,
+        scenario.substeps,
+        scenario.image_encoding.as_str(),
+        scenario
+            .max_time_s
+            .map(|t| format!("max_time_s = {t:?}\n"))
+            .unwrap_or_default(),
+        scenario.targets,
+    );
+    write(files::SCENARIO, resolved)
+}
+
+/// The run configuration as sim-core reads it. `RunConfig::to_toml` writes
+/// the embedded platform as `platform = "embedded"`, which `--config` would
+/// read back as a file name: the key is left out then (the platform file,
+/// when there is one, is written as an absolute path).
+fn run_toml(scenario: &Scenario) -> String {
+    let mut table: toml::Table =
+        toml::from_str(&scenario.run.to_toml()).expect("RunConfig::to_toml writes valid TOML");
+    match &scenario.run.platform {
+        None => {
+            table.remove("platform");
+        }
+        Some(p) => {
+            table.insert("platform".into(), toml::Value::String(abs(p)));
+        }
+    }
+    toml::to_string(&table).expect("a flat table serializes")
+}
+
+fn abs(p: &Path) -> String {
+    p.canonicalize()
+        .unwrap_or_else(|_| p.to_path_buf())
+        .display()
+        .to_string()
+}

@@ -1,0 +1,246 @@
+//! After a run: read the outputs sim-core and world-server wrote, draw the
+//! plots and print the short summary.
+
+use std::path::{Path, PathBuf};
+
+use serde::de::DeserializeOwned;
+use serde::Deserialize;
+use sim_core::kernel::Summary;
+use sim_core::power::log::{model_csv_name, POWER_CSV};
+use sim_core::power::PowerModelKind;
+use world_server::WorldDesc;
+
+use crate::launch::{files, RunStatus};
+use crate::plot::{self, Series};
+use crate::scenario::Scenario;
+
+/// File names of the plots of one run.
+pub mod plots {
+    pub const POWER: &str = "power_models.png";
+    pub const BATTERY: &str = "battery.png";
+    pub const TOP_VIEW: &str = "top_view.png";
+}
+
+/// Why the outputs of a run could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error("cannot read {path}: {message}")]
+    Read { path: PathBuf, message: String },
+    #[error(transparent)]
+    Plot(#[from] plot::PlotError),
+    #[error(transparent)]
+    World(#[from] world_server::world_file::WorldFileError),
+}
+
+fn read_err(path: &Path, e: impl std::fmt::Display) -> ReportError {
+    ReportError::Read {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Reads `summary.json`.
+pub fn read_summary(out: &Path) -> Result<Summary, ReportError> {
+    let path = out.join(files::SUMMARY);
+    let text = std::fs::read_to_string(&path).map_err(|e| read_err(&path, e))?;
+    serde_json::from_str(&text).map_err(|e| read_err(&path, e))
+}
+
+/// Reads every row of a CSV file into `T` (columns by header name).
+pub fn read_csv<T: DeserializeOwned>(path: &Path) -> Result<Vec<T>, ReportError> {
+    let mut r = csv::Reader::from_path(path).map_err(|e| read_err(path, e))?;
+    r.deserialize()
+        .collect::<Result<Vec<T>, _>>()
+        .map_err(|e| read_err(path, e))
+}
+
+/// The columns of `power.csv` the report uses.
+#[derive(Debug, Clone, Deserialize)]
+pub struct PowerRow {
+    pub time_s: f64,
+    pub i_battery_a: f64,
+    pub v_battery_v: f64,
+    pub soc: f64,
+}
+
+/// The columns of a motor model's CSV the report uses.
+#[derive(Debug, Clone, Deserialize)]
+pub struct ModelRow {
+    pub time_s: f64,
+    pub mean_omega_rad_s: f64,
+    pub power_w: f64,
+}
+
+/// The columns of `trajectory.csv` the report uses.
+#[derive(Debug, Clone, Deserialize)]
+pub struct TrajectoryRow {
+    pub time_ms: u64,
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+}
+
+/// Figures derived from a summary.
+pub trait SummaryExt {
+    /// Flight time extrapolated as the thesis does in §5.1 ("50 % of the
+    /// charge in about 160 s ... an estimated battery life of about 330 s"):
+    /// platform time / SOC used. `None` when no charge was used.
+    fn flight_time_estimate_s(&self, soc_init: f64) -> Option<f64>;
+}
+
+impl SummaryExt for Summary {
+    fn flight_time_estimate_s(&self, soc_init: f64) -> Option<f64> {
+        let used = soc_init - self.battery.soc_end;
+        (used > 1e-9).then(|| self.platform_time_s / used)
+    }
+}
+
+/// The SOC at the start of the run (first row of `power.csv`), 1.0 if absent.
+pub fn initial_soc(power: &[PowerRow]) -> f64 {
+    power.first().map_or(1.0, |r| r.soc)
+}
+
+/// Draws the three plots of a run into `out`; returns their paths.
+pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, ReportError> {
+    let power: Vec<PowerRow> = read_csv(&out.join(POWER_CSV))?;
+    let mut charts = Vec::new();
+    for kind in PowerModelKind::ALL {
+        let rows: Vec<ModelRow> = read_csv(&out.join(model_csv_name(kind)))?;
+        // As the thesis's plotting script (§5.1): samples with the
+        // propellers stopped are left out, they only stretch the axis.
+        let pts: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|r| r.mean_omega_rad_s > 0.0)
+            .map(|r| (r.time_s, r.power_w))
+            .collect();
+        let title = match kind {
+            PowerModelKind::Empirical => "Empirical model (Eq. 3.1-3.3)",
+            PowerModelKind::DAndrea => "D'Andrea model (Table 4.4)",
+            PowerModelKind::Stolaroff => "Stolaroff model (Table 4.5, x5)",
+        };
+        charts.push((
+            title.to_string(),
+            "power (W)".to_string(),
+            vec![Series {
+                label: kind.name().to_string(),
+                points: plot::decimate(&pts, 4000),
+            }],
+        ));
+    }
+    let power_png = out.join(plots::POWER);
+    plot::panels(&power_png, "time (s)", &charts)?;
+
+    let battery_png = out.join(plots::BATTERY);
+    let soc: Vec<(f64, f64)> = power.iter().map(|r| (r.time_s, r.soc * 100.0)).collect();
+    let volt: Vec<(f64, f64)> = power.iter().map(|r| (r.time_s, r.v_battery_v)).collect();
+    let model = scenario.run.get("battery").unwrap_or_default();
+    plot::panels(
+        &battery_png,
+        "time (s)",
+        &[
+            (
+                format!("Battery state of charge ({model})"),
+                "SOC (%)".into(),
+                vec![Series {
+                    label: "SOC".into(),
+                    points: plot::decimate(&soc, 4000),
+                }],
+            ),
+            (
+                "Battery voltage".into(),
+                "V (V)".into(),
+                vec![Series {
+                    label: "V".into(),
+                    points: plot::decimate(&volt, 4000),
+                }],
+            ),
+        ],
+    )?;
+
+    let traj: Vec<TrajectoryRow> = read_csv(&out.join(files::TRAJECTORY))?;
+    let flight: Vec<(f64, f64)> = traj.iter().map(|r| (r.x, r.y)).collect();
+    let world = WorldDesc::load(&scenario.world)?;
+    let top_png = out.join(plots::TOP_VIEW);
+    plot::top_view(
+        &top_png,
+        &format!("{}: flight seen from above", scenario.name),
+        &flight,
+        &world,
+        &scenario.targets,
+    )?;
+    Ok(vec![power_png, battery_png, top_png])
+}
+
+fn opt_s(v: Option<f64>) -> String {
+    v.map_or("n/a".into(), |v| format!("{v:.3} s"))
+}
+
+/// The short human-readable summary printed at the end of `cosim run`.
+pub fn summary_text(
+    scenario: &Scenario,
+    s: &Summary,
+    status: &RunStatus,
+    soc_init: f64,
+    out: &Path,
+    plots: &[PathBuf],
+) -> String {
+    let mut t = String::new();
+    let result = match (&status.error, s.completed) {
+        (None, true) => "completed".to_string(),
+        (None, false) => "did not complete".to_string(),
+        (Some(e), _) => format!("FAILED: {e}"),
+    };
+    t += &format!(
+        "== {} ({}) — {result}\n",
+        scenario.name, scenario.description
+    );
+    if !scenario.overrides.is_empty() {
+        t += &format!("   overrides      {}\n", scenario.overrides_label());
+    }
+    t += &format!(
+        "   setup          {} ms timestep, {} model, battery {}, sync {}\n",
+        s.timestep_ms, s.power_model, s.battery.model, s.sync
+    );
+    t += &format!(
+        "   targets        {}/{} reached, {} bypassed (UNLOCK_CYCLES), {} skipped (low battery)\n",
+        s.targets_reached, s.targets_total, s.targets_bypassed, s.targets_skipped_low_battery
+    );
+    t += &format!(
+        "   time           platform {:.3} s | world {} | world estimate {:.3} s | offset error {}\n",
+        s.platform_time_s,
+        opt_s(s.world_time_s),
+        s.world_time_estimate_s,
+        s.estimate_error_pct
+            .map_or("n/a".into(), |e| format!("{e:.4} %")),
+    );
+    t += &format!(
+        "   energy         empirical {:.1} J | D'Andrea {:.1} J | Stolaroff {:.1} J | from battery {:.1} J\n",
+        s.energy_j.empirical, s.energy_j.dandrea, s.energy_j.stolaroff, s.energy_j.total
+    );
+    let flight = s
+        .flight_time_estimate_s(soc_init)
+        .map_or("n/a".into(), |f| format!("{f:.0} s"));
+    t += &format!(
+        "   battery        SOC {:.1} % -> {:.1} %{} | estimated flight time {flight}\n",
+        soc_init * 100.0,
+        s.battery.soc_end * 100.0,
+        if s.battery.low_battery {
+            " (LOW BATTERY)"
+        } else {
+            ""
+        },
+    );
+    t += &format!(
+        "   cost           {:.2} s wall, {:.2}x real time, {} instructions, {} messages, {} collisions\n",
+        status.wall.as_secs_f64(),
+        s.realtime_factor,
+        s.instructions,
+        s.messages,
+        s.collisions.map_or("?".into(), |c| c.to_string()),
+    );
+    t += &format!("   outputs        {}\n", out.display());
+    for p in plots {
+        t += &format!("   plot           {}\n", p.display());
+    }
+    t
+}

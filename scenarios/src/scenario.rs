@@ -1,0 +1,433 @@
+//! Scenario files (`scenarios/*.toml`): what one experiment of the thesis
+//! needs to run — world file, basicTimeStep, firmware, platform file, run
+//! configuration — plus the targets to draw and the default sweep.
+//!
+//! Paths in a file are relative to the file's directory; paths given with
+//! `--set` are relative to the working directory (where the user typed them).
+//! Everything is checked before a process is started: a missing file, an
+//! unknown key or a bad value is a one-line error.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use sim_core::config::{RunConfig, RUN_KEYS};
+
+/// Why a scenario cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error("cannot read scenario {path}: {source}")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+    #[error("--set {0:?}: expected KEY=VALUE")]
+    BadSet(String),
+    #[error("--set {key}={value}: {reason}")]
+    BadValue {
+        key: String,
+        value: String,
+        reason: String,
+    },
+    #[error("unknown key {key:?} (scenario keys: {scenario}; run keys: {run})")]
+    UnknownKey {
+        key: String,
+        scenario: String,
+        run: String,
+    },
+    #[error("{what} {path} does not exist")]
+    Missing { what: &'static str, path: PathBuf },
+}
+
+/// A scenario file as written.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioFile {
+    /// One line shown by `cosim run` and in reports.
+    #[serde(default)]
+    pub description: String,
+    /// World file (TOML, `scenarios/worlds/`).
+    pub world: PathBuf,
+    /// Firmware ELF the platform runs.
+    pub firmware: PathBuf,
+    /// basicTimeStep in ms (DESIGN.md §3: 8, 16, 24, 32 …).
+    #[serde(default = "default_timestep")]
+    pub timestep_ms: u64,
+    /// Physics steps per basicTimeStep.
+    #[serde(default = "default_substeps")]
+    pub substeps: u32,
+    /// Platform file (MESSY JSON); absent = the embedded Crazyflie.
+    #[serde(default)]
+    pub platform: Option<PathBuf>,
+    /// Gives up after this many simulated seconds (a run that never ends).
+    #[serde(default)]
+    pub max_time_s: Option<f64>,
+    /// `array` (the thesis's) or `base64`.
+    #[serde(default = "default_encoding")]
+    pub image_encoding: String,
+    /// The firmware's targets, for the top-view plot (the firmware holds
+    /// its own copy: the platform does not learn them from the scenario).
+    #[serde(default)]
+    pub targets: Vec<[f64; 3]>,
+    /// Run-configuration keys (`sim-core --set`, see `RUN_KEYS`).
+    #[serde(default)]
+    pub run: BTreeMap<String, toml::Value>,
+    /// Default `cosim sweep` parameters: key → values.
+    #[serde(default)]
+    pub sweep: BTreeMap<String, Vec<toml::Value>>,
+}
+
+fn default_timestep() -> u64 {
+    32
+}
+fn default_substeps() -> u32 {
+    1
+}
+fn default_encoding() -> String {
+    "array".into()
+}
+
+/// Keys `--set` accepts besides the run keys.
+pub const SCENARIO_KEYS: [(&str, &str); 7] = [
+    ("world", "world file (TOML)"),
+    ("firmware", "firmware ELF"),
+    ("timestep_ms", "basicTimeStep in ms"),
+    ("substeps", "physics steps per basicTimeStep"),
+    ("platform", "platform file (MESSY JSON)"),
+    ("max_time_s", "give up after this many simulated seconds"),
+    ("image_encoding", "array | base64"),
+];
+
+/// A scenario ready to run: paths resolved, every value checked.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    /// Name (the file stem, `thesis-race`).
+    pub name: String,
+    /// Where it was read from.
+    pub path: PathBuf,
+    pub description: String,
+    pub world: PathBuf,
+    pub firmware: PathBuf,
+    pub timestep_ms: u64,
+    pub substeps: u32,
+    pub max_time_s: Option<f64>,
+    pub image_encoding: protocol::ImageEncoding,
+    pub targets: Vec<[f64; 3]>,
+    /// The run configuration sim-core gets (written to `run.toml`).
+    pub run: RunConfig,
+    /// The `--set` overrides applied, in order (for reports).
+    pub overrides: Vec<(String, String)>,
+    /// Default sweep parameters, values in text form.
+    pub sweep: Vec<(String, Vec<String>)>,
+}
+
+fn value_text(v: &toml::Value) -> Result<String, String> {
+    match v {
+        toml::Value::String(s) => Ok(s.clone()),
+        toml::Value::Integer(i) => Ok(i.to_string()),
+        toml::Value::Float(f) => Ok(f.to_string()),
+        toml::Value::Boolean(b) => Ok(b.to_string()),
+        other => Err(format!(
+            "expected a string or a number, got a {}",
+            other.type_str()
+        )),
+    }
+}
+
+fn is_run_key(key: &str) -> bool {
+    RUN_KEYS.iter().any(|(k, _)| *k == key)
+}
+
+impl Scenario {
+    /// Reads and checks a scenario file.
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses scenario text; relative paths are taken from `path`'s directory.
+    pub fn parse(text: &str, path: &Path) -> Result<Scenario, ScenarioError> {
+        let invalid = |message: String| ScenarioError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        };
+        let file: ScenarioFile = toml::from_str(text)
+            .map_err(|e| invalid(e.to_string().trim_end().replace('\n', " ")))?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let mut run = RunConfig::default();
+        for (key, value) in &file.run {
+            let text = value_text(value).map_err(|m| invalid(format!("run.{key}: {m}")))?;
+            // `platform` is a path: relative to the scenario file like the others.
+            let text = if key == "platform" {
+                base.join(&text).display().to_string()
+            } else {
+                text
+            };
+            run.set(key, &text)
+                .map_err(|e| invalid(format!("run.{key}: {e}")))?;
+        }
+        if let Some(p) = &file.platform {
+            run.platform = Some(base.join(p));
+        }
+        let mut sweep = Vec::new();
+        for (key, values) in &file.sweep {
+            let texts = values
+                .iter()
+                .map(value_text)
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|m| invalid(format!("sweep.{key}: {m}")))?;
+            sweep.push((key.clone(), texts));
+        }
+        let mut s = Scenario {
+            name: path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "scenario".into()),
+            path: path.to_path_buf(),
+            description: file.description,
+            world: base.join(&file.world),
+            firmware: base.join(&file.firmware),
+            timestep_ms: file.timestep_ms,
+            substeps: file.substeps,
+            max_time_s: file.max_time_s,
+            image_encoding: protocol::ImageEncoding::Array,
+            targets: file.targets,
+            run,
+            overrides: Vec::new(),
+            sweep,
+        };
+        s.set_scenario_key("image_encoding", &file.image_encoding)
+            .and_then(|_| s.set_scenario_key("timestep_ms", &file.timestep_ms.to_string()))
+            .and_then(|_| s.set_scenario_key("substeps", &file.substeps.to_string()))
+            .map_err(|e| invalid(e.to_string()))?;
+        if let Some(t) = file.max_time_s {
+            s.set_scenario_key("max_time_s", &t.to_string())
+                .map_err(|e| invalid(e.to_string()))?;
+        }
+        for (key, _) in &s.sweep {
+            if !is_run_key(key) && !SCENARIO_KEYS.iter().any(|(k, _)| k == key) {
+                return Err(invalid(format!("sweep.{key}: {}", unknown_key(key))));
+            }
+        }
+        Ok(s)
+    }
+
+    /// Applies one `KEY=VALUE` (scenario key or run key; `run.KEY` also works).
+    pub fn set(&mut self, assignment: &str) -> Result<(), ScenarioError> {
+        let (key, value) = assignment
+            .split_once('=')
+            .ok_or_else(|| ScenarioError::BadSet(assignment.to_string()))?;
+        let (key, value) = (key.trim(), value.trim());
+        let key = key.strip_prefix("run.").unwrap_or(key);
+        if key.is_empty() {
+            return Err(ScenarioError::BadSet(assignment.to_string()));
+        }
+        if key == "platform" || SCENARIO_KEYS.iter().all(|(k, _)| *k != key) {
+            if !is_run_key(key) {
+                return Err(unknown_key(key));
+            }
+            self.run
+                .set(key, value)
+                .map_err(|e| ScenarioError::BadValue {
+                    key: key.to_string(),
+                    value: value.to_string(),
+                    reason: e.to_string(),
+                })?;
+        } else {
+            self.set_scenario_key(key, value)?;
+        }
+        self.overrides.push((key.to_string(), value.to_string()));
+        Ok(())
+    }
+
+    fn set_scenario_key(&mut self, key: &str, value: &str) -> Result<(), ScenarioError> {
+        let bad = |reason: &str| ScenarioError::BadValue {
+            key: key.to_string(),
+            value: value.to_string(),
+            reason: reason.to_string(),
+        };
+        match key {
+            "world" => self.world = PathBuf::from(value),
+            "firmware" => self.firmware = PathBuf::from(value),
+            "timestep_ms" => {
+                self.timestep_ms = match value.parse::<u64>() {
+                    Ok(ts) if (1..=1000).contains(&ts) => ts,
+                    _ => return Err(bad("expected a whole number of ms in 1..=1000")),
+                }
+            }
+            "substeps" => {
+                self.substeps = match value.parse::<u32>() {
+                    Ok(n) if (1..=1000).contains(&n) => n,
+                    _ => return Err(bad("expected a whole number in 1..=1000")),
+                }
+            }
+            "max_time_s" => {
+                self.max_time_s = match value.parse::<f64>() {
+                    Ok(t) if t.is_finite() && t > 0.0 => Some(t),
+                    _ => return Err(bad("expected a positive number of seconds")),
+                }
+            }
+            "image_encoding" => {
+                self.image_encoding = value.parse().map_err(|_| bad("expected array or base64"))?
+            }
+            _ => return Err(unknown_key(key)),
+        }
+        Ok(())
+    }
+
+    /// Checks that every file the run needs exists.
+    pub fn check_files(&self) -> Result<(), ScenarioError> {
+        let mut files = vec![("world file", &self.world), ("firmware", &self.firmware)];
+        if let Some(p) = &self.run.platform {
+            files.push(("platform file", p));
+        }
+        for (what, path) in files {
+            if !path.is_file() {
+                return Err(ScenarioError::Missing {
+                    what,
+                    path: path.clone(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// A short label of the overrides (`battery=ufx250 timestep_ms=16`).
+    pub fn overrides_label(&self) -> String {
+        self.overrides
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
+
+fn unknown_key(key: &str) -> ScenarioError {
+    ScenarioError::UnknownKey {
+        key: key.to_string(),
+        scenario: SCENARIO_KEYS.map(|(k, _)| k).join(", "),
+        run: RUN_KEYS.map(|(k, _)| k).join(", "),
+    }
+}
+
+/// Finds a file shipped in the repository (e.g. `scenarios/thesis-race.toml`)
+/// from the working directory, the executable's ancestors (target/<profile>/
+/// cosim → repository root) or the source tree this binary was built from.
+pub fn find_repo_file(rel: &str) -> Option<PathBuf> {
+    let mut candidates = vec![PathBuf::from(rel)];
+    if let Ok(exe) = std::env::current_exe() {
+        candidates.extend(exe.ancestors().skip(1).map(|d| d.join(rel)));
+    }
+    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(rel));
+    candidates.into_iter().find(|p| p.is_file())
+}
+
+/// Resolves a scenario argument: a path, or a name in `scenarios/`
+/// (`thesis-race` → `scenarios/thesis-race.toml`).
+pub fn resolve_scenario(arg: Option<&str>) -> Result<PathBuf, ScenarioError> {
+    let arg = arg.unwrap_or("thesis-race");
+    let p = PathBuf::from(arg);
+    if p.is_file() {
+        return Ok(p);
+    }
+    let looks_like_name = !arg.contains('/') && !arg.ends_with(".toml");
+    if looks_like_name {
+        if let Some(found) = find_repo_file(&format!("scenarios/{arg}.toml")) {
+            return Ok(found);
+        }
+    }
+    Err(ScenarioError::Missing {
+        what: "scenario",
+        path: p,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MIN: &str = r#"
+        world = "worlds/empty.toml"
+        firmware = "fw.elf"
+        targets = [[1.0, 2.0, 1.0]]
+        [run]
+        battery = "ufx250"
+        [sweep]
+        timestep_ms = [16, 32]
+    "#;
+
+    fn parse(text: &str) -> Result<Scenario, ScenarioError> {
+        Scenario::parse(text, Path::new("/x/scenarios/s.toml"))
+    }
+
+    #[test]
+    fn paths_are_relative_to_the_file_and_defaults_are_the_thesis() {
+        let s = parse(MIN).unwrap();
+        assert_eq!(s.name, "s");
+        assert_eq!(s.world, Path::new("/x/scenarios/worlds/empty.toml"));
+        assert_eq!(s.firmware, Path::new("/x/scenarios/fw.elf"));
+        assert_eq!(s.timestep_ms, 32);
+        assert_eq!(s.run.get("battery").unwrap(), "ufx250");
+        assert_eq!(s.run.get("power_model").unwrap(), "empirical");
+        assert_eq!(
+            s.sweep,
+            vec![("timestep_ms".to_string(), vec!["16".into(), "32".into()])]
+        );
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_values_are_refused() {
+        let e = parse(&format!("{MIN}\nfoo = 1\n")).unwrap_err().to_string();
+        assert!(e.contains("foo"), "{e}");
+        let e = parse(&MIN.replace("ufx250", "aaa"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("run.battery"), "{e}");
+        let e = parse(&MIN.replace("timestep_ms = [16, 32]", "nope = [1]"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sweep.nope"), "{e}");
+        let e = parse(&MIN.replace("[run]", "timestep_ms = 0\n[run]"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("timestep_ms"), "{e}");
+    }
+
+    #[test]
+    fn set_routes_keys_and_checks_values() {
+        let mut s = parse(MIN).unwrap();
+        s.set("timestep_ms=16").unwrap();
+        s.set("run.power_model=stolaroff").unwrap();
+        s.set("battery = lipol350").unwrap();
+        assert_eq!(s.timestep_ms, 16);
+        assert_eq!(s.run.get("power_model").unwrap(), "stolaroff");
+        assert_eq!(s.run.get("battery").unwrap(), "lipol350");
+        assert_eq!(
+            s.overrides_label(),
+            "timestep_ms=16 power_model=stolaroff battery=lipol350"
+        );
+        for bad in [
+            "timestep_ms=abc",
+            "battery=nine",
+            "tolerance=-1",
+            "nokey",
+            "zzz=1",
+            "=3",
+        ] {
+            assert!(s.set(bad).is_err(), "{bad} accepted");
+        }
+    }
+
+    #[test]
+    fn missing_files_are_named() {
+        let s = parse(MIN).unwrap();
+        let e = s.check_files().unwrap_err().to_string();
+        assert!(e.contains("world file") && e.contains("empty.toml"), "{e}");
+    }
+}

@@ -1,0 +1,451 @@
+//! `cosim sweep`: the cartesian product of parameter values, run in
+//! parallel (each run its own pair of processes and socket), a table of the
+//! summary figures (markdown and CSV) and overlay plots. A run that fails is
+//! a row marked failed with its error; the other rows are kept.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::launch::{Binaries, LaunchOptions};
+use crate::plot::{self, Series};
+use crate::report::{self, PowerRow, SummaryExt};
+use crate::scenario::{Scenario, ScenarioError};
+use crate::{run_scenario, RunOutcome};
+
+/// File names of a sweep's outputs.
+pub mod files {
+    pub const CSV: &str = "sweep.csv";
+    pub const MARKDOWN: &str = "sweep.md";
+    pub const SOC_PNG: &str = "sweep_soc.png";
+    pub const TIMESTEP_PNG: &str = "sweep_timestep.png";
+}
+
+/// Why a sweep could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    #[error("--param {0:?}: expected KEY=V1,V2,...")]
+    BadParam(String),
+    #[error("run {label}: {source}")]
+    Scenario {
+        label: String,
+        #[source]
+        source: ScenarioError,
+    },
+    #[error("no parameters: give --param KEY=V1,V2,... (or a [sweep] table in the scenario)")]
+    NoParams,
+    #[error("{0}")]
+    Output(String),
+}
+
+/// One swept parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Param {
+    pub key: String,
+    pub values: Vec<String>,
+}
+
+impl std::str::FromStr for Param {
+    type Err = SweepError;
+    fn from_str(s: &str) -> Result<Param, SweepError> {
+        let (key, values) = s
+            .split_once('=')
+            .ok_or_else(|| SweepError::BadParam(s.into()))?;
+        let values: Vec<String> = values
+            .split(',')
+            .map(|v| v.trim().to_string())
+            .filter(|v| !v.is_empty())
+            .collect();
+        if key.trim().is_empty() || values.is_empty() {
+            return Err(SweepError::BadParam(s.into()));
+        }
+        Ok(Param {
+            key: key.trim().to_string(),
+            values,
+        })
+    }
+}
+
+/// Every combination, the first parameter varying slowest.
+pub fn product(params: &[Param]) -> Vec<Vec<(String, String)>> {
+    let mut combos: Vec<Vec<(String, String)>> = vec![Vec::new()];
+    for p in params {
+        combos = combos
+            .into_iter()
+            .flat_map(|c| {
+                p.values.iter().map(move |v| {
+                    let mut c = c.clone();
+                    c.push((p.key.clone(), v.clone()));
+                    c
+                })
+            })
+            .collect();
+    }
+    combos
+}
+
+/// One row of the sweep table.
+#[derive(Debug)]
+pub struct SweepRow {
+    pub index: usize,
+    pub assignments: Vec<(String, String)>,
+    pub dir: PathBuf,
+    /// The run (None if it could not even be launched).
+    pub outcome: Option<RunOutcome>,
+    /// Why the run failed (None: it completed).
+    pub error: Option<String>,
+}
+
+impl SweepRow {
+    pub fn label(&self) -> String {
+        self.assignments
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
+
+fn dir_name(index: usize, assignments: &[(String, String)]) -> String {
+    let mut name = format!("run-{:03}", index + 1);
+    for (k, v) in assignments {
+        name.push('_');
+        name.push_str(k);
+        name.push('=');
+        // Path separators and the like would nest or break the directory.
+        name.extend(v.chars().map(|c| {
+            if c.is_ascii_alphanumeric() || c == '.' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        }));
+    }
+    name
+}
+
+/// Checks every combination, then runs them `jobs` at a time into
+/// `out/run-NNN_key=value...`, and writes the table and the plots.
+pub fn run_sweep(
+    base: &Scenario,
+    params: &[Param],
+    bins: &Binaries,
+    out: &Path,
+    jobs: usize,
+    opts: &LaunchOptions,
+) -> Result<Vec<SweepRow>, SweepError> {
+    if params.is_empty() {
+        return Err(SweepError::NoParams);
+    }
+    // Every combination is built (and so checked) before anything runs: a
+    // typo in the last value must not surface after an hour of runs.
+    let mut planned = Vec::new();
+    for (i, combo) in product(params).into_iter().enumerate() {
+        let mut s = base.clone();
+        for (k, v) in &combo {
+            s.set(&format!("{k}={v}"))
+                .map_err(|source| SweepError::Scenario {
+                    label: format!("{}", i + 1),
+                    source,
+                })?;
+        }
+        s.check_files().map_err(|source| SweepError::Scenario {
+            label: format!("{}", i + 1),
+            source,
+        })?;
+        planned.push((i, combo, s));
+    }
+    std::fs::create_dir_all(out)
+        .map_err(|e| SweepError::Output(format!("cannot create {}: {e}", out.display())))?;
+    let bar = ProgressBar::new(planned.len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}")
+            .expect("a valid template"),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let next = AtomicUsize::new(0);
+    let rows: Mutex<Vec<SweepRow>> = Mutex::new(Vec::new());
+    let run_opts = LaunchOptions {
+        echo: false,
+        ..opts.clone()
+    };
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.clamp(1, planned.len().max(1)) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::SeqCst);
+                let Some((index, combo, scenario)) = planned.get(i) else {
+                    break;
+                };
+                let dir = out.join(dir_name(*index, combo));
+                // A panic in one run (a bug in the report code, say) is that
+                // run's failure, not the sweep's.
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    run_scenario(scenario, bins, &dir, &run_opts, true)
+                }));
+                let (outcome, error) = match result {
+                    Ok(Ok(o)) => {
+                        let e = o.error();
+                        (Some(o), e)
+                    }
+                    Ok(Err(e)) => (None, Some(e.to_string())),
+                    Err(_) => (None, Some("the run panicked (see the log above)".into())),
+                };
+                let row = SweepRow {
+                    index: *index,
+                    assignments: combo.clone(),
+                    dir,
+                    outcome,
+                    error,
+                };
+                bar.set_message(format!(
+                    "{}: {}",
+                    row.label(),
+                    row.error
+                        .as_deref()
+                        .map_or("ok".to_string(), |e| format!("FAILED {e}"))
+                ));
+                bar.inc(1);
+                rows.lock().unwrap_or_else(|e| e.into_inner()).push(row);
+            });
+        }
+    });
+    bar.finish();
+    let mut rows = rows.into_inner().unwrap_or_else(|e| e.into_inner());
+    rows.sort_by_key(|r| r.index);
+    write_tables(params, &rows, out)?;
+    if let Err(e) = write_plots(params, &rows, out) {
+        tracing::warn!("sweep plots: {e}");
+    }
+    Ok(rows)
+}
+
+const COLUMNS: [&str; 18] = [
+    "status",
+    "targets_reached",
+    "targets_total",
+    "targets_bypassed",
+    "platform_time_s",
+    "world_time_s",
+    "world_time_estimate_s",
+    "estimate_error_pct",
+    "energy_empirical_j",
+    "energy_dandrea_j",
+    "energy_stolaroff_j",
+    "energy_battery_j",
+    "soc_end_pct",
+    "flight_time_est_s",
+    "wall_time_s",
+    "realtime_factor",
+    "collisions",
+    "error",
+];
+
+fn row_values(row: &SweepRow) -> Vec<String> {
+    let f = |v: f64, d: usize| format!("{v:.d$}");
+    let status = if row.error.is_none() { "ok" } else { "failed" };
+    let err = row.error.clone().unwrap_or_default();
+    match row
+        .outcome
+        .as_ref()
+        .and_then(|o| o.summary.as_ref().map(|s| (o, s)))
+    {
+        Some((o, s)) => vec![
+            status.into(),
+            s.targets_reached.to_string(),
+            s.targets_total.to_string(),
+            s.targets_bypassed.to_string(),
+            f(s.platform_time_s, 3),
+            s.world_time_s.map_or(String::new(), |w| f(w, 3)),
+            f(s.world_time_estimate_s, 3),
+            s.estimate_error_pct.map_or(String::new(), |e| f(e, 4)),
+            f(s.energy_j.empirical, 2),
+            f(s.energy_j.dandrea, 2),
+            f(s.energy_j.stolaroff, 2),
+            f(s.energy_j.total, 2),
+            f(s.battery.soc_end * 100.0, 2),
+            s.flight_time_estimate_s(o.soc_init)
+                .map_or(String::new(), |t| f(t, 1)),
+            f(o.status.wall.as_secs_f64(), 2),
+            f(s.realtime_factor, 2),
+            s.collisions.map_or(String::new(), |c| c.to_string()),
+            err,
+        ],
+        None => {
+            let mut v = vec![status.to_string()];
+            v.extend(std::iter::repeat_n(String::new(), COLUMNS.len() - 2));
+            v.push(err);
+            v
+        }
+    }
+}
+
+fn write_tables(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), SweepError> {
+    let oerr = |e: &dyn std::fmt::Display| SweepError::Output(e.to_string());
+    let mut header: Vec<String> = vec!["run".into()];
+    header.extend(params.iter().map(|p| p.key.clone()));
+    header.extend(COLUMNS.iter().map(|c| c.to_string()));
+    header.push("dir".into());
+    let table: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            let mut v = vec![(r.index + 1).to_string()];
+            v.extend(r.assignments.iter().map(|(_, val)| val.clone()));
+            v.extend(row_values(r));
+            v.push(r.dir.display().to_string());
+            v
+        })
+        .collect();
+    let mut w = csv::Writer::from_path(out.join(files::CSV)).map_err(|e| oerr(&e))?;
+    w.write_record(&header).map_err(|e| oerr(&e))?;
+    for r in &table {
+        w.write_record(r).map_err(|e| oerr(&e))?;
+    }
+    w.flush().map_err(|e| oerr(&e))?;
+    std::fs::write(out.join(files::MARKDOWN), markdown(&header, &table)).map_err(|e| oerr(&e))
+}
+
+/// A markdown table (the `dir` column left out: it is in the CSV).
+pub fn markdown(header: &[String], rows: &[Vec<String>]) -> String {
+    let keep = header.len().saturating_sub(1);
+    let cell = |s: &str| s.replace('|', "\\|").replace('\n', " ");
+    let mut t = format!("| {} |\n", header[..keep].join(" | "));
+    t += &format!("|{}\n", "---|".repeat(keep));
+    for r in rows {
+        let cells: Vec<String> = r[..keep].iter().map(|c| cell(c)).collect();
+        t += &format!("| {} |\n", cells.join(" | "));
+    }
+    t
+}
+
+fn write_plots(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), SweepError> {
+    let perr = |e: plot::PlotError| SweepError::Output(e.to_string());
+    // SOC over time, one line per run (Figs. 5.6, 5.11, 5.17).
+    let mut soc = Vec::new();
+    for r in rows {
+        let power: Vec<PowerRow> =
+            match report::read_csv(&r.dir.join(sim_core::power::log::POWER_CSV)) {
+                Ok(p) => p,
+                Err(_) => continue,
+            };
+        let pts: Vec<(f64, f64)> = power.iter().map(|p| (p.time_s, p.soc * 100.0)).collect();
+        let failed = if r.error.is_some() { " (failed)" } else { "" };
+        soc.push(Series {
+            label: format!("{}{failed}", r.label()),
+            points: plot::decimate(&pts, 1500),
+        });
+    }
+    if !soc.is_empty() {
+        plot::overlay(
+            &out.join(files::SOC_PNG),
+            "Battery discharge per run",
+            "time (s)",
+            "SOC (%)",
+            &soc,
+            false,
+        )
+        .map_err(perr)?;
+    }
+    // Wall time and world time against the timestep (Tables 5.1-5.4),
+    // one line per combination of the other parameters.
+    if let Some(ts_pos) = params.iter().position(|p| p.key == "timestep_ms") {
+        let mut wall: Vec<Series> = Vec::new();
+        let mut world: Vec<Series> = Vec::new();
+        for r in rows {
+            let Some(o) = &r.outcome else { continue };
+            let Some(s) = &o.summary else { continue };
+            let Ok(ts) = r.assignments[ts_pos].1.parse::<f64>() else {
+                continue;
+            };
+            let others: Vec<String> = r
+                .assignments
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != ts_pos)
+                .map(|(_, (k, v))| format!("{k}={v}"))
+                .collect();
+            let label = if others.is_empty() {
+                "wall time".into()
+            } else {
+                others.join(" ")
+            };
+            let find = |v: &mut Vec<Series>, label: &str| -> usize {
+                match v.iter().position(|s| s.label == label) {
+                    Some(i) => i,
+                    None => {
+                        v.push(Series {
+                            label: label.to_string(),
+                            points: Vec::new(),
+                        });
+                        v.len() - 1
+                    }
+                }
+            };
+            let i = find(&mut wall, &label);
+            wall[i].points.push((ts, o.status.wall.as_secs_f64()));
+            if let Some(w) = s.world_time_s {
+                let i = find(&mut world, &label);
+                world[i].points.push((ts, w));
+            }
+        }
+        for s in wall.iter_mut().chain(world.iter_mut()) {
+            s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        if !wall.is_empty() {
+            plot::panels(
+                &out.join(files::TIMESTEP_PNG),
+                "basicTimeStep (ms)",
+                &[
+                    (
+                        "Wall time of the co-simulation".into(),
+                        "wall time (s)".into(),
+                        wall,
+                    ),
+                    ("World time at STOP".into(), "world time (s)".into(), world),
+                ],
+            )
+            .map_err(perr)?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn params_parse_and_multiply() {
+        let a: Param = "battery=lipol250, ufx250".parse().unwrap();
+        let b: Param = "timestep_ms=16,32,".parse().unwrap();
+        assert_eq!(a.values, ["lipol250", "ufx250"]);
+        let p = product(&[a, b]);
+        assert_eq!(p.len(), 4);
+        assert_eq!(
+            p[1],
+            [
+                ("battery".into(), "lipol250".into()),
+                ("timestep_ms".into(), "32".into())
+            ]
+        );
+        assert_eq!(p[2][0].1, "ufx250");
+        for bad in ["battery", "=1,2", "battery=", "battery=,"] {
+            assert!(bad.parse::<Param>().is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn run_directories_are_flat_and_distinct() {
+        let a = dir_name(0, &[("world".into(), "../w/x.toml".into())]);
+        assert_eq!(a, "run-001_world=.._w_x.toml");
+        assert!(!a.contains('/'));
+    }
+
+    #[test]
+    fn markdown_escapes_cells_and_drops_the_dir_column() {
+        let h: Vec<String> = ["run", "error", "dir"].map(String::from).to_vec();
+        let t = markdown(&h, &[vec!["1".into(), "a|b".into(), "/x".into()]]);
+        assert_eq!(t, "| run | error |\n|---|---|\n| 1 | a\\|b |\n");
+    }
+}

@@ -1,0 +1,402 @@
+//! Reading traces (DESIGN.md §2): `cosim trace show` (a readable listing)
+//! and `cosim trace-check` (a trace's requests sent to a live world server,
+//! its replies compared with the recorded ones).
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use protocol::blocking::{Client, Options};
+use protocol::trace::{Direction, TraceReader, TraceRecord};
+use protocol::{decode_reply, sha256_hex, Endpoint, Reply};
+use serde_json::Value;
+
+/// Why a trace could not be shown or checked.
+#[derive(Debug, thiserror::Error)]
+pub enum TraceToolError {
+    #[error("{0}")]
+    Io(String),
+    #[error("{path}: {message}")]
+    Trace { path: PathBuf, message: String },
+    #[error("world server: {0}")]
+    World(String),
+}
+
+/// Reads every record of a trace (a partial last line is reported, not fatal).
+pub fn read_trace(path: &Path) -> Result<Vec<TraceRecord>, TraceToolError> {
+    let terr = |message: String| TraceToolError::Trace {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut reader = TraceReader::open(path).map_err(|e| TraceToolError::Io(e.to_string()))?;
+    let mut out = Vec::new();
+    for r in reader.by_ref() {
+        out.push(r.map_err(|e| terr(e.to_string()))?);
+    }
+    if let Some(t) = reader.truncated() {
+        tracing::warn!(
+            "{}: line {} is cut short ({} bytes), ignored",
+            path.display(),
+            t.line,
+            t.bytes
+        );
+    }
+    Ok(out)
+}
+
+fn short_value(v: &Value) -> String {
+    match v {
+        Value::Number(n) => match n.as_f64() {
+            Some(f) if n.is_f64() => format!("{f:.6}")
+                .trim_end_matches('0')
+                .trim_end_matches('.')
+                .to_string(),
+            _ => n.to_string(),
+        },
+        Value::String(s) if s.len() > 24 => format!("{}…", &s[..16]),
+        Value::String(s) => s.clone(),
+        Value::Array(a) => format!("[{} items]", a.len()),
+        Value::Object(o) => {
+            let inner: Vec<String> = o
+                .iter()
+                .map(|(k, v)| format!("{k}={}", short_value(v)))
+                .collect();
+            format!("{{{}}}", inner.join(" "))
+        }
+        other => other.to_string(),
+    }
+}
+
+/// One record as a line: sequence, clock, direction, command, fields.
+pub fn format_record(r: &TraceRecord, full: bool) -> String {
+    let clock = match (r.world_ms, r.platform_ps) {
+        (Some(ms), _) => format!("{:>10.3} s", ms as f64 / 1000.0),
+        (None, Some(ps)) => format!("{:>10.6} s", ps as f64 / 1e12),
+        _ => " ".repeat(12),
+    };
+    let arrow = match r.dir {
+        Direction::ToWorld => "→ world   ",
+        Direction::ToPlatform => "← platform",
+    };
+    let cmd = r.command().unwrap_or("?");
+    let fields = if full {
+        r.msg.to_string()
+    } else {
+        match &r.msg {
+            Value::Object(o) => o
+                .iter()
+                .filter(|(k, _)| k.as_str() != "command")
+                .map(|(k, v)| format!("{k}={}", short_value(v)))
+                .collect::<Vec<_>>()
+                .join(" "),
+            other => short_value(other),
+        }
+    };
+    format!(
+        "{:>7} {clock} {arrow} {cmd:<13} {:>7} B  {fields}",
+        r.seq, r.len
+    )
+}
+
+/// `cosim trace show`: the listing, filtered by command, then totals.
+pub fn show(
+    records: &[TraceRecord],
+    command: Option<&str>,
+    limit: Option<usize>,
+    full: bool,
+) -> String {
+    let mut out = String::new();
+    let mut shown = 0usize;
+    let mut per_command: BTreeMap<(String, &'static str), (u64, u64)> = BTreeMap::new();
+    for r in records {
+        let cmd = r.command().unwrap_or("?").to_string();
+        let e = per_command
+            .entry((cmd.clone(), r.dir.as_str()))
+            .or_default();
+        e.0 += 1;
+        e.1 += r.len;
+        if command.is_some_and(|c| !c.eq_ignore_ascii_case(&cmd)) {
+            continue;
+        }
+        if limit.is_some_and(|l| shown >= l) {
+            continue;
+        }
+        shown += 1;
+        out += &format_record(r, full);
+        out.push('\n');
+    }
+    let _ = writeln!(
+        out,
+        "-- {} frames; per command and direction:",
+        records.len()
+    );
+    for ((cmd, dir), (n, bytes)) in per_command {
+        let _ = writeln!(
+            out,
+            "   {cmd:<14} {dir:<12} {n:>8} frames {bytes:>12} bytes"
+        );
+    }
+    out
+}
+
+/// The first place where two JSON values differ beyond `tol` (numbers:
+/// |a − b| ≤ tol·max(1, |a|)), as `path: expected X, got Y`.
+pub fn diff_json(expected: &Value, got: &Value, tol: f64) -> Option<String> {
+    fn walk(path: &str, a: &Value, b: &Value, tol: f64) -> Option<String> {
+        match (a, b) {
+            (Value::Number(x), Value::Number(y)) => {
+                let (x, y) = (x.as_f64()?, y.as_f64()?);
+                let ok = (x - y).abs() <= tol * x.abs().max(1.0);
+                (!ok).then(|| format!("{path}: expected {x}, got {y}"))
+            }
+            (Value::Object(x), Value::Object(y)) => {
+                for (k, va) in x {
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
+                    match y.get(k) {
+                        Some(vb) => {
+                            if let Some(d) = walk(&p, va, vb, tol) {
+                                return Some(d);
+                            }
+                        }
+                        None => return Some(format!("{p}: missing")),
+                    }
+                }
+                y.keys().find(|k| !x.contains_key(*k)).map(|k| {
+                    format!(
+                        "{path}{}{k}: not in the recording",
+                        if path.is_empty() { "" } else { "." }
+                    )
+                })
+            }
+            (Value::Array(x), Value::Array(y)) => {
+                if x.len() != y.len() {
+                    return Some(format!(
+                        "{path}: {} items expected, got {}",
+                        x.len(),
+                        y.len()
+                    ));
+                }
+                x.iter()
+                    .zip(y)
+                    .enumerate()
+                    .find_map(|(i, (va, vb))| walk(&format!("{path}[{i}]"), va, vb, tol))
+            }
+            _ => (a != b).then(|| format!("{path}: expected {a}, got {b}")),
+        }
+    }
+    walk("", expected, got, tol)
+}
+
+/// Compares a live reply with a recorded one. Images are compared by the
+/// SHA-256 of their pixels (the recording keeps only the hash unless it
+/// was made with `--trace-images`).
+pub fn compare_reply(recorded: &Value, body: &[u8], tol: f64) -> Option<String> {
+    let got: Value = match serde_json::from_slice(body) {
+        Ok(v) => v,
+        Err(e) => return Some(format!("the reply is not JSON: {e}")),
+    };
+    if let Some(cam) = recorded.get("camera") {
+        let expected_sha = match cam.get("sha256").and_then(Value::as_str) {
+            Some(s) => s.to_string(),
+            None => match decode_reply(recorded.to_string().as_bytes()) {
+                Ok(Reply::Image(img)) => sha256_hex(&img.data),
+                _ => return Some("the recorded image cannot be decoded".into()),
+            },
+        };
+        return match decode_reply(body) {
+            Ok(Reply::Image(img)) => {
+                let w = cam.get("width").and_then(Value::as_u64);
+                let h = cam.get("height").and_then(Value::as_u64);
+                if w != Some(img.width.into()) || h != Some(img.height.into()) {
+                    Some(format!(
+                        "camera: expected {w:?}x{h:?}, got {}x{}",
+                        img.width, img.height
+                    ))
+                } else if sha256_hex(&img.data) != expected_sha {
+                    Some("camera.data: the pixels differ (SHA-256)".into())
+                } else {
+                    None
+                }
+            }
+            Ok(other) => Some(format!(
+                "command: expected GET_IMAGE, got {}",
+                other.command()
+            )),
+            Err(e) => Some(format!("the image reply does not decode: {e}")),
+        };
+    }
+    diff_json(recorded, &got, tol)
+}
+
+/// The result of `trace-check`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckReport {
+    /// Requests sent.
+    pub requests: usize,
+    /// Replies compared.
+    pub replies: usize,
+    /// The first difference: (sequence number of the recorded reply,
+    /// command, what differs).
+    pub first_difference: Option<(u64, String, String)>,
+}
+
+/// A world server started for a check, killed when dropped.
+pub struct WorldProcess {
+    child: Child,
+    _dir: tempfile::TempDir,
+    pub endpoint: Endpoint,
+}
+
+impl Drop for WorldProcess {
+    fn drop(&mut self) {
+        if self.child.try_wait().ok().flatten().is_none() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Starts `command` through `sh -c` on a fresh private socket; `{socket}`
+/// in the command is replaced by the socket path (also in `COSIM_SOCKET`).
+pub fn start_world(command: &str) -> Result<WorldProcess, TraceToolError> {
+    let dir = tempfile::Builder::new()
+        .prefix("cosim-check-")
+        .tempdir()
+        .map_err(|e| TraceToolError::Io(format!("cannot create a socket directory: {e}")))?;
+    let socket = dir.path().join("world.sock");
+    let cmd = command.replace("{socket}", &socket.display().to_string());
+    let child = Command::new("sh")
+        .arg("-c")
+        .arg(&cmd)
+        .env("COSIM_SOCKET", &socket)
+        .stdin(Stdio::null())
+        .spawn()
+        .map_err(|e| TraceToolError::World(format!("cannot start `{cmd}`: {e}")))?;
+    Ok(WorldProcess {
+        child,
+        _dir: dir,
+        endpoint: Endpoint::Unix(socket),
+    })
+}
+
+/// The basicTimeStep a trace was recorded with (its GET_INIT_DATA reply).
+pub fn trace_timestep(records: &[TraceRecord]) -> Option<u64> {
+    records
+        .iter()
+        .find(|r| r.dir == Direction::ToPlatform && r.command() == Some("GET_INIT_DATA"))
+        .and_then(|r| r.msg.get("TIMESTEP"))
+        .and_then(Value::as_u64)
+}
+
+/// Sends the trace's requests to the world at `endpoint` in order and
+/// compares every reply with the recorded one; stops at the first
+/// difference unless `keep_going` (then only the first is reported).
+pub fn check(
+    records: &[TraceRecord],
+    endpoint: &Endpoint,
+    tol: f64,
+    patience: Duration,
+) -> Result<CheckReport, TraceToolError> {
+    let mut conn = Client::connect_retry(endpoint, Options::default(), patience)
+        .map_err(|e| TraceToolError::World(format!("cannot connect to {endpoint}: {e}")))?;
+    let mut report = CheckReport {
+        requests: 0,
+        replies: 0,
+        first_difference: None,
+    };
+    let mut i = 0;
+    while i < records.len() {
+        let r = &records[i];
+        i += 1;
+        if r.dir != Direction::ToWorld {
+            continue;
+        }
+        let body = serde_json::to_vec(&r.msg).expect("a JSON value serializes");
+        conn.send_raw(&body)
+            .map_err(|e| TraceToolError::World(format!("sending #{}: {e}", r.seq)))?;
+        report.requests += 1;
+        let Some(rec) = records.get(i).filter(|n| n.dir == Direction::ToPlatform) else {
+            continue;
+        };
+        i += 1;
+        let cmd = rec.command().unwrap_or("?").to_string();
+        let reply = match conn.recv_raw() {
+            Ok(Some(b)) => b.to_vec(),
+            Ok(None) => {
+                report.first_difference = Some((
+                    rec.seq,
+                    cmd,
+                    "the world closed the connection instead of replying".into(),
+                ));
+                return Ok(report);
+            }
+            Err(e) => {
+                return Err(TraceToolError::World(format!(
+                    "reading the reply to #{}: {e}",
+                    r.seq
+                )))
+            }
+        };
+        report.replies += 1;
+        if let Some(d) = compare_reply(&rec.msg, &reply, tol) {
+            report.first_difference = Some((rec.seq, cmd, d));
+            return Ok(report);
+        }
+    }
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn numbers_within_the_tolerance_are_equal() {
+        let a = json!({"command":"GET_SENSORS","TIME":2.0,"X":1.0});
+        assert_eq!(
+            diff_json(
+                &a,
+                &json!({"command":"GET_SENSORS","TIME":2.0,"X":1.0 + 1e-12}),
+                1e-9
+            ),
+            None
+        );
+        let d = diff_json(
+            &a,
+            &json!({"command":"GET_SENSORS","TIME":2.0,"X":1.1}),
+            1e-9,
+        )
+        .unwrap();
+        assert!(d.starts_with("X: expected 1"), "{d}");
+        let d = diff_json(&a, &json!({"command":"GET_SENSORS","TIME":2.0}), 1e-9).unwrap();
+        assert_eq!(d, "X: missing");
+        let d = diff_json(&a, &json!({"command":"STOP","TIME":2.0,"X":1.0}), 1e-9).unwrap();
+        assert!(d.starts_with("command: expected"), "{d}");
+    }
+
+    #[test]
+    fn images_compare_by_their_pixels() {
+        let img = protocol::Image {
+            width: 2,
+            height: 1,
+            data: vec![3, 4],
+        };
+        let mut body = Vec::new();
+        protocol::encode_reply(
+            &Reply::Image(img.clone()),
+            protocol::ImageEncoding::Array,
+            &mut body,
+        );
+        let rec = json!({"command":"GET_IMAGE","camera":{"width":2,"height":1,"sha256":sha256_hex(&[3, 4])}});
+        assert_eq!(compare_reply(&rec, &body, 0.0), None);
+        let rec = json!({"command":"GET_IMAGE","camera":{"width":2,"height":1,"sha256":sha256_hex(&[3, 5])}});
+        assert!(compare_reply(&rec, &body, 0.0).unwrap().contains("pixels"));
+    }
+}
