@@ -7,64 +7,16 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use sim_core::iss::run_elf::build_memory;
-use sim_core::iss::{load_elf, AccessSize, Cpu, CpuConfig, Mmio, MmioError, StopReason};
+use sim_core::iss::{load_elf, Cpu, CpuConfig, StopReason};
 use sim_core::units::Picos;
+
+#[path = "../tests/iss_util/op_device.rs"]
+mod op_device;
+use op_device::OpDevice;
 
 fn elf(name: &str) -> Vec<u8> {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("firmware/bin/{name}.elf"));
     std::fs::read(p).expect("firmware ELF")
-}
-
-/// The register protocol device of the idle test: an operation completes
-/// `op` ms after its control write.
-#[derive(Default)]
-struct OpDevice {
-    ctrl: u8,
-    status: u8,
-    pending: Option<(u8, Picos)>,
-}
-
-impl OpDevice {
-    fn settle(&mut self, now: Picos) {
-        if let Some((op, at)) = self.pending {
-            if now >= at {
-                self.status = op;
-                self.pending = None;
-            }
-        }
-    }
-}
-
-impl Mmio for OpDevice {
-    fn read(&mut self, addr: u32, _s: AccessSize, now: Picos) -> Result<u32, MmioError> {
-        self.settle(now);
-        Ok(match addr {
-            0x2000_0000 => self.ctrl as u32 | (self.status as u32) << 8,
-            0x2000_0001 => self.status as u32,
-            _ => return Err(MmioError::AccessFault { addr }),
-        })
-    }
-    fn write(&mut self, addr: u32, _s: AccessSize, v: u32, now: Picos) -> Result<(), MmioError> {
-        self.settle(now);
-        match addr {
-            0x2000_0000 => {
-                self.ctrl = v as u8;
-                if v != 0 {
-                    self.pending = Some((v as u8, now + Picos::from_ms(v as u64)));
-                }
-            }
-            0x2000_0001 => self.status = v as u8,
-            _ => return Err(MmioError::AccessFault { addr }),
-        }
-        Ok(())
-    }
-    fn stable_until(&self, _a: u32, _s: AccessSize, now: Picos) -> Picos {
-        match self.pending {
-            Some((_, at)) if at > now => at,
-            Some(_) => now,
-            None => Picos::MAX,
-        }
-    }
 }
 
 /// Run once; returns (instructions retired, instructions interpreted).

@@ -5,100 +5,9 @@
 
 mod iss_util;
 
-use sim_core::iss::{AccessSize, CoreStats, CpuConfig, Mmio, MmioError, StopReason};
+use iss_util::op_device::{OpDevice, CTRL};
+use sim_core::iss::{CoreStats, CpuConfig, Mmio, StopReason};
 use sim_core::units::{Cycles, Picos};
-
-const CTRL: u32 = 0x2000_0000;
-const STAT: u32 = 0x2000_0001;
-
-/// A device in the style of the thesis's sensors: writing an opcode to the
-/// control register starts an operation that completes `delay(op)` later,
-/// when the status register shows the opcode (DESIGN.md §4, "a completed
-/// operation shows its own code in the status register at the time the
-/// operation completes").
-#[derive(Debug, Default, Clone)]
-struct OpDevice {
-    ctrl: u8,
-    status: u8,
-    pending: Option<(u8, Picos)>,
-    /// Report completions as kernel events (the kernel then calls `tick`).
-    eventful: bool,
-    /// Every write, with the time the device saw it.
-    writes: Vec<(u32, u32, Picos)>,
-    /// Reads that returned a completed status, with their time.
-    completions_seen: Vec<(u8, Picos)>,
-}
-
-impl OpDevice {
-    fn delay(op: u8) -> Picos {
-        // Not multiples of the 4 ns clock period, to exercise rounding.
-        Picos(op as u64 * 1_000_000_000 + 1_234_567)
-    }
-
-    /// Lazily complete the pending operation once its time has come.
-    fn settle(&mut self, now: Picos) {
-        if let Some((op, at)) = self.pending {
-            if now >= at {
-                self.status = op;
-                self.pending = None;
-            }
-        }
-    }
-}
-
-impl Mmio for OpDevice {
-    fn read(&mut self, addr: u32, size: AccessSize, now: Picos) -> Result<u32, MmioError> {
-        self.settle(now);
-        let v = match (addr, size) {
-            (CTRL, AccessSize::Byte) => self.ctrl as u32,
-            (STAT, AccessSize::Byte) => self.status as u32,
-            (CTRL, AccessSize::Word) => self.ctrl as u32 | (self.status as u32) << 8,
-            _ => return Err(MmioError::AccessFault { addr }),
-        };
-        if self.status != 0 && self.completions_seen.last().map(|c| c.0) != Some(self.status) {
-            self.completions_seen.push((self.status, now));
-        }
-        Ok(v)
-    }
-
-    fn write(
-        &mut self,
-        addr: u32,
-        size: AccessSize,
-        value: u32,
-        now: Picos,
-    ) -> Result<(), MmioError> {
-        self.settle(now);
-        self.writes.push((addr, value, now));
-        match (addr, size) {
-            (CTRL, AccessSize::Byte) => {
-                self.ctrl = value as u8;
-                if value != 0 {
-                    self.pending = Some((value as u8, now + Self::delay(value as u8)));
-                }
-            }
-            (STAT, AccessSize::Byte) => self.status = value as u8,
-            _ => return Err(MmioError::AccessFault { addr }),
-        }
-        Ok(())
-    }
-
-    fn stable_until(&self, _addr: u32, _size: AccessSize, now: Picos) -> Picos {
-        match self.pending {
-            Some((_, at)) if at > now => at,
-            Some(_) => now,
-            None => Picos::MAX,
-        }
-    }
-
-    fn next_event(&self) -> Option<Picos> {
-        if self.eventful {
-            self.pending.map(|(_, at)| at)
-        } else {
-            None
-        }
-    }
-}
 
 #[derive(Debug, PartialEq, Eq)]
 struct Outcome {
@@ -124,10 +33,8 @@ fn run(skip: bool, eventful: bool, latency: u64, slice: Option<u64>) -> Outcome 
     };
     let (mut cpu, mut mem, _, _) = iss_util::load("idle", cfg, &[]);
     cpu.set_instruction_limit(Some(50_000_000));
-    let mut dev = OpDevice {
-        eventful,
-        ..OpDevice::default()
-    };
+    let mut dev = OpDevice::default();
+    dev.eventful = eventful;
     let mut events = 0;
     let code = loop {
         let limit = slice.map_or(Picos::MAX, |s| cpu.now() + Picos(s));

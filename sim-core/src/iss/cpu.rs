@@ -1083,11 +1083,31 @@ impl Cpu {
         Picos((issue + self.latency) * self.period)
     }
 
-    fn after_mmio(&mut self, dev: &mut dyn Mmio) {
+    /// One access to an MMIO window issued at cycle `issue`: charges the
+    /// peripheral latency, performs it at its access time, then honours a
+    /// stop request and picks up a newly scheduled event. `None`: the device
+    /// answered with an access fault (the caller traps); `Some(Err(()))`: the
+    /// device failed and the run stops.
+    fn mmio_access(
+        &mut self,
+        dev: &mut dyn Mmio,
+        issue: u64,
+        access: impl FnOnce(&mut dyn Mmio, Picos) -> Result<u32, MmioError>,
+    ) -> Option<Result<u32, ()>> {
+        self.cycles += self.latency;
+        let result = access(dev, self.mmio_time(issue));
         if dev.take_stop_request() {
             self.stop(StopReason::DeviceRequest);
         }
         self.refresh_event(dev);
+        match result {
+            Ok(v) => Some(Ok(v)),
+            Err(MmioError::AccessFault { .. }) => None,
+            Err(e) => {
+                self.stop(StopReason::Fatal(e.into()));
+                Some(Err(()))
+            }
+        }
     }
 
     #[cold]
@@ -1107,19 +1127,13 @@ impl Cpu {
                 return Some(v);
             }
         } else if mem.is_mmio(addr) {
-            self.cycles += self.latency;
-            let now = self.mmio_time(issue);
-            match dev.read(addr, size, now) {
-                Ok(v) => {
+            match self.mmio_access(dev, issue, |d, now| d.read(addr, size, now)) {
+                Some(Ok(v)) => {
                     self.record_poll_read(addr, size, issue);
-                    self.after_mmio(dev);
                     return Some(v);
                 }
-                Err(MmioError::AccessFault { .. }) => {}
-                Err(e) => {
-                    self.stop(StopReason::Fatal(e.into()));
-                    return None;
-                }
+                Some(Err(())) => return None,
+                None => {}
             }
         }
         self.trap(mem, cause::LOAD_ACCESS, addr, pc);
@@ -1158,18 +1172,9 @@ impl Cpu {
                 return true;
             }
         } else if mem.is_mmio(addr) {
-            self.cycles += self.latency;
-            let now = self.mmio_time(issue);
-            match dev.write(addr, size, value, now) {
-                Ok(()) => {
-                    self.after_mmio(dev);
-                    return true;
-                }
-                Err(MmioError::AccessFault { .. }) => {}
-                Err(e) => {
-                    self.stop(StopReason::Fatal(e.into()));
-                    return false;
-                }
+            let write = |d: &mut dyn Mmio, now| d.write(addr, size, value, now).map(|()| 0);
+            if let Some(r) = self.mmio_access(dev, issue, write) {
+                return r.is_ok();
             }
         }
         self.trap(mem, cause::STORE_ACCESS, addr, pc);

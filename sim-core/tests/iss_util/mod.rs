@@ -1,6 +1,8 @@
 //! Helpers shared by the ISS integration tests.
 #![allow(dead_code)]
 
+pub mod op_device;
+
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
