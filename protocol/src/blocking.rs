@@ -208,8 +208,26 @@ impl Connection {
 
     /// Sends a request without waiting (the only way for `SET_VELOCITY` and
     /// `ADVANCE_TIME`, which have no reply).
+    ///
+    /// If the world has already closed (it does so after answering a bad
+    /// no-reply command with ERROR), the write fails; the ERROR frame it left
+    /// behind is then reported as [`ProtocolError::Remote`] rather than a
+    /// bare "broken pipe".
     pub fn send(&mut self, req: &Request) -> Result<()> {
-        self.send_frame_with(None, |o| encode_request(req, o))
+        match self.send_frame_with(None, |o| encode_request(req, o)) {
+            Err(ProtocolError::Io(e))
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::BrokenPipe | io::ErrorKind::ConnectionReset
+                ) =>
+            {
+                match self.recv_reply() {
+                    Ok(Some(Reply::Error { error })) => Err(ProtocolError::Remote(error)),
+                    _ => Err(ProtocolError::Io(e)),
+                }
+            }
+            r => r,
+        }
     }
 
     /// Sends a request and waits for its reply. A reply-less request is just

@@ -432,3 +432,27 @@ fn both_ends_trace_the_same_frames() {
         serde_json::json!({"command":"SET_VELOCITY","m1":1.0,"m2":2.0,"m3":3.0,"m4":4.0})
     );
 }
+
+/// The world answers a bad no-reply command with ERROR and closes; the
+/// platform's next write fails, and the ERROR it left is what gets reported.
+#[test]
+fn error_left_by_a_closed_world_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let ep = sock(&dir, "w.sock");
+    let server = Server::bind(&ep).unwrap();
+    let world = thread::spawn(move || {
+        let mut conn = server.accept().unwrap();
+        let req = conn.recv_request().unwrap().unwrap();
+        assert_eq!(req, Request::AdvanceTime { time: 10 });
+        conn.send_reply(&Reply::error("time 10 is not a multiple of 32 ms"))
+            .unwrap();
+    });
+    let mut c = Client::connect(&ep).unwrap();
+    c.send(&Request::AdvanceTime { time: 10 }).unwrap();
+    world.join().unwrap(); // the world has closed
+    let e = c.request(&Request::GetSensors).unwrap_err();
+    assert!(
+        matches!(&e, ProtocolError::Remote(m) if m == "time 10 is not a multiple of 32 ms"),
+        "{e}"
+    );
+}
