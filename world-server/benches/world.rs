@@ -63,7 +63,10 @@ fn steps(c: &mut Criterion) {
         .unwrap();
         // Hovering at 1 m among the gates, near gate 1.
         let h = hover_speed();
-        w.teleport(DVec3::new(-0.8, 1.0, 1.0), DQuat::from_rotation_z(1.57));
+        w.teleport(
+            DVec3::new(-0.8, 1.0, 1.0),
+            DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2),
+        );
         w.motors_mut().set_speeds_now([-h, h, -h, h]);
         g.bench_function(name, |b| {
             b.iter_custom(|iters| {
@@ -99,7 +102,7 @@ fn frames(c: &mut Criterion) {
         (
             "race_view",
             DVec3::new(2.0, -0.4, 1.0),
-            DQuat::from_rotation_z(1.5708),
+            DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2),
         ),
     ];
     for (name, pos, rot) in views {
