@@ -8,7 +8,10 @@
 //! - [`Memory`] / [`Mmio`]: RAM regions owned by the ISS and the device
 //!   window(s) the platform implements (see [`mem`] for the access-time and
 //!   idle-skip contracts).
-//! - [`elf`]: ELF loading with the `object` crate.
+//! - [`elf`]: ELF loading with the `object` crate (segments at their
+//!   physical addresses, symbols for `tohost` and the signature).
+//! - [`semihost`]: the semihosting calls picolibc uses; output goes to a
+//!   sink the platform chooses ([`Cpu::set_console`]).
 //! - [`run_elf`]: the `sim-core run-elf` driver (riscv-tests `tohost`,
 //!   semihosting, RISCOF signatures).
 //!
@@ -27,7 +30,54 @@
 //! ```
 //! `run_until` stops at the first instruction boundary at or after the limit
 //! (an instruction is never split), so the core may overshoot by the length
-//! of one instruction.
+//! of one instruction. Splitting a run into more or fewer `run_until` calls
+//! never changes its outcome (tested).
+//!
+//! # Time
+//!
+//! Simulated time is `cycles × period` (250 MHz → 4000 ps per cycle), always
+//! on a cycle boundary: a device event at a time between two edges is seen
+//! at the next edge. `cycles` counts every clock cycle, asleep or not; the
+//! `mcycle` CSR counts only awake cycles (CV32E40P's counters run on the
+//! gated clock that `wfi` stops); `mtime` (CLINT at [`cpu::CLINT_BASE`])
+//! counts core cycles. An MMIO access issued at cycle `c` happens at
+//! `(c + latency) × period` ([`CpuConfig::mmio_latency`], default 0).
+//!
+//! # Idle skipping
+//!
+//! A loop is a polling loop when its body, from a backward branch's target
+//! to the branch (at most [`cpu::MAX_POLL_LOOP_BYTES`]), is straight-line
+//! code of loads and computations only, it read at least one MMIO register,
+//! and one whole iteration ends with exactly the register file it started
+//! with. Each such iteration counts as polling in [`CoreStats`]; with
+//! skipping on, the core then jumps over as many whole iterations as fit
+//! before the run's deadline and before [`Mmio::stable_until`] of every
+//! register the iteration read, adding their exact cycles and instructions.
+//! `wfi` with no enabled interrupt pending sleeps to the next deadline (the
+//! limit, a device event or the timer) in one step, or cycle by cycle with
+//! skipping off. Both modes give identical architectural state, counters,
+//! statistics (except `skipped_instructions`) and device-visible access
+//! times; `tests/iss_idle.rs` compares them. One difference by design: a
+//! loop polling a register that never changes, with nothing scheduled, ends
+//! the run with [`StopReason::Idle`] when skipping is on (a step-by-step run
+//! would spin forever).
+//!
+//! # Decisions where the contract leaves room
+//!
+//! - Misaligned loads and stores are done in hardware; those that cross a
+//!   word boundary cost one extra cycle (two bus transactions, as RI5CY).
+//!   With C always enabled, a misaligned instruction fetch cannot happen
+//!   (jump targets have bit 0 cleared), so that trap is never raised.
+//! - A trap whose handler address is not in RAM (e.g. `mtvec` still 0 when
+//!   the first fetch faults) ends the run with [`IssError::UnhandledTrap`]
+//!   instead of looping.
+//! - `wfi` in user mode raises an illegal-instruction trap (the spec's
+//!   implementation-defined time limit is zero here); `mcounteren` gates
+//!   user access to `cycle`/`time`/`instret`.
+//! - The decoded cache is kept coherent by every store (and by
+//!   [`Memory::write_bytes`]), so `fence.i` only costs its 2 cycles.
+//! - Semihosting times (`SYS_CLOCK`, `SYS_TIME`, `SYS_ELAPSED`) are
+//!   simulated time, never the wall clock.
 
 pub mod cpu;
 pub mod decode;
