@@ -82,7 +82,7 @@ static void run_single_pid_iter(void)
     }
 }
 
-static void set_target(double x, double y, double z)
+__attribute__((unused)) static void set_target(double x, double y, double z)
 {
     if (!low_battery) {
         printf("\n[GVoC] New destination: point %d...", target_point);

@@ -84,15 +84,6 @@ pub struct RunOutcome {
     pub error: Option<KernelError>,
 }
 
-// FIXME(lead): the config's own SyncMode duplicates `sync::SyncMode`; fold
-// once the config module settles.
-fn sync_mode(cfg: &KernelConfig) -> crate::sync::SyncMode {
-    match cfg.run.sync {
-        crate::config::SyncMode::Thesis => crate::sync::SyncMode::Thesis,
-        crate::config::SyncMode::Bounded => crate::sync::SyncMode::Bounded,
-    }
-}
-
 /// Builds the STM32's settings from the run configuration.
 fn stm32_config(cfg: &KernelConfig) -> Stm32Config {
     Stm32Config {
@@ -180,7 +171,7 @@ impl<W: WorldLink> Run<W> {
             stm32_config(cfg),
             DevicePower::new(write_delay(&cfg.platform, "stm32")),
         );
-        let time = TimeKeeper::new(sync_mode(cfg));
+        let time = TimeKeeper::new(cfg.run.sync);
         let platform = Platform::new(camera, stm32, world, time);
 
         let mut power = PowerNetwork::new(&cfg.platform, &cfg.run)?;
@@ -293,7 +284,7 @@ impl<W: WorldLink> Run<W> {
         if let Err(e) = self.cpu.flush_console() {
             error.get_or_insert(KernelError::Io(e));
         }
-        if let Err(e) = self.power.flush_log() {
+        if let Err(e) = self.power.flush() {
             error.get_or_insert(KernelError::Power(e));
         }
         let now = self.cpu.now();

@@ -102,7 +102,7 @@ impl Camera {
     fn capture(&mut self, now: Picos, ctx: &mut DeviceCtx<'_>) -> Result<(), DeviceError> {
         let world_err = |source| DeviceError::World {
             device: "camera",
-            source,
+            error: source,
         };
         let reply = ctx.world.call(&Request::GetImage, now).map_err(world_err)?;
         let Reply::Image(frame) = reply else {

@@ -92,11 +92,12 @@ pub enum DeviceError {
         device: &'static str,
         message: String,
     },
-    #[error("{device}: {source}")]
+    /// The exchange with the world failed (its message is part of ours,
+    /// so it is not also a `source`, which would print it twice).
+    #[error("{device}: {error}")]
     World {
         device: &'static str,
-        #[source]
-        source: LinkError,
+        error: LinkError,
     },
     #[error("battery empty at {at}: the run cannot go on")]
     BatteryEmpty { at: Picos },

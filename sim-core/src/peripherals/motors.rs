@@ -33,6 +33,11 @@ impl Motors {
         ctx_world: &mut dyn super::WorldLink,
         time: &mut crate::sync::TimeKeeper,
     ) -> Result<(), LinkError> {
+        // The motor drivers cannot reverse a propeller nor exceed the
+        // motors' 600 rad/s (DESIGN.md §5): the PID's outputs saturate here,
+        // as the Crazyflie's PWM saturates in [0, 100 %]. The Bitcraze
+        // controller does go below 0 on hard attitude corrections.
+        let commands = saturate(commands);
         self.state.omega = commands.as_array();
         let steps = time.iteration_steps(Millis(iter.0.saturating_sub(1)));
         let request = Request::SetVelocity {
@@ -94,6 +99,20 @@ impl Motors {
             }
         }
         Ok(())
+    }
+}
+
+/// Highest motor speed (rad/s): the PROTO's `maxVelocity` (DESIGN.md §5).
+pub const MAX_SPEED: f64 = 600.0;
+
+/// Clamps each command to what a motor can do, `[0, MAX_SPEED]`.
+pub fn saturate(c: MotorCommands) -> MotorCommands {
+    let s = |m: f64| m.clamp(0.0, MAX_SPEED);
+    MotorCommands {
+        m1: s(c.m1),
+        m2: s(c.m2),
+        m3: s(c.m3),
+        m4: s(c.m4),
     }
 }
 

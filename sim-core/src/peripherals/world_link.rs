@@ -10,9 +10,9 @@ use crate::units::Picos;
 /// A failed exchange with the world.
 #[derive(Debug, Error)]
 pub enum LinkError {
-    #[error("{0}")]
+    #[error(transparent)]
     Protocol(#[from] protocol::ProtocolError),
-    #[error("the world answered {request} with an error: {message}")]
+    #[error("the world refused {request}: {message}")]
     Remote {
         request: &'static str,
         message: String,
@@ -161,7 +161,21 @@ impl WorldLink for SocketWorld {
         self.counters
             .now_ps
             .store(now.0, std::sync::atomic::Ordering::Relaxed);
-        self.conn.send(request).map_err(|e| Self::map(request, e))
+        match self.conn.send(request) {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                // A world refusing a reply-less request sends ERROR and
+                // closes (DESIGN.md §2); our next write then fails. The
+                // ERROR frame says why: report that, not the broken pipe.
+                if let Ok(Some(Reply::Error { error })) = self.conn.recv_reply() {
+                    return Err(LinkError::Remote {
+                        request: request.command(),
+                        message: error,
+                    });
+                }
+                Err(Self::map(request, e))
+            }
+        }
     }
 
     fn stats(&self) -> LinkStats {

@@ -365,14 +365,6 @@ impl PowerNetwork {
         self.logger = Some(logger);
     }
 
-    /// Flushes the attached logger's CSV files (a no-op without a logger).
-    pub fn flush_log(&mut self) -> Result<(), PowerError> {
-        match &mut self.logger {
-            Some(logger) => logger.flush(),
-            None => Ok(()),
-        }
-    }
-
     /// The battery.
     pub fn battery(&self) -> &Battery {
         &self.battery

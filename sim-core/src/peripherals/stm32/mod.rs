@@ -719,7 +719,7 @@ impl Stm32 {
 fn world_err(source: LinkError) -> DeviceError {
     DeviceError::World {
         device: "stm32",
-        source,
+        error: source,
     }
 }
 
