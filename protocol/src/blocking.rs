@@ -14,7 +14,7 @@ use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use crate::endpoint::{bind_unix, unlink_if_ours, Endpoint};
+use crate::endpoint::{bind_unix, tcp_bind_error, unlink_if_ours, Endpoint};
 use crate::error::{ProtocolError, Result};
 use crate::frame::{read_frame, write_frame, DEFAULT_MAX_FRAME};
 use crate::image::{Image, ImageEncoding};
@@ -394,12 +394,9 @@ impl Server {
                     ino,
                 }
             }
-            Endpoint::Tcp(a) => ListenerKind::Tcp(TcpListener::bind(a.as_str()).map_err(|e| {
-                ProtocolError::Io(io::Error::new(
-                    e.kind(),
-                    format!("cannot bind tcp:{a}: {e}"),
-                ))
-            })?),
+            Endpoint::Tcp(a) => {
+                ListenerKind::Tcp(TcpListener::bind(a.as_str()).map_err(|e| tcp_bind_error(a, e))?)
+            }
         };
         Ok(Server { kind, opts })
     }

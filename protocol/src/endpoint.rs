@@ -152,6 +152,14 @@ fn remove_stale(path: &Path) -> Result<()> {
     }
 }
 
+/// The error for a failed TCP bind, naming the endpoint.
+pub(crate) fn tcp_bind_error(addr: &str, e: io::Error) -> ProtocolError {
+    ProtocolError::Io(io::Error::new(
+        e.kind(),
+        format!("cannot bind tcp:{addr}: {e}"),
+    ))
+}
+
 /// Removes the socket file a server bound, unless something else replaced it
 /// since (compared by inode).
 pub(crate) fn unlink_if_ours(path: &Path, ino: u64) {

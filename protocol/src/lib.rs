@@ -17,6 +17,21 @@
 //!   for the world server.
 //! - [`trace`]: JSON-lines traces, writer and reader.
 //! - [`Endpoint`]: `unix:PATH` (default) or `tcp:HOST:PORT`.
+//!
+//! The calls the two binaries make:
+//!
+//! | side | call |
+//! |---|---|
+//! | platform | `blocking::Client::connect(&Endpoint) -> Result<Connection>` (or `connect_retry`) |
+//! | platform | `Connection::request(&Request) -> Result<Option<Reply>>` (`None` for the reply-less `SET_VELOCITY` / `ADVANCE_TIME`; an `ERROR` reply is `Err(ProtocolError::Remote)`) |
+//! | platform | `Connection::send(&Request) -> Result<()>` |
+//! | world | `tokio_transport::Listener::bind(&Endpoint).await`, `listener.accept().await -> Result<ServerFramed>`, then `StreamExt::next` for [`Request`]s and `SinkExt::send(&Reply)` |
+//! | world (blocking) | `blocking::Server::bind(&Endpoint)`, `server.accept() -> Result<Connection>`, `recv_request() -> Result<Option<Request>>` (`None` = clean close), `send_reply(&Reply)` |
+//! | both | `set_observer(Box<dyn FnMut(&FrameEvent) -> io::Result<()> + Send>)` on a `Connection` or a codec; `trace::TraceWriter::record(&FrameEvent, now)` inside it |
+//!
+//! The image encoding of the world's replies follows the `GET_INIT_DATA`
+//! reply it sent (`Reply::InitData { image_encoding, .. }`); decoding detects
+//! the encoding by itself.
 
 pub mod blocking;
 mod decode;

@@ -29,7 +29,7 @@ use tokio::net::{TcpListener, TcpStream, UnixListener, UnixStream};
 use tokio_util::codec::{Decoder, Encoder, Framed, LengthDelimitedCodec};
 use tokio_util::either::Either;
 
-use crate::endpoint::{bind_unix, unlink_if_ours, Endpoint};
+use crate::endpoint::{bind_unix, tcp_bind_error, unlink_if_ours, Endpoint};
 use crate::error::{ProtocolError, Result};
 use crate::frame::{write_frame, DEFAULT_MAX_FRAME, HEADER_LEN};
 use crate::image::{Image, ImageEncoding};
@@ -340,12 +340,11 @@ impl Listener {
                     ino,
                 }
             }
-            Endpoint::Tcp(a) => Kind::Tcp(TcpListener::bind(a.as_str()).await.map_err(|e| {
-                ProtocolError::Io(std::io::Error::new(
-                    e.kind(),
-                    format!("cannot bind tcp:{a}: {e}"),
-                ))
-            })?),
+            Endpoint::Tcp(a) => Kind::Tcp(
+                TcpListener::bind(a.as_str())
+                    .await
+                    .map_err(|e| tcp_bind_error(a, e))?,
+            ),
         };
         Ok(Listener { kind, max_frame })
     }
