@@ -224,8 +224,9 @@ pub struct Cpu {
     cycles: u64,
     instret: u64,
     stats: CoreStats,
-    /// rd of the previous instruction if it was a load (0 otherwise).
-    load_rd: u8,
+    /// One-hot mask of the register the previous instruction loaded (0 if
+    /// it was not a load or loaded x0): the load-use stall check.
+    load_mask: u32,
     sleeping: bool,
     // Run control.
     deadline: u64,
@@ -285,7 +286,7 @@ impl Cpu {
             cycles: 0,
             instret: 0,
             stats: CoreStats::default(),
-            load_rd: 0,
+            load_mask: 0,
             sleeping: false,
             deadline: 0,
             instr_deadline: u64::MAX,
@@ -504,7 +505,7 @@ impl Cpu {
             pc: self.pc,
             cycles: self.cycles,
             instret: self.instret,
-            load_rd: self.load_rd,
+            load_mask: self.load_mask,
         }
     }
 
@@ -513,7 +514,7 @@ impl Cpu {
         self.pc = h.pc;
         self.cycles = h.cycles;
         self.instret = h.instret;
-        self.load_rd = h.load_rd;
+        self.load_mask = h.load_mask;
     }
 
     /// Stop the inner loop after the current instruction.
@@ -546,7 +547,9 @@ impl Cpu {
         };
         match decode::decode(lo, hi) {
             Some(d) => {
-                let w = d.pack();
+                // Cache the op's base cycles next to rd (bits 13..16), so the
+                // hot loop needs no table lookup.
+                let w = d.pack() | (BASE_CYCLES[d.op as usize] as u64) << 13;
                 mem.regions[idx].decoded[off >> 1] = w;
                 Some(w)
             }
@@ -575,7 +578,7 @@ impl Cpu {
             base
         };
         self.cycles += timing::TRAP_ENTRY;
-        self.load_rd = 0;
+        self.load_mask = 0;
         self.poll.active = false;
         self.break_block();
         if !mem.is_ram(self.pc, 2) {
@@ -622,12 +625,14 @@ impl Cpu {
         let imm = (w >> 32) as u32;
         let len = 4 - (((w >> 30) as u32) & 2);
 
-        // Timing: table cost plus the load-use stall (branch-free: this runs
-        // for every instruction).
-        let lu = h.load_rd as usize;
-        let stall = ((lu != 0) & ((lu == rs1) | (lu == rs2))) as u64;
-        h.cycles += BASE_CYCLES[opc as usize] as u64 + stall * timing::LOAD_USE_STALL;
-        h.load_rd = 0;
+        // Timing: table cost (cached in the decoded word) plus the load-use
+        // stall, branch-free as this runs for every instruction: `load_mask`
+        // is a one-hot mask of the register the previous instruction loaded
+        // (0 when it was not a load or loaded x0).
+        let reads = (1u32 << rs1) | (1u32 << rs2);
+        let stall = (reads & h.load_mask != 0) as u64;
+        h.cycles += ((w >> 13) & 7) + stall * timing::LOAD_USE_STALL;
+        h.load_mask = 0;
 
         let a = self.regs[rs1];
         let b = self.regs[rs2];
@@ -657,7 +662,7 @@ impl Cpu {
                     },
                 };
                 val = $conv(v);
-                h.load_rd = rd as u8;
+                h.load_mask = (1u32 << rd) & !1;
             }};
         }
         macro_rules! store {
@@ -779,7 +784,7 @@ struct Hot {
     pc: u32,
     cycles: u64,
     instret: u64,
-    load_rd: u8,
+    load_mask: u32,
 }
 
 /// `|x|` of a register read as signed, as an unsigned magnitude.

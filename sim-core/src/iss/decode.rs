@@ -8,7 +8,8 @@
 //!
 //! Packed layout of a decoded instruction (a `u64`, so the cache can be a
 //! zero-allocated `Vec<u64>` whose 0 means "not decoded"):
-//! byte 0 = op (never 0), byte 1 = rd, byte 2 = rs1, byte 3 bits 0..5 = rs2
+//! byte 0 = op (never 0), byte 1 bits 0..5 = rd (the core keeps the
+//! op's base cycle cost in bits 5..8 of its cached copy), byte 2 = rs1, byte 3 bits 0..5 = rs2
 //! and bit 7 = "compressed", bytes 4..8 = immediate (sign-extended; for CSR
 //! instructions the CSR number in bits 0..12 and the 5-bit immediate above
 //! it; for illegal instructions the raw bits, which become `mtval`).
@@ -65,7 +66,7 @@ impl Decoded {
     pub const fn unpack(w: u64) -> Decoded {
         Decoded {
             op: w as u8,
-            rd: (w >> 8) as u8,
+            rd: (w >> 8) as u8 & 0x1f,
             rs1: (w >> 16) as u8,
             rs2: (w >> 24) as u8 & 0x1f,
             imm: (w >> 32) as u32 as i32,
