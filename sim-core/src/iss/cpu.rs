@@ -550,7 +550,9 @@ impl Cpu {
                 // Cache the op's base cycles next to rd (bits 13..16), so the
                 // hot loop needs no table lookup.
                 let w = d.pack() | (BASE_CYCLES[d.op as usize] as u64) << 13;
-                mem.regions[idx].decoded[off >> 1] = w;
+                let r = &mut mem.regions[idx];
+                r.decoded[off >> 1] = w;
+                r.note_code(off);
                 Some(w)
             }
             None => {

@@ -139,6 +139,10 @@ pub(crate) struct Region {
     /// "not decoded yet". Allocated zeroed, so the OS only backs the pages
     /// that are really used as code.
     pub(crate) decoded: Vec<u64>,
+    /// Byte offsets `[code_lo, code_hi)` that hold every decoded entry, so a
+    /// store to data (the common case) skips the decoded array entirely.
+    pub(crate) code_lo: usize,
+    pub(crate) code_hi: usize,
 }
 
 impl Region {
@@ -155,8 +159,17 @@ impl Region {
 
     /// Drop the decoded instructions that overlap bytes `[off, off + len)`:
     /// the one starting there and a 32-bit one starting 2 bytes before.
+    /// Record that the instruction at `off` (up to 4 bytes) is decoded.
+    pub(crate) fn note_code(&mut self, off: usize) {
+        self.code_lo = self.code_lo.min(off);
+        self.code_hi = self.code_hi.max(off + 4);
+    }
+
     #[inline(always)]
     pub(crate) fn invalidate(&mut self, off: usize, len: usize) {
+        if off >= self.code_hi || off + len <= self.code_lo {
+            return;
+        }
         let first = (off >> 1).saturating_sub(1);
         let last = ((off + len - 1) >> 1).min(self.decoded.len() - 1);
         for slot in &mut self.decoded[first..=last] {
@@ -226,6 +239,8 @@ impl Memory {
             size,
             data: vec![0; size as usize],
             decoded: vec![0; (size / 2) as usize],
+            code_lo: usize::MAX,
+            code_hi: 0,
         });
         Ok(())
     }
@@ -338,7 +353,12 @@ impl Memory {
     /// behind the core's back may call it).
     pub fn flush_decoded(&mut self) {
         for r in &mut self.regions {
-            r.decoded.iter_mut().for_each(|s| *s = 0);
+            if r.code_lo < r.code_hi {
+                let hi = (r.code_hi / 2).min(r.decoded.len());
+                r.decoded[r.code_lo / 2..hi].iter_mut().for_each(|s| *s = 0);
+            }
+            r.code_lo = usize::MAX;
+            r.code_hi = 0;
         }
     }
 }
