@@ -515,4 +515,26 @@ mod tests {
             assert_eq!((d.op, d.imm as u32, d.len()), (op::ILLEGAL, c as u32, 2));
         }
     }
+
+    #[test]
+    fn every_halfword_expands_to_a_legal_32_bit_instruction_or_none() {
+        for c in 0..=u16::MAX {
+            if c & 3 == 3 {
+                continue;
+            }
+            if let Some(full) = expand_compressed(c) {
+                assert_eq!(full & 3, 3, "{c:#06x}");
+                assert_ne!(decode32(full).op, op::ILLEGAL, "{c:#06x} -> {full:#010x}");
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn decoding_never_panics_and_packs_losslessly(inst: u32) {
+            let d = decode32(inst);
+            proptest::prop_assert_eq!(Decoded::unpack(d.pack()), d);
+            proptest::prop_assert!(d.rd < 32 && d.rs1 < 32 && d.rs2 < 32);
+        }
+    }
 }
