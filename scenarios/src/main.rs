@@ -27,6 +27,8 @@ use scenarios::{run_scenario, Binaries, Scenario};
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
+    #[command(flatten)]
+    bins: BinArgs,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -88,8 +90,6 @@ enum Cmd {
         /// Do not echo the two programs' logs (cosim.log still has them).
         #[arg(long, short)]
         quiet: bool,
-        #[command(flatten)]
-        bins: BinArgs,
     },
     /// Runs every combination of parameter values, in parallel.
     Sweep {
@@ -106,8 +106,6 @@ enum Cmd {
         out: Option<PathBuf>,
         #[command(flatten)]
         run: RunArgs,
-        #[command(flatten)]
-        bins: BinArgs,
     },
     /// Serves one platform from a recorded trace (world side).
     Replay {
@@ -141,8 +139,6 @@ enum Cmd {
         /// Relative tolerance for numbers.
         #[arg(long, default_value_t = 1e-9)]
         tolerance: f64,
-        #[command(flatten)]
-        bins: BinArgs,
     },
     /// Lists the scenarios shipped in scenarios/.
     List,
@@ -372,6 +368,7 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    let bins = cli.bins;
     let result = match cli.command {
         Cmd::Run {
             scenario,
@@ -379,7 +376,6 @@ fn main() -> ExitCode {
             run,
             no_plots,
             quiet,
-            bins,
         } => cmd_run(scenario, out, run, no_plots, quiet, bins),
         Cmd::Sweep {
             scenario,
@@ -387,7 +383,6 @@ fn main() -> ExitCode {
             jobs,
             out,
             run,
-            bins,
         } => cmd_sweep(scenario, param, jobs, out, run, bins),
         Cmd::Replay {
             trace,
@@ -414,7 +409,6 @@ fn main() -> ExitCode {
             world_cmd,
             world,
             tolerance,
-            bins,
         } => cmd_trace_check(trace, world_cmd, world, tolerance, bins),
         Cmd::List => cmd_list(),
     };

@@ -296,7 +296,7 @@ pub fn trace_timestep(records: &[TraceRecord]) -> Option<u64> {
 
 /// Sends the trace's requests to the world at `endpoint` in order and
 /// compares every reply with the recorded one; stops at the first
-/// difference unless `keep_going` (then only the first is reported).
+/// difference (after it the two worlds are in different states anyway).
 pub fn check(
     records: &[TraceRecord],
     endpoint: &Endpoint,
