@@ -8,6 +8,9 @@
 //! SHA-256 of each camera frame: the pixels are then taken from the PNGs the
 //! world wrote with `--frames-dir` (the n-th image of the trace is the n-th
 //! file by name), checked against the hash, and encoded as negotiated.
+//!
+//! This module uses only `protocol`, `serde_json`, `png` and `tracing`, so
+//! that it can move into the world-server crate as is.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -18,8 +21,6 @@ use protocol::{encode_reply, sha256_hex, Endpoint, Image, ImageEncoding, Reply};
 use serde::Deserialize;
 use serde_json::value::RawValue;
 use serde_json::Value;
-
-use crate::tracetool::diff_json;
 
 /// Why a replay could not be carried out.
 #[derive(Debug, thiserror::Error)]
@@ -304,4 +305,135 @@ pub fn serve(
     }
     report.complete = true;
     Ok(report)
+}
+
+/// The first place where two JSON values differ beyond `tol` (numbers:
+/// |a − b| ≤ tol·max(1, |a|)), as `path: expected X, got Y`.
+pub fn diff_json(expected: &Value, got: &Value, tol: f64) -> Option<String> {
+    fn walk(path: &str, a: &Value, b: &Value, tol: f64) -> Option<String> {
+        match (a, b) {
+            (Value::Number(x), Value::Number(y)) => {
+                let (x, y) = (x.as_f64()?, y.as_f64()?);
+                let ok = (x - y).abs() <= tol * x.abs().max(1.0);
+                (!ok).then(|| format!("{path}: expected {x}, got {y}"))
+            }
+            (Value::Object(x), Value::Object(y)) => {
+                for (k, va) in x {
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
+                    match y.get(k) {
+                        Some(vb) => {
+                            if let Some(d) = walk(&p, va, vb, tol) {
+                                return Some(d);
+                            }
+                        }
+                        None => return Some(format!("{p}: missing")),
+                    }
+                }
+                y.keys().find(|k| !x.contains_key(*k)).map(|k| {
+                    format!(
+                        "{path}{}{k}: not in the recording",
+                        if path.is_empty() { "" } else { "." }
+                    )
+                })
+            }
+            (Value::Array(x), Value::Array(y)) => {
+                if x.len() != y.len() {
+                    return Some(format!(
+                        "{path}: {} items expected, got {}",
+                        x.len(),
+                        y.len()
+                    ));
+                }
+                x.iter()
+                    .zip(y)
+                    .enumerate()
+                    .find_map(|(i, (va, vb))| walk(&format!("{path}[{i}]"), va, vb, tol))
+            }
+            _ => (a != b).then(|| format!("{path}: expected {a}, got {b}")),
+        }
+    }
+    walk("", expected, got, tol)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::blocking::Client;
+    use std::time::Duration;
+
+    const STOP: &str = r#"{"STOP_TIME":64,"TIME":3.5,"command":"STOP"}"#;
+
+    fn trace(dir: &Path) -> PathBuf {
+        let lines = [
+            r#"{"seq":0,"dir":"to_world","len":36,"msg":{"command":"ADVANCE_TIME","time":32},"world_ms":2000}"#.to_string(),
+            r#"{"seq":1,"dir":"to_world","len":18,"msg":{"command":"STOP"},"world_ms":2032}"#.to_string(),
+            format!(r#"{{"seq":2,"dir":"to_platform","len":{},"msg":{STOP},"world_ms":2096}}"#, STOP.len()),
+        ];
+        let p = dir.join("t.trace");
+        std::fs::write(&p, lines.join("\n") + "\n").unwrap();
+        p
+    }
+
+    fn run(requests: &[&str]) -> (ReplayReport, Vec<Vec<u8>>) {
+        let dir = tempfile::tempdir().unwrap();
+        let ex = load_trace(&trace(dir.path())).unwrap();
+        assert_eq!(ex.len(), 2);
+        assert!(ex[0].reply.is_none());
+        let ep = Endpoint::Unix(dir.path().join("r.sock"));
+        let ep2 = ep.clone();
+        let server = std::thread::spawn(move || serve(&ep2, &ex, &ReplayOptions::default()));
+        let mut c = Client::connect_retry(&ep, Options::default(), Duration::from_secs(5)).unwrap();
+        let mut replies = Vec::new();
+        for r in requests {
+            c.send_raw(r.as_bytes()).unwrap();
+            if r.contains("STOP") {
+                replies.push(c.recv_raw().unwrap().unwrap().to_vec());
+            }
+        }
+        drop(c);
+        (server.join().unwrap().unwrap(), replies)
+    }
+
+    #[test]
+    fn replies_are_the_recorded_bytes() {
+        let (report, replies) = run(&[
+            r#"{"command":"ADVANCE_TIME","time":32}"#,
+            r#"{"command":"STOP"}"#,
+        ]);
+        assert_eq!(replies, [STOP.as_bytes().to_vec()]);
+        assert_eq!(
+            report,
+            ReplayReport {
+                requests: 2,
+                first_difference: None,
+                complete: true
+            }
+        );
+    }
+
+    #[test]
+    fn the_first_differing_request_is_reported() {
+        let (report, replies) = run(&[
+            r#"{"command":"ADVANCE_TIME","time":64}"#,
+            r#"{"command":"STOP"}"#,
+        ]);
+        assert_eq!(replies.len(), 1);
+        assert_eq!(
+            report.first_difference,
+            Some((0, "time: expected 32, got 64".into()))
+        );
+    }
+
+    #[test]
+    fn a_verbatim_trace_is_required() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.trace");
+        std::fs::write(&p, "{\"seq\":0,\"dir\":\"to_world\",\"len\":18,\"msg\":{\"command\":\"STOP\"}}\n{\"seq\":1,\"dir\":\"to_platform\",\"len\":5,\"msg\":{\"command\":\"STOP\"}}\n").unwrap();
+        let e = load_trace(&p).unwrap_err().to_string();
+        assert!(e.contains("not a verbatim trace"), "{e}");
+    }
 }

@@ -13,6 +13,8 @@ use protocol::trace::{Direction, TraceReader, TraceRecord};
 use protocol::{decode_reply, sha256_hex, Endpoint, Reply};
 use serde_json::Value;
 
+pub use crate::replay::diff_json;
+
 /// Why a trace could not be shown or checked.
 #[derive(Debug, thiserror::Error)]
 pub enum TraceToolError {
@@ -139,58 +141,6 @@ pub fn show(
         );
     }
     out
-}
-
-/// The first place where two JSON values differ beyond `tol` (numbers:
-/// |a − b| ≤ tol·max(1, |a|)), as `path: expected X, got Y`.
-pub fn diff_json(expected: &Value, got: &Value, tol: f64) -> Option<String> {
-    fn walk(path: &str, a: &Value, b: &Value, tol: f64) -> Option<String> {
-        match (a, b) {
-            (Value::Number(x), Value::Number(y)) => {
-                let (x, y) = (x.as_f64()?, y.as_f64()?);
-                let ok = (x - y).abs() <= tol * x.abs().max(1.0);
-                (!ok).then(|| format!("{path}: expected {x}, got {y}"))
-            }
-            (Value::Object(x), Value::Object(y)) => {
-                for (k, va) in x {
-                    let p = if path.is_empty() {
-                        k.clone()
-                    } else {
-                        format!("{path}.{k}")
-                    };
-                    match y.get(k) {
-                        Some(vb) => {
-                            if let Some(d) = walk(&p, va, vb, tol) {
-                                return Some(d);
-                            }
-                        }
-                        None => return Some(format!("{p}: missing")),
-                    }
-                }
-                y.keys().find(|k| !x.contains_key(*k)).map(|k| {
-                    format!(
-                        "{path}{}{k}: not in the recording",
-                        if path.is_empty() { "" } else { "." }
-                    )
-                })
-            }
-            (Value::Array(x), Value::Array(y)) => {
-                if x.len() != y.len() {
-                    return Some(format!(
-                        "{path}: {} items expected, got {}",
-                        x.len(),
-                        y.len()
-                    ));
-                }
-                x.iter()
-                    .zip(y)
-                    .enumerate()
-                    .find_map(|(i, (va, vb))| walk(&format!("{path}[{i}]"), va, vb, tol))
-            }
-            _ => (a != b).then(|| format!("{path}: expected {a}, got {b}")),
-        }
-    }
-    walk("", expected, got, tol)
 }
 
 /// Compares a live reply with a recorded one. Images are compared by the
