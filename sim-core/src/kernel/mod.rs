@@ -217,6 +217,22 @@ impl<W: WorldLink> Run<W> {
         }
     }
 
+    /// The start file's default trap handler exits with 128 + mcause
+    /// (`sim-core/firmware/src/start.S`): name the trap instead of leaving
+    /// a bare exit status.
+    fn default_trap(&self, code: i32) -> Option<KernelError> {
+        let cause = self.cpu.csr(0x342)?; // mcause
+        if cause & 0x8000_0000 != 0 || code != 128 + (cause & 0x7f) as i32 {
+            return None;
+        }
+        let mepc = self.cpu.csr(0x341).unwrap_or(0);
+        let mtval = self.cpu.csr(0x343).unwrap_or(0);
+        Some(KernelError::Core(format!(
+            "the firmware trapped: {} (mcause {cause}) at pc {mepc:#010x}, mtval {mtval:#010x}",
+            crate::iss::cpu::cause_name(cause)
+        )))
+    }
+
     fn main_loop(&mut self, cfg: &KernelConfig) -> Result<(), KernelError> {
         let mut progress = crate::kernel::console::Progress::new(cfg.progress);
         loop {
@@ -240,7 +256,10 @@ impl<W: WorldLink> Run<W> {
                 StopReason::Exit { code } => {
                     self.exit_code = Some(code);
                     self.take_samples(now)?;
-                    return Ok(());
+                    return match self.default_trap(code) {
+                        Some(e) => Err(e),
+                        None => Ok(()),
+                    };
                 }
                 StopReason::Fatal(e) => {
                     if let Some(dev) = self.platform.failure.take() {
