@@ -89,7 +89,39 @@ fn skipping_is_exact_and_actually_skips() {
         skipped.stats
     );
     assert!(stepped.stats.poll_cycles > 0 && stepped.stats.sleep_cycles > 0);
+    // Almost all of the ~15 ms is idle: polling or asleep.
+    let idle = stepped.stats.poll_cycles + stepped.stats.sleep_cycles;
+    assert!(stepped.stats.running_cycles() < idle / 100);
     assert_eq!(without_skip_count(skipped), without_skip_count(stepped));
+}
+
+#[test]
+fn stats_since_a_sample_add_up() {
+    // Sample the counters every millisecond as a power model would.
+    let (mut cpu, mut mem, _, _) = iss_util::load("idle", CpuConfig::default(), &[]);
+    let mut dev = iss_util::op_device::OpDevice::default();
+    let (mut prev, mut total) = (cpu.stats(), CoreStats::default());
+    loop {
+        let r = cpu.run_until(&mut mem, &mut dev, cpu.now() + Picos::from_ms(1));
+        let s = cpu.stats();
+        let d = s.since(&prev);
+        assert_eq!(
+            d.running_cycles() + d.poll_cycles + d.sleep_cycles,
+            d.cycles
+        );
+        total.cycles += d.cycles;
+        total.poll_cycles += d.poll_cycles;
+        total.sleep_cycles += d.sleep_cycles;
+        prev = s;
+        if let StopReason::Exit { .. } = r {
+            break;
+        }
+    }
+    let s = cpu.stats();
+    assert_eq!(
+        (total.cycles, total.poll_cycles, total.sleep_cycles),
+        (s.cycles, s.poll_cycles, s.sleep_cycles)
+    );
 }
 
 #[test]

@@ -112,6 +112,19 @@ impl CoreStats {
     pub fn running_cycles(&self) -> u64 {
         self.cycles - self.sleep_cycles - self.poll_cycles
     }
+
+    /// What happened between an `earlier` snapshot and this one (for a
+    /// power model sampling the core every millisecond).
+    pub fn since(&self, earlier: &CoreStats) -> CoreStats {
+        CoreStats {
+            instructions: self.instructions - earlier.instructions,
+            cycles: self.cycles - earlier.cycles,
+            sleep_cycles: self.sleep_cycles - earlier.sleep_cycles,
+            poll_cycles: self.poll_cycles - earlier.poll_cycles,
+            poll_instructions: self.poll_instructions - earlier.poll_instructions,
+            skipped_instructions: self.skipped_instructions - earlier.skipped_instructions,
+        }
+    }
 }
 
 /// Why [`Cpu::run_until`] returned. In every case the core stopped on an
