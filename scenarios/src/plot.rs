@@ -169,11 +169,13 @@ fn line_chart(
     Ok(())
 }
 
-/// Stacked panels, one chart each: (title, y label, series).
+/// Stacked panels, one chart each: (title, y label, series); `markers`
+/// draws the points too.
 pub fn panels(
     path: &Path,
     x_label: &str,
     charts: &[(String, String, Vec<Series>)],
+    markers: bool,
 ) -> Result<(), PlotError> {
     fonts();
     let height = 300 * charts.len().max(1) as u32;
@@ -181,7 +183,7 @@ pub fn panels(
     root.fill(&WHITE).map_err(|e| err(path, e))?;
     let areas = root.split_evenly((charts.len().max(1), 1));
     for (area, (title, y_label, series)) in areas.iter().zip(charts) {
-        line_chart(area, title, x_label, y_label, series, false).map_err(|e| err(path, e))?;
+        line_chart(area, title, x_label, y_label, series, markers).map_err(|e| err(path, e))?;
     }
     root.present().map_err(|e| err(path, e))
 }

@@ -128,7 +128,7 @@ pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, R
         ));
     }
     let power_png = out.join(plots::POWER);
-    plot::panels(&power_png, "time (s)", &charts)?;
+    plot::panels(&power_png, "time (s)", &charts, false)?;
 
     let battery_png = out.join(plots::BATTERY);
     let soc: Vec<(f64, f64)> = power.iter().map(|r| (r.time_s, r.soc * 100.0)).collect();
@@ -155,6 +155,7 @@ pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, R
                 }],
             ),
         ],
+        false,
     )?;
 
     let traj: Vec<TrajectoryRow> = read_csv(&out.join(files::TRAJECTORY))?;

@@ -348,11 +348,16 @@ fn write_plots(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), Sw
         .map_err(perr)?;
     }
     // Wall time and world time against the timestep (Tables 5.1-5.4),
-    // one line per combination of the other parameters.
+    // one line per combination of the other parameters; completed runs
+    // only, as the thesis's tables (a run cut short has a shorter wall time
+    // that means nothing).
     if let Some(ts_pos) = params.iter().position(|p| p.key == "timestep_ms") {
         let mut wall: Vec<Series> = Vec::new();
         let mut world: Vec<Series> = Vec::new();
         for r in rows {
+            if r.error.is_some() {
+                continue;
+            }
             let Some(o) = &r.outcome else { continue };
             let Some(s) = &o.summary else { continue };
             let Ok(ts) = r.assignments[ts_pos].1.parse::<f64>() else {
@@ -404,6 +409,7 @@ fn write_plots(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), Sw
                     ),
                     ("World time at STOP".into(), "world time (s)".into(), world),
                 ],
+                true,
             )
             .map_err(perr)?;
         }
