@@ -387,3 +387,17 @@ fn wfi_sleeps_until_the_timer_and_mcycle_skips_sleep() {
         StopReason::Idle
     );
 }
+
+#[test]
+fn a_core_can_move_to_another_memory() {
+    // The core caches where its code lives; a different Memory (here one
+    // with no RAM at all) must give a clean error, not an index panic.
+    let (mut cpu, _, _) = exec(&[NOP, NOP], &[], 2);
+    cpu.set_instruction_limit(None);
+    let mut other = Memory::new();
+    let r = cpu.run_until(&mut other, &mut NoDevices, Picos::MAX);
+    assert!(
+        matches!(&r, StopReason::Fatal(e) if e.to_string().contains("fetch")),
+        "{r:?}"
+    );
+}

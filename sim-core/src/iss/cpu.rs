@@ -389,7 +389,7 @@ impl Cpu {
 
     /// Simulated time of the core: cycles × clock period.
     pub fn now(&self) -> Picos {
-        Picos(self.cycles * self.period)
+        Picos(self.cycles.saturating_mul(self.period))
     }
 
     pub fn stats(&self) -> CoreStats {
@@ -453,6 +453,14 @@ impl Cpu {
     /// `step_until` as MESSY's core adapter uses it.
     pub fn run_until(&mut self, mem: &mut Memory, dev: &mut dyn Mmio, limit: Picos) -> StopReason {
         let limit_cycle = self.cycle_of(limit);
+        // The cached code window may point into another Memory than this one.
+        let window_ok = mem
+            .regions
+            .get(self.code_idx)
+            .is_some_and(|r| r.base == self.code_base && r.size == self.code_size);
+        if !window_ok {
+            self.code_size = 0;
+        }
         self.refresh_event(dev);
         loop {
             if let Some(r) = self.pending_stop.take() {
@@ -1100,7 +1108,7 @@ impl Cpu {
     }
 
     fn mmio_time(&self, issue: u64) -> Picos {
-        Picos((issue + self.latency) * self.period)
+        Picos((issue + self.latency).saturating_mul(self.period))
     }
 
     /// One access to an MMIO window issued at cycle `issue`: charges the

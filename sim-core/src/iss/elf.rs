@@ -129,7 +129,7 @@ impl LoadedElf {
             }
             mem.write_bytes(s.addr, &s.data).map_err(outside)?;
             let zeros = vec![0u8; (s.mem_size as usize) - s.data.len()];
-            mem.write_bytes(s.addr + s.data.len() as u32, &zeros)
+            mem.write_bytes(s.addr.wrapping_add(s.data.len() as u32), &zeros)
                 .map_err(outside)?;
         }
         Ok(())
