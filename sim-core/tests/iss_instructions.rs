@@ -401,3 +401,41 @@ fn a_core_can_move_to_another_memory() {
         "{r:?}"
     );
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+    /// Random code (with random register values and an MMIO window that
+    /// faults) never panics the core, whatever it does: every outcome is a
+    /// StopReason.
+    #[test]
+    fn random_code_never_panics(
+        raw in proptest::collection::vec(proptest::prelude::any::<u32>(), 64),
+        opcodes in proptest::collection::vec(0usize..12, 64),
+        regs in proptest::collection::vec(proptest::prelude::any::<u32>(), 31),
+    ) {
+        // Mostly well-formed instructions: random fields under a real major
+        // opcode (OP-IMM, OP, LOAD, STORE, BRANCH, LUI, AUIPC, JAL, JALR,
+        // SYSTEM, MISC-MEM), or a random 16-bit pair.
+        const MAJOR: [u32; 11] = [0x13, 0x33, 0x03, 0x23, 0x63, 0x37, 0x17, 0x6f, 0x67, 0x73, 0x0f];
+        let words: Vec<u32> = raw
+            .iter()
+            .zip(&opcodes)
+            .map(|(&w, &k)| MAJOR.get(k).map_or(w, |&m| (w & !0x7f) | m))
+            .collect();
+        // csrw mtvec, x31 first; traps go back to the start of the random
+        // code (which may of course rewrite mtvec or itself).
+        let mut prog = vec![csr(1, 0, 31, 0x305)];
+        prog.extend_from_slice(&words);
+        let (mut cpu, mut mem) = setup(&prog);
+        mem.add_mmio_window(0x2000_0000, 0x1000).unwrap();
+        for (k, v) in regs.iter().enumerate() {
+            cpu.set_reg(k + 1, *v);
+        }
+        cpu.set_reg(31, HANDLER);
+        let back = jal((BASE + 4) as i32 - HANDLER as i32, 0);
+        mem.write_bytes(HANDLER, &back.to_le_bytes()).unwrap();
+        cpu.set_instruction_limit(Some(5_000));
+        let r = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+        proptest::prop_assert!(cpu.instret() > 0, "{:?}", r);
+    }
+}
