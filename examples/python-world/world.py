@@ -300,7 +300,8 @@ def main():
     finally:
         conn.close()
         listener.close()
-        os.unlink(args.socket)
+        if os.path.exists(args.socket):
+            os.unlink(args.socket)
     return 0 if ok else 1
 
 

@@ -221,9 +221,11 @@ pub fn start_world(command: &str) -> Result<WorldProcess, TraceToolError> {
         .map_err(|e| TraceToolError::Io(format!("cannot create a socket directory: {e}")))?;
     let socket = dir.path().join("world.sock");
     let cmd = command.replace("{socket}", &socket.display().to_string());
+    // `exec`: the shell becomes the world server, so killing the child
+    // kills the server and not just a shell that started it.
     let child = Command::new("sh")
         .arg("-c")
-        .arg(&cmd)
+        .arg(format!("exec {cmd}"))
         .env("COSIM_SOCKET", &socket)
         .stdin(Stdio::null())
         .spawn()
