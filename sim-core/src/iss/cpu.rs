@@ -203,6 +203,9 @@ struct PollTracker {
     snapshot: [u32; 32],
     start_cycles: u64,
     start_instret: u64,
+    /// `Cpu::jumps` at the start of the iteration: a verified iteration
+    /// took exactly one control transfer, its closing backward branch.
+    start_jumps: u64,
     reads: [PollRead; MAX_POLL_READS],
     n_reads: usize,
     /// A read this iteration that idle skipping cannot reason about
@@ -236,6 +239,10 @@ pub struct Cpu {
     // Counters.
     cycles: u64,
     instret: u64,
+    /// Taken branches and jumps (including `mret`) so far. The idle
+    /// detector uses it to prove that an iteration ran its body straight
+    /// through, none of the body's own branches taken.
+    jumps: u64,
     stats: CoreStats,
     /// One-hot mask of the register the previous instruction loaded (0 if
     /// it was not a load or loaded x0): the load-use stall check.
@@ -298,6 +305,7 @@ impl Cpu {
             mtime_off: 0,
             cycles: 0,
             instret: 0,
+            jumps: 0,
             stats: CoreStats::default(),
             load_mask: 0,
             sleeping: false,
@@ -526,6 +534,7 @@ impl Cpu {
             pc: self.pc,
             cycles: self.cycles,
             instret: self.instret,
+            jumps: self.jumps,
             load_mask: self.load_mask,
         }
     }
@@ -535,6 +544,7 @@ impl Cpu {
         self.pc = h.pc;
         self.cycles = h.cycles;
         self.instret = h.instret;
+        self.jumps = h.jumps;
         self.load_mask = h.load_mask;
     }
 
@@ -668,6 +678,7 @@ impl Cpu {
                 if $cond {
                     next = pc.wrapping_add(imm);
                     h.cycles += timing::BRANCH_TAKEN_EXTRA;
+                    h.jumps += 1;
                 }
             }};
         }
@@ -706,10 +717,12 @@ impl Cpu {
             op::JAL => {
                 val = next;
                 next = pc.wrapping_add(imm);
+                h.jumps += 1;
             }
             op::JALR => {
                 val = next;
                 next = a.wrapping_add(imm) & !1;
+                h.jumps += 1;
             }
             op::BEQ => branch!(a == b),
             op::BNE => branch!(a != b),
@@ -781,6 +794,7 @@ impl Cpu {
                 Sys::Jump(t) => {
                     write = false;
                     next = t;
+                    h.jumps += 1;
                 }
             },
         }
@@ -807,6 +821,7 @@ struct Hot {
     pc: u32,
     cycles: u64,
     instret: u64,
+    jumps: u64,
     load_mask: u32,
 }
 
@@ -1260,11 +1275,21 @@ impl Cpu {
 
     /// Called after a taken backward branch from `branch` to `target` has
     /// retired (pc = target). Detects loops whose iterations are fixed
-    /// points — straight-line bodies without stores, CSR or system
-    /// instructions, that read device registers and end with the same
-    /// register file they started with — counts their cycles as polling and,
-    /// with idle skipping on, jumps over as many whole iterations as the
-    /// devices guarantee to be identical.
+    /// points — bodies without stores, jumps, CSR or system instructions,
+    /// run straight through (none of their conditional branches, typically
+    /// the loop's exits, taken), that read device registers and end with
+    /// the same register file they started with — counts their cycles as
+    /// polling and, with idle skipping on, jumps over as many whole
+    /// iterations as the devices guarantee to be identical.
+    ///
+    /// Why that is exact: an iteration is a function of the register file
+    /// it starts with, the RAM it loads (no store in the body, and nothing
+    /// else writes RAM before the next device event, which bounds the skip)
+    /// and the device values it reads (promised unchanged, without side
+    /// effects, by `stable_until`). Same inputs, same path: every body
+    /// branch falls through again, the closing branch is taken again, with
+    /// the same cycles (the load-use state at the loop head is always that
+    /// of a taken branch).
     #[cold]
     fn poll_slow(&mut self, mem: &Memory, dev: &mut dyn Mmio, branch: u32, target: u32) {
         let p = &self.poll;
@@ -1272,6 +1297,7 @@ impl Cpu {
             && p.branch == branch
             && p.target == target
             && self.instret - p.start_instret == p.body_len
+            && self.jumps - p.start_jumps == 1
             && p.n_reads > 0
             && !p.unskippable
             && p.snapshot == self.regs;
@@ -1286,6 +1312,7 @@ impl Cpu {
             let p = &mut self.poll;
             p.start_cycles = self.cycles;
             p.start_instret = self.instret;
+            p.start_jumps = self.jumps;
         } else {
             let arm = self.poll.touched
                 && self.poll.rejected != (branch, target)
@@ -1305,6 +1332,7 @@ impl Cpu {
                     p.snapshot = self.regs;
                     p.start_cycles = self.cycles;
                     p.start_instret = self.instret;
+                    p.start_jumps = self.jumps;
                 }
                 None => {
                     if arm {
@@ -1369,9 +1397,12 @@ impl Cpu {
     }
 }
 
-/// If `[target, branch]` is a straight-line loop body that only computes and
-/// loads (no store, jump, other branch, CSR or system instruction) and ends
-/// with the branch at `branch`, its length in instructions.
+/// If `[target, branch]` is a loop body that only computes, loads and
+/// branches conditionally (no store, jump, CSR or system instruction) and
+/// ends with the branch at `branch`, its length in instructions when run
+/// straight through. Its other branches are typically exits (the race
+/// firmware's `if (status == BATTERY_LOW) break;`); `Cpu::poll_slow` only
+/// accepts an iteration that took none of them.
 fn straight_line_body(mem: &Memory, target: u32, branch: u32) -> Option<u64> {
     let mut pc = target;
     let mut n = 0;
@@ -1389,7 +1420,8 @@ fn straight_line_body(mem: &Memory, target: u32, branch: u32) -> Option<u64> {
             d.op,
             op::LUI | op::AUIPC | op::LB | op::LH | op::LW | op::LBU | op::LHU
         ) || (op::ADDI..=op::AND).contains(&d.op)
-            || (op::MUL..=op::REMU).contains(&d.op);
+            || (op::MUL..=op::REMU).contains(&d.op)
+            || (op::BEQ..=op::BGEU).contains(&d.op);
         if !pure {
             return None;
         }

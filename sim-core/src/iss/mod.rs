@@ -46,10 +46,14 @@
 //! # Idle skipping
 //!
 //! A loop is a polling loop when its body, from a backward branch's target
-//! to the branch (at most [`cpu::MAX_POLL_LOOP_BYTES`]), is straight-line
-//! code of loads and computations only, it read at least one MMIO register,
-//! and one whole iteration ends with exactly the register file it started
-//! with. Each such iteration counts as polling in [`CoreStats`]; with
+//! to the branch (at most [`cpu::MAX_POLL_LOOP_BYTES`]), holds only loads,
+//! computations and conditional branches (no store, jump, CSR or system
+//! instruction), and one whole iteration ran it straight through (none of
+//! its branches taken but the closing one — the others are typically exits,
+//! `if (status == BATTERY_LOW) break;`), read at least one MMIO register and
+//! ended with exactly the register file it started with. With the same
+//! registers and unchanged device values, the next iteration takes the
+//! same path in the same cycles. Each such iteration counts as polling in [`CoreStats`]; with
 //! skipping on, the core then jumps over as many whole iterations as fit
 //! before the run's deadline and before [`Mmio::stable_until`] of every
 //! register the iteration read, adding their exact cycles and instructions.
