@@ -99,6 +99,19 @@ impl SocketWorld {
                 protocol::Direction::ToWorld => c.to_world.fetch_add(bytes, Relaxed),
                 protocol::Direction::ToPlatform => c.to_platform.fetch_add(bytes, Relaxed),
             };
+            // debug_level = HIGH (trace) logs every frame (§4.2.4
+            // "Configuration files and debug mode"); images are cut short.
+            if tracing::enabled!(target: "cosim::frames", tracing::Level::TRACE) {
+                let head = &ev.bytes[..ev.bytes.len().min(200)];
+                tracing::trace!(
+                    target: "cosim::frames",
+                    dir = ev.dir.as_str(),
+                    len = ev.bytes.len(),
+                    "{}{}",
+                    String::from_utf8_lossy(head),
+                    if ev.bytes.len() > head.len() { "…" } else { "" }
+                );
+            }
             if let Some(t) = &t {
                 let now = c.now_ps.load(Relaxed);
                 t.lock().expect("trace lock").record(ev, now)?;
