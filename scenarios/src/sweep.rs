@@ -403,7 +403,7 @@ fn write_plots(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), Sw
                 "basicTimeStep (ms)",
                 &[
                     (
-                        "Wall time of the co-simulation".into(),
+                        "Wall time of the co-simulation (completed runs)".into(),
                         "wall time (s)".into(),
                         wall,
                     ),
