@@ -3,7 +3,8 @@
  * takes off, flies through the 10 gates NUM_OF_CIRCUIT_LOOPS times (or, built
  * with -DCORNERS_TEST=N, to the corners of the map; with -DHOVER_TEST, holds
  * the start point until the battery is low; with -DSHORT_TEST, one nearby
- * target), lands and prints the
+ * target; with -DCONTINUOUS, the STM32's RUN_PID flies each leg without
+ * the camera loop), lands and prints the
  * simulated time. Every operation uses the register protocol of Listing 4.6:
  * write the opcode to the control register, poll the status register until
  * it shows the same code, then clear both.
@@ -44,7 +45,7 @@ static void perform(uint8_t op)
     stm32_control = 0;
 }
 
-static void get_image(void)
+__attribute__((unused)) static void get_image(void)
 {
     camera_control = GET_IMAGE;
     while (camera_status != GET_IMAGE)
@@ -54,7 +55,7 @@ static void get_image(void)
 }
 
 /* ITER_ADVANCE: a value v > 10 advances both simulations by v - 10 ms. */
-static void advance_simul(uint8_t ms)
+__attribute__((unused)) static void advance_simul(uint8_t ms)
 {
     stm32_control = (uint8_t)(ITER_ADVANCE + ms);
     while (stm32_status != ITER_ADVANCE)
@@ -63,7 +64,7 @@ static void advance_simul(uint8_t ms)
     stm32_control = 0;
 }
 
-static void run_single_pid_iter(void)
+__attribute__((unused)) static void run_single_pid_iter(void)
 {
     stm32_control = RUN_SINGLE_STEP_PID;
     for (;;) {
@@ -91,11 +92,26 @@ __attribute__((unused)) static void set_target(double x, double y, double z)
         stm32_y = y;
         stm32_z = z;
         perform(SET_TARGET);
+#ifdef CONTINUOUS
+        /* The STM32 flies to the target on its own (RUN_PID, the thesis's
+         * PID_loop, §4.2.1 and §5.2): no image, no per-iteration polling. */
+        stm32_control = RUN_PID;
+        for (;;) {
+            uint8_t status = stm32_status;
+            if (status == RUN_PID)
+                break;
+            if (status == BATTERY_LOW) {
+                low_battery = 1;
+                break;
+            }
+        }
+#else
         while (!target_reached && !low_battery) {
             get_image();
             advance_simul(INFERENCE_MS);
             run_single_pid_iter();
         }
+#endif
         target_reached = 0;
         stm32_control = 0;
         stm32_status = 0;
