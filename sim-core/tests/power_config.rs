@@ -171,7 +171,7 @@ fn non_default(key: &str) -> &'static str {
     match key {
         "power_model" => "stolaroff",
         "battery" => "cyclone300",
-        "battery_curve" => "discharged",
+        "battery_curve" => "soc",
         "debug_level" => "HIGH",
         "tolerance" => "0.25",
         "target_cycles" => "42",
@@ -197,7 +197,7 @@ fn every_key_can_be_set_and_read_back() {
     }
     assert_eq!(c.power_model, PowerModelKind::Stolaroff);
     assert_eq!(c.battery, Some(BatteryModel::Cyclone300));
-    assert_eq!(c.battery_curve, CurveAxis::Discharged);
+    assert_eq!(c.battery_curve, CurveAxis::Soc);
     assert_eq!(c.debug_level, DebugLevel::High);
     assert_eq!(c.tolerance, 0.25);
     assert_eq!((c.target_cycles, c.unlock_cycles), (42, 777));

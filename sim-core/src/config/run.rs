@@ -166,7 +166,7 @@ impl Default for RunConfig {
         RunConfig {
             power_model: PowerModelKind::Empirical,
             battery: Some(BatteryModel::LiPol250),
-            battery_curve: CurveAxis::Soc,
+            battery_curve: CurveAxis::Discharged,
             debug_level: DebugLevel::None,
             tolerance: 0.1,
             target_cycles: 100,

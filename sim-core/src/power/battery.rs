@@ -6,14 +6,16 @@
 //!
 //! The thesis names the variable of Eq. 4.2–4.3 and 5.1–5.6 "SOC" and plugs
 //! them into MESSY's `Harvester_battery_battery_voc`, which evaluates them at
-//! its `tmpsoc` (a fraction, 1 = full). That is what [`CurveAxis::Soc`] (the
-//! default) does. Evaluated that way the UFX (Eq. 5.1) and Cyclone (Eq. 5.3)
-//! curves *rise* as the battery empties (3.26 V and 3.41 V at SOC = 1, 4.17 V
-//! and 4.16 V at SOC = 0), which suggests the fits were made against the
-//! discharged fraction of the datasheet curves; [`CurveAxis::Discharged`]
-//! evaluates them at `1 − SOC` instead. The LiPol fit (Eq. 4.2) stays between
-//! 4.10 V and 4.23 V over the whole range either way. We record this rather
-//! than silently "fix" the thesis's coefficients.
+//! its `tmpsoc` (a fraction, 1 = full). Read literally ([`CurveAxis::Soc`]),
+//! every curve *rises* as the battery empties: the UFX (Eq. 5.1) and Cyclone
+//! (Eq. 5.3) go from 3.26 V and 3.41 V at SOC = 1 to 4.17 V and 4.16 V at
+//! SOC = 0, the LiPol (Eq. 4.2) from 4.10 V to 4.23 V. Their shapes are the
+//! datasheets' discharge curves plotted against the *discharged* fraction
+//! (thesis Fig. 4.9), so the default, [`CurveAxis::Discharged`], evaluates
+//! them at `1 − SOC`: voltages then fall as the battery empties, and the
+//! battery ranking of §5.4 comes out as the thesis reports it (UFX 250
+//! slightly better than LiPol 250, Cyclone 300 better, LiPol 350 best).
+//! `battery_curve = "soc"` keeps the literal reading.
 //!
 //! # An empty battery
 //!
@@ -34,10 +36,11 @@ use super::Ohms;
 /// module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum CurveAxis {
-    /// The SOC itself (1 = full), as MESSY's battery module and the thesis.
-    #[default]
+    /// The SOC itself (1 = full): the literal reading of the thesis and
+    /// MESSY's battery module.
     Soc,
-    /// The discharged fraction `1 − SOC`.
+    /// The discharged fraction `1 − SOC` (the default; see the module docs).
+    #[default]
     Discharged,
 }
 
@@ -373,9 +376,10 @@ mod tests {
 
     #[test]
     fn discharged_axis_mirrors_the_variable() {
-        let b = Battery::new(BatteryModel::Ufx250, 0.75, 0.0, 0.1).with_axis(CurveAxis::Discharged);
-        assert_eq!(b.v_oc(), BatteryModel::Ufx250.v_oc_at(0.25));
+        // The default axis is the discharged fraction.
         let b = Battery::new(BatteryModel::Ufx250, 0.75, 0.0, 0.1);
+        assert_eq!(b.v_oc(), BatteryModel::Ufx250.v_oc_at(0.25));
+        let b = Battery::new(BatteryModel::Ufx250, 0.75, 0.0, 0.1).with_axis(CurveAxis::Soc);
         assert_eq!(b.v_oc(), BatteryModel::Ufx250.v_oc_at(0.75));
     }
 

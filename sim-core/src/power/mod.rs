@@ -566,8 +566,9 @@ mod tests {
         // The LDO passes its current through while V_bat > 3.0 V.
         assert!((s.i_vcc_battery.0 - s.i_vcc.0).abs() < 1e-12);
         assert_eq!(s.i_motor, Amps(0.0));
-        // v_oc(1) of Eq. 4.2 = 4.10081 V → η = 3.0/4.10081
-        assert!((s.ldo_efficiency - 3.0 / 4.10081).abs() < 1e-9);
+        // A full battery: Eq. 4.2 at 1 − SOC = 0 is its constant term,
+        // 4.15517 V → η = 3.0/4.15517.
+        assert!((s.ldo_efficiency - 3.0 / 4.15517).abs() < 1e-9);
     }
 
     #[test]

@@ -134,12 +134,23 @@ pub struct ModelOutput {
 ///
 /// The power is Eq. 3.3, `V·I` with `V = −0.16302·I + 4.03495` (Eq. 3.2, the
 /// battery voltage Bitcraze measured at that current).
+///
+/// Range: the fit holds over Table 3.2, i.e. up to full throttle (23 882 RPM,
+/// 4.44 A). The PID's commands can ask far more (its derivative kick at
+/// take-off asks ~200 rad/s), where Eq. 3.1 would give tens of amperes and
+/// Eq. 3.2 a *negative* voltage, hence a negative power. The mean speed is
+/// therefore capped at Table 3.2's full-throttle speed in simulator units,
+/// 23 882 RPM / 340 ≈ 70.2 rad/s: a real motor cannot draw more than at full
+/// PWM.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EmpiricalModel {
     /// Eq. 3.1 coefficients `[a, b, c]` (A per (rad/s)², A per rad/s, A).
     pub current_coefficients: [f64; 3],
     /// Eq. 3.2 `[slope (V/A), intercept (V)]`.
     pub voltage_coefficients: [f64; 2],
+    /// Highest mean speed the fit is used at (rad/s): Table 3.2's full
+    /// throttle, 23 882 RPM / 340.
+    pub max_mean_omega: f64,
 }
 
 impl Default for EmpiricalModel {
@@ -147,6 +158,7 @@ impl Default for EmpiricalModel {
         EmpiricalModel {
             current_coefficients: [0.00100706, -0.0143, 0.32618],
             voltage_coefficients: [-0.16302, 4.03495],
+            max_mean_omega: 23_882.0 / 340.0,
         }
     }
 }
@@ -169,7 +181,7 @@ impl EmpiricalModel {
         if state.motors_off() {
             return ModelOutput::default();
         }
-        let current = self.current_at(state.mean_omega());
+        let current = self.current_at(state.mean_omega().min(self.max_mean_omega));
         ModelOutput {
             current,
             power: Watts(self.voltage_at(current).0 * current.0),
@@ -394,6 +406,23 @@ mod tests {
         assert!((out.power.0 - v * 2.12883).abs() < 1e-12);
         // ω̄ = 10: 0.100706 − 0.143 + 0.32618 = 0.283886 A
         assert!((m.current_at(10.0).0 - 0.283886).abs() < 1e-12);
+    }
+
+    #[test]
+    fn empirical_saturates_at_full_throttle() {
+        // Full throttle (Table 3.2's last row, 23 882 RPM ≈ 70.2 rad/s) is
+        // the most the model draws: ~4.4 A, and the power stays positive.
+        let m = EmpiricalModel::default();
+        let at = |w: f64| {
+            m.evaluate(&MotorState {
+                omega: [w; 4],
+                ..MotorState::default()
+            })
+        };
+        let full = at(23_882.0 / 340.0);
+        assert!((full.current.0 - 4.3).abs() < 0.2, "{:?}", full.current);
+        assert_eq!(at(200.0), full);
+        assert!(at(600.0).power.0 > 0.0);
     }
 
     #[test]

@@ -126,6 +126,10 @@ struct Flight {
     target_counter: u32,
     num_iteration: u32,
     target_reached: bool,
+    /// The current target is already counted in the statistics (a firmware
+    /// that keeps flying to a reached target, like the hover test, sees
+    /// TARGET_REACHED again at every iteration).
+    counted: bool,
     height_desired: f64,
     past_time: f64,
     past_x: f64,
@@ -172,6 +176,7 @@ impl Stm32 {
                 target_counter: 0,
                 num_iteration: 0,
                 target_reached: false,
+                counted: false,
                 height_desired: 0.0,
                 past_time: 0.0,
                 past_x: 0.0,
@@ -407,6 +412,7 @@ impl Stm32 {
         f.target_counter = 0;
         f.num_iteration = 0;
         f.target_reached = false;
+        f.counted = false;
     }
 
     fn start_process(&mut self, process: Process, now: Picos) {
@@ -696,7 +702,11 @@ impl Stm32 {
 
         // Targets set by the firmware are counted (GET_STABLE and landing are
         // the STM32's own).
-        let counts = matches!(self.process, Process::Idle | Process::Continuous);
+        let already = self.flight.counted;
+        if outcome != Outcome::Flying {
+            self.flight.counted = true;
+        }
+        let counts = matches!(self.process, Process::Idle | Process::Continuous) && !already;
         match outcome {
             Outcome::Reached if counts => self.stats.targets_reached += 1,
             Outcome::Bypassed => {
