@@ -10,7 +10,6 @@
 
 pub mod launch;
 pub mod plot;
-pub mod replay;
 pub mod report;
 pub mod scenario;
 pub mod sweep;

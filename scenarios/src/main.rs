@@ -13,11 +13,11 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::{Args, Parser, Subcommand};
 use scenarios::launch::LaunchOptions;
-use scenarios::replay::{self, ReplayOptions};
 use scenarios::scenario::{find_repo_file, resolve_scenario, SCENARIO_KEYS};
 use scenarios::sweep::{self, Param};
 use scenarios::tracetool;
 use scenarios::{run_scenario, Binaries, Scenario};
+use world_server::replay::{self, ReplayOptions};
 
 /// Co-simulation launcher: the virtual platform (sim-core) and the physics
 /// world (world-server) started together, with reports, plots, sweeps and
@@ -260,30 +260,16 @@ fn cmd_replay(
     if !(tolerance.is_finite() && tolerance >= 0.0) {
         bail!("--tolerance must be a number >= 0");
     }
-    let exchanges = replay::load_trace(&trace)?;
-    let report = replay::serve(
+    let ok = replay::replay_and_report(
+        &trace,
         &protocol::Endpoint::Unix(socket),
-        &exchanges,
         &ReplayOptions { frames, tolerance },
     )?;
-    match &report.first_difference {
-        None if report.complete => {
-            eprintln!("replay: {} requests, all as recorded", report.requests);
-            Ok(ExitCode::SUCCESS)
-        }
-        None => {
-            eprintln!(
-                "replay: the platform left after {} of {} requests",
-                report.requests,
-                exchanges.len()
-            );
-            Ok(ExitCode::FAILURE)
-        }
-        Some((seq, d)) => {
-            eprintln!("replay: first request that differs: #{seq}: {d}");
-            Ok(ExitCode::FAILURE)
-        }
-    }
+    Ok(if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
 }
 
 fn cmd_trace_check(

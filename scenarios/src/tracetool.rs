@@ -13,7 +13,7 @@ use protocol::trace::{Direction, TraceReader, TraceRecord};
 use protocol::{decode_reply, sha256_hex, Endpoint, Reply};
 use serde_json::Value;
 
-pub use crate::replay::diff_json;
+pub use world_server::replay::diff_json;
 
 /// Why a trace could not be shown or checked.
 #[derive(Debug, thiserror::Error)]

@@ -1,7 +1,7 @@
 //! `cosim run` end to end on the short scenario (`scenarios/short-hop.toml`):
 //! every output exists, parses and agrees with `summary.json`; a second run
 //! gives byte-identical traces; the recorded world trace, replayed by
-//! `cosim replay`, gives the platform the same run; `cosim trace-check`
+//! `world-server --replay`, gives the platform the same run; `cosim trace-check`
 //! finds our world server identical to its own trace and finds a tampered
 //! reply.
 
@@ -245,15 +245,16 @@ fn run_outputs_agree_repeat_bit_for_bit_and_replay() {
     }
     assert_eq!(deterministic(summary(&a)), deterministic(summary(&second)));
 
-    // Replay the world's trace (pixels from the frames) to a fresh sim-core.
+    // Replay the world's trace (pixels from the frames) to a fresh sim-core,
+    // with `world-server --replay` (the contract; `cosim replay` is the same).
     let c = tmp.path().join("c");
     let sock = tmp.path().join("replay.sock");
-    let replay = Command::new(&b.cosim)
-        .args(["replay"])
+    let replay = Command::new(&b.world)
+        .arg("--replay")
         .arg(a.join("world.trace"))
         .arg("--socket")
         .arg(&sock)
-        .arg("--frames")
+        .arg("--replay-frames")
         .arg(a.join("frames"))
         .stderr(Stdio::piped())
         .spawn()

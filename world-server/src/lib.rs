@@ -5,6 +5,7 @@
 pub mod camera;
 pub mod crazyflie;
 pub mod physics;
+pub mod replay;
 pub mod scene;
 pub mod sensors;
 pub mod server;

@@ -2,7 +2,7 @@
 //!
 //! `world-server --socket PATH [--world FILE] [--timestep MS] [--substeps N]
 //! [--trace FILE] [--trace-images] [--frames-dir DIR] [--tcp HOST:PORT]
-//! [--trajectory FILE]`
+//! [--trajectory FILE] [--replay TRACE [--replay-frames DIR]]`
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -45,6 +45,18 @@ struct Cli {
     /// Write one CSV row per world step (time, pose, velocities, motors, collisions).
     #[arg(long, value_name = "FILE")]
     trajectory: Option<PathBuf>,
+    /// Answer the platform from a recorded trace (world.trace or
+    /// platform.trace of a run) instead of simulating; report the first
+    /// request that differs from the recording (exit 1).
+    #[arg(long, value_name = "TRACE")]
+    replay: Option<PathBuf>,
+    /// With --replay: the PNG frames of the recorded run (its --frames-dir),
+    /// for traces that keep only the images' SHA-256.
+    #[arg(long, value_name = "DIR", requires = "replay")]
+    replay_frames: Option<PathBuf>,
+    /// With --replay: relative tolerance for numbers in requests.
+    #[arg(long, value_name = "T", default_value_t = 0.0, requires = "replay")]
+    replay_tolerance: f64,
 }
 
 /// The course shipped in `scenarios/worlds/`, found from the executable
@@ -78,6 +90,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         (Some(path), None) => Endpoint::Unix(path.clone()),
         (None, None) => bail!("one of --socket or --tcp is required"),
     };
+    if let Some(trace) = &cli.replay {
+        if !(cli.replay_tolerance.is_finite() && cli.replay_tolerance >= 0.0) {
+            bail!("--replay-tolerance must be a number >= 0");
+        }
+        let opts = world_server::replay::ReplayOptions {
+            frames: cli.replay_frames.clone(),
+            tolerance: cli.replay_tolerance,
+        };
+        if world_server::replay::replay_and_report(trace, &endpoint, &opts)? {
+            return Ok(());
+        }
+        bail!("the platform did not replay the recording (see above)");
+    }
     let world_path = match cli.world {
         Some(p) => p,
         None => default_world()?,

@@ -1,7 +1,7 @@
-//! A world server that answers from a recorded trace (`cosim replay`, meant
-//! to back `world-server --replay TRACE`): the platform gets the recorded
-//! reply bytes, in order, and the first request that differs from the
-//! recording is reported.
+//! A world server that answers from a recorded trace (`world-server --replay
+//! TRACE`, also `cosim replay`): the platform gets the recorded reply bytes,
+//! in order, and the first request that differs from the recording is
+//! reported.
 //!
 //! Replies are sent byte for byte as recorded (the trace's `msg` is the
 //! frame body itself). A trace made without `--trace-images` holds only the
@@ -9,8 +9,6 @@
 //! world wrote with `--frames-dir` (the n-th image of the trace is the n-th
 //! file by name), checked against the hash, and encoded as negotiated.
 //!
-//! This module uses only `protocol`, `serde_json`, `png` and `tracing`, so
-//! that it can move into the world-server crate as is.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -219,6 +217,37 @@ fn image_reply(
         ));
     }
     Ok(body)
+}
+
+/// Loads `trace`, serves one platform on `endpoint` from it and prints the
+/// outcome on stderr. `Ok(true)` when the whole recording was served and
+/// every request matched it; `Ok(false)` when the platform left early or a
+/// request differed (the first difference is printed).
+pub fn replay_and_report(
+    trace: &Path,
+    endpoint: &Endpoint,
+    opts: &ReplayOptions,
+) -> Result<bool, ReplayError> {
+    let exchanges = load_trace(trace)?;
+    let report = serve(endpoint, &exchanges, opts)?;
+    Ok(match &report.first_difference {
+        None if report.complete => {
+            eprintln!("replay: {} requests, all as recorded", report.requests);
+            true
+        }
+        None => {
+            eprintln!(
+                "replay: the platform left after {} of {} requests",
+                report.requests,
+                exchanges.len()
+            );
+            false
+        }
+        Some((seq, d)) => {
+            eprintln!("replay: first request that differs: #{seq}: {d}");
+            false
+        }
+    })
 }
 
 /// Serves one platform connection on `endpoint` from `exchanges`.
