@@ -32,7 +32,11 @@ impl Stream {
     /// Connects once.
     pub fn connect(ep: &Endpoint) -> io::Result<Stream> {
         Ok(match ep {
-            Endpoint::Unix(p) => Stream::Unix(UnixStream::connect(p)?),
+            Endpoint::Unix(p) => {
+                let s = UnixStream::connect(p)?;
+                crate::frame::enlarge_socket_buffers(std::os::fd::AsRawFd::as_raw_fd(&s));
+                Stream::Unix(s)
+            }
             Endpoint::Tcp(a) => {
                 let s = TcpStream::connect(a.as_str())?;
                 // Lockstep request/reply: Nagle would add a delay per frame.
@@ -413,7 +417,11 @@ impl Server {
     /// the listen backlog is 1, as in the thesis.
     pub fn accept(&self) -> Result<Connection> {
         let s = match &self.kind {
-            ListenerKind::Unix { l, .. } => Stream::Unix(l.accept()?.0),
+            ListenerKind::Unix { l, .. } => {
+                let s = l.accept()?.0;
+                crate::frame::enlarge_socket_buffers(std::os::fd::AsRawFd::as_raw_fd(&s));
+                Stream::Unix(s)
+            }
             ListenerKind::Tcp(l) => {
                 let s = l.accept()?.0;
                 s.set_nodelay(true)?;

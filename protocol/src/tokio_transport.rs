@@ -360,7 +360,11 @@ impl Listener {
     /// Waits for the next client and frames it.
     pub async fn accept(&self) -> Result<ServerFramed> {
         let s = match &self.kind {
-            Kind::Unix { l, .. } => Either::Left(l.accept().await?.0),
+            Kind::Unix { l, .. } => {
+                let s = l.accept().await?.0;
+                crate::frame::enlarge_socket_buffers(std::os::fd::AsRawFd::as_raw_fd(&s));
+                Either::Left(s)
+            }
             Kind::Tcp(l) => {
                 let s = l.accept().await?.0;
                 s.set_nodelay(true)?;
@@ -382,7 +386,11 @@ impl Drop for Listener {
 /// Connects to a world (tests and tools; the platform itself is blocking).
 pub async fn connect(ep: &Endpoint) -> Result<ClientFramed> {
     let s = match ep {
-        Endpoint::Unix(p) => Either::Left(UnixStream::connect(p).await?),
+        Endpoint::Unix(p) => {
+            let s = UnixStream::connect(p).await?;
+            crate::frame::enlarge_socket_buffers(std::os::fd::AsRawFd::as_raw_fd(&s));
+            Either::Left(s)
+        }
         Endpoint::Tcp(a) => {
             let s = TcpStream::connect(a.as_str()).await?;
             s.set_nodelay(true)?;
