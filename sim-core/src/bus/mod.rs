@@ -70,8 +70,12 @@ impl<W: WorldLink> Platform<W> {
         }
     }
 
-    /// Runs the devices' own activity that is due at `now`.
-    pub fn handle_events(&mut self, now: Picos) -> Result<(), DeviceError> {
+    /// Runs `f` on the devices with a [`DeviceCtx`] over the shared parts
+    /// (world link, time keeper, motors, console).
+    fn with_ctx<R>(
+        &mut self,
+        f: impl FnOnce(&mut Camera, &mut Stm32, &mut DeviceCtx<'_>) -> R,
+    ) -> R {
         let mut console = std::mem::take(&mut self.console);
         let mut sink = |s: &str| console.push(s.to_string());
         let mut ctx = DeviceCtx {
@@ -81,9 +85,14 @@ impl<W: WorldLink> Platform<W> {
             battery_low: self.battery_low,
             console: &mut sink,
         };
-        let result = self.stm32.handle_event(now, &mut ctx);
+        let result = f(&mut self.camera, &mut self.stm32, &mut ctx);
         self.console = console;
         result
+    }
+
+    /// Runs the devices' own activity that is due at `now`.
+    pub fn handle_events(&mut self, now: Picos) -> Result<(), DeviceError> {
+        self.with_ctx(|_, stm32, ctx| stm32.handle_event(now, ctx))
     }
 
     /// The earliest time a device acts on its own.
@@ -92,22 +101,11 @@ impl<W: WorldLink> Platform<W> {
     }
 
     fn write_byte(&mut self, offset: u32, value: u8, now: Picos) -> Result<(), DeviceError> {
-        let mut console = std::mem::take(&mut self.console);
-        let mut sink = |s: &str| console.push(s.to_string());
-        let mut ctx = DeviceCtx {
-            world: &mut self.world,
-            time: &mut self.time,
-            motors: &mut self.motors,
-            battery_low: self.battery_low,
-            console: &mut sink,
-        };
-        let result = match route(offset) {
-            Some(Target::Camera(o)) => self.camera.write(o, value, now, &mut ctx),
-            Some(Target::Stm32(o)) => self.stm32.write(o, value, now, &mut ctx),
+        self.with_ctx(|camera, stm32, ctx| match route(offset) {
+            Some(Target::Camera(o)) => camera.write(o, value, now, ctx),
+            Some(Target::Stm32(o)) => stm32.write(o, value, now, ctx),
             None => unreachable!("checked by the caller"),
-        };
-        self.console = console;
-        result
+        })
     }
 
     fn read_byte(&self, offset: u32, now: Picos) -> u8 {
