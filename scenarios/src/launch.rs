@@ -510,22 +510,14 @@ fn write_inputs(scenario: &Scenario, out: &Path) -> Result<(), LaunchError> {
     write(files::SCENARIO, resolved)
 }
 
-/// The run configuration as sim-core reads it. `RunConfig::to_toml` writes
-/// the embedded platform as `platform = "embedded"`, which `--config` would
-/// read back as a file name: the key is left out then (the platform file,
-/// when there is one, is written as an absolute path).
+/// The run configuration as sim-core reads it, with the platform file (when
+/// there is one) as an absolute path so the file can be used from anywhere.
 fn run_toml(scenario: &Scenario) -> String {
-    let mut table: toml::Table =
-        toml::from_str(&scenario.run.to_toml()).expect("RunConfig::to_toml writes valid TOML");
-    match &scenario.run.platform {
-        None => {
-            table.remove("platform");
-        }
-        Some(p) => {
-            table.insert("platform".into(), toml::Value::String(abs(p)));
-        }
+    let mut run = scenario.run.clone();
+    if let Some(p) = &run.platform {
+        run.platform = Some(PathBuf::from(abs(p)));
     }
-    toml::to_string(&table).expect("a flat table serializes")
+    run.to_toml()
 }
 
 fn abs(p: &Path) -> String {

@@ -299,3 +299,13 @@ fn toml_files_and_their_errors() {
         .to_string();
     assert!(e.contains("battery: expected a string or a number"), "{e}");
 }
+
+#[test]
+fn the_default_configuration_survives_toml() {
+    // The embedded platform has no path: it must not come back as a file
+    // named "embedded".
+    let c = RunConfig::default();
+    let back = RunConfig::from_toml_str(&c.to_toml(), "default round trip").unwrap();
+    assert_eq!(back, c);
+    assert!(back.platform.is_none());
+}

@@ -355,6 +355,11 @@ impl RunConfig {
     pub fn to_toml(&self) -> String {
         let mut table = toml::Table::new();
         for (key, _) in RUN_KEYS {
+            // The embedded default platform has no file to name: leave the
+            // key out, so that reading the file back gives the same config.
+            if key == "platform" && self.platform.is_none() {
+                continue;
+            }
             let text = self.get(key).expect("RUN_KEYS are known keys");
             let value = match key {
                 "tolerance"
