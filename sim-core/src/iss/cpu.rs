@@ -643,7 +643,17 @@ impl Cpu {
         let off = pc.wrapping_sub(self.code_base);
         let mut w = 0;
         if off < self.code_size {
-            w = mem.regions[self.code_idx].decoded[(off >> 1) as usize];
+            // SAFETY: `code_size != 0` only while `code_idx` names a region of
+            // this `mem` with base `code_base` and size `code_size` (checked
+            // on entry to `run_until`, set by `fetch_slow`; regions are never
+            // removed or resized), whose `decoded` holds `code_size / 2`
+            // entries, and `off < code_size`.
+            w = unsafe {
+                *mem.regions
+                    .get_unchecked(self.code_idx)
+                    .decoded
+                    .get_unchecked((off >> 1) as usize)
+            };
         }
         if w == 0 {
             match slow!(self.fetch_slow(mem, pc)) {
