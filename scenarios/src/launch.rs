@@ -155,6 +155,11 @@ pub struct LaunchOptions {
     pub timeout: Option<Duration>,
     /// Extra arguments for sim-core (e.g. `--no-idle-skip`).
     pub sim_core_args: Vec<String>,
+    /// Another world server instead of ours: a command run by `sh -c`, with
+    /// `{socket}` replaced by the socket path (also in `$COSIM_SOCKET`). It
+    /// gets none of our world's flags (world file, timestep, traces,
+    /// trajectory): the platform's trace and outputs are still written.
+    pub world_cmd: Option<String>,
 }
 
 impl Default for LaunchOptions {
@@ -166,6 +171,7 @@ impl Default for LaunchOptions {
             frames: false,
             timeout: None,
             sim_core_args: Vec::new(),
+            world_cmd: None,
         }
     }
 }
@@ -382,6 +388,14 @@ pub fn launch(
         world_cmd.arg("--frames-dir").arg(frames);
     }
     sim_cmd.args(&opts.sim_core_args);
+    if let Some(cmd) = &opts.world_cmd {
+        let socket_text = socket.display().to_string();
+        world_cmd = Command::new("sh");
+        world_cmd
+            .arg("-c")
+            .arg(cmd.replace("{socket}", &socket_text))
+            .env("COSIM_SOCKET", &socket_text);
+    }
 
     let started = Instant::now();
     let mut world = Supervised::spawn("world", world_cmd, &sink)?;

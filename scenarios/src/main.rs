@@ -71,6 +71,11 @@ struct RunArgs {
     /// Kill the run after this many seconds of wall time.
     #[arg(long, value_name = "S")]
     timeout: Option<f64>,
+    /// Run another world server instead of ours: a shell command with
+    /// `{socket}` for the socket path, e.g.
+    /// `--world-cmd 'python3 examples/python-world/world.py --socket {socket}'`.
+    #[arg(long, value_name = "CMD")]
+    world_cmd: Option<String>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -184,6 +189,7 @@ fn launch_options(run: &RunArgs, echo: bool) -> anyhow::Result<LaunchOptions> {
         frames: run.frames,
         timeout,
         sim_core_args: Vec::new(),
+        world_cmd: run.world_cmd.clone(),
     })
 }
 

@@ -158,7 +158,13 @@ pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, R
         false,
     )?;
 
-    let traj: Vec<TrajectoryRow> = read_csv(&out.join(files::TRAJECTORY))?;
+    let traj_path = out.join(files::TRAJECTORY);
+    if !traj_path.exists() {
+        // Another world server (`--world-cmd`) writes no trajectory.
+        tracing::warn!("no {}: no top view", traj_path.display());
+        return Ok(vec![power_png, battery_png]);
+    }
+    let traj: Vec<TrajectoryRow> = read_csv(&traj_path)?;
     let flight: Vec<(f64, f64)> = traj.iter().map(|r| (r.x, r.y)).collect();
     let world = WorldDesc::load(&scenario.world)?;
     let top_png = out.join(plots::TOP_VIEW);
