@@ -70,3 +70,16 @@ pub fn world_file(name: &str) -> PathBuf {
         .join("scenarios/worlds")
         .join(format!("{name}.toml"))
 }
+
+/// Waits until `path` exists (a server's socket), for at most `secs`
+/// seconds of wall time; returns whether it appeared.
+pub fn wait_for_path(path: &Path, secs: u64) -> bool {
+    let until = std::time::Instant::now() + std::time::Duration::from_secs(secs);
+    while !path.exists() {
+        if std::time::Instant::now() >= until {
+            return false;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    true
+}

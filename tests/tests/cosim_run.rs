@@ -7,7 +7,6 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
 
 use e2e_tests::{binary, repo_root};
 use serde_json::Value;
@@ -259,10 +258,7 @@ fn run_outputs_agree_repeat_bit_for_bit_and_replay() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let until = Instant::now() + Duration::from_secs(20);
-    while !sock.exists() && Instant::now() < until {
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    e2e_tests::wait_for_path(&sock, 20);
     let sim = Command::new(&b.sim_core)
         .arg("--socket")
         .arg(&sock)

@@ -5,7 +5,6 @@
 
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use e2e_tests::{binary, repo_root};
 use serde_json::Value;
@@ -40,10 +39,7 @@ fn sim_core_flies_against_the_python_world() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let until = Instant::now() + Duration::from_secs(20);
-    while !sock.exists() && Instant::now() < until {
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    e2e_tests::wait_for_path(&sock, 20);
     let sim = Command::new(&sim_core)
         .arg("--socket")
         .arg(&sock)
