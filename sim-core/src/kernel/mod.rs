@@ -120,6 +120,14 @@ pub fn simulate<W: WorldLink>(firmware: &[u8], cfg: &KernelConfig, world: W) -> 
         Err(e) => {
             let mut summary = Summary::failed_before_start(cfg);
             summary.wall_time_s = wall.elapsed().as_secs_f64();
+            summary.error = Some(e.to_string());
+            // A run that could not start still leaves its summary, so that a
+            // sweep or a script reads why.
+            if let Some(dir) = &cfg.out_dir {
+                if let Err(io) = summary.write(&dir.join("summary.json")) {
+                    tracing::error!("cannot write summary.json: {io}");
+                }
+            }
             return RunOutcome {
                 summary,
                 error: Some(e),
