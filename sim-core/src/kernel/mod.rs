@@ -26,7 +26,6 @@ use thiserror::Error;
 use crate::bus::{Platform, PERIPHERAL_BASE, WINDOW_SIZE};
 use crate::config::{PlatformConfig, RunConfig};
 use crate::iss::{load_elf, Cpu, CpuConfig, ElfError, Memory, StopReason};
-use crate::peripherals::camera;
 use crate::peripherals::stm32::Stm32Config;
 use crate::peripherals::{Camera, DeviceError, DevicePower, Stm32, WorldLink};
 use crate::power::{CoreState, Loads, PowerError, PowerLogger, PowerNetwork};
@@ -344,6 +343,3 @@ pub fn read_firmware(path: &Path) -> Result<Vec<u8>, KernelError> {
         ))
     })
 }
-
-/// The camera's register memory, for checks of the platform file.
-pub const CAMERA_REGISTER_MEMORY: u32 = camera::REGISTER_MEMORY;

@@ -133,11 +133,16 @@ impl TimeKeeper {
         }
     }
 
+    /// Accounts the core time up to `now`, then a device delay `d` from there.
+    fn account_delay(&mut self, d: Millis, now: Picos) {
+        self.account_gap(now);
+        self.accounted_until = self.accounted_until.max(now) + d.to_picos();
+    }
+
     /// A device delay of `d` starting at platform time `now` that the world
     /// must follow. Returns how many whole timesteps the world must advance.
     pub fn delay(&mut self, d: Millis, now: Picos) -> u64 {
-        self.account_gap(now);
-        self.accounted_until = self.accounted_until.max(now) + d.to_picos();
+        self.account_delay(d, now);
         self.iteration_steps(d)
     }
 
@@ -145,8 +150,7 @@ impl TimeKeeper {
     /// alignment of INIT_PID, the motor stop time at STOP): no advance, no
     /// offset.
     pub fn aligned(&mut self, d: Millis, now: Picos, world_also: bool) {
-        self.account_gap(now);
-        self.accounted_until = self.accounted_until.max(now) + d.to_picos();
+        self.account_delay(d, now);
         if world_also {
             self.world_sent_ms += d.0;
         }
@@ -155,16 +159,14 @@ impl TimeKeeper {
     /// Starts a PID iteration with the camera's delay (the thesis sets
     /// `iter_delay` to the camera time at every image).
     pub fn begin_iteration(&mut self, camera: Millis, now: Picos) {
-        self.account_gap(now);
-        self.accounted_until = self.accounted_until.max(now) + camera.to_picos();
+        self.account_delay(camera, now);
         self.iter_delay_ms = camera.0;
     }
 
     /// Adds a delay to the current iteration without advancing the world yet
     /// (ITER_ADVANCE, the PID/motor path).
     pub fn add_to_iteration(&mut self, d: Millis, now: Picos) {
-        self.account_gap(now);
-        self.accounted_until = self.accounted_until.max(now) + d.to_picos();
+        self.account_delay(d, now);
         self.iter_delay_ms += d.0;
     }
 

@@ -97,8 +97,6 @@ pub struct Stm32Stats {
     pub pid_iterations: u64,
     /// The world's reply to STOP: its time (s) and the motors' stop time (ms).
     pub stop: Option<(f64, u64)>,
-    /// Times of PRINT_SIMUL_TIME (platform time), for the summary.
-    pub printed_at: Option<Picos>,
     /// Contacts begun in the world, from GET_STATE just before STOP (None
     /// if the world does not implement that extension).
     pub collisions: Option<u64>,
@@ -125,7 +123,6 @@ struct Flight {
     target: [f64; 3],
     target_counter: u32,
     num_iteration: u32,
-    target_reached: bool,
     /// The current target is already counted in the statistics (a firmware
     /// that keeps flying to a reached target, like the hover test, sees
     /// TARGET_REACHED again at every iteration).
@@ -134,9 +131,6 @@ struct Flight {
     past_time: f64,
     past_x: f64,
     past_y: f64,
-    last_x: f64,
-    last_y: f64,
-    last_altitude: f64,
 }
 
 /// How an iteration ended.
@@ -157,7 +151,6 @@ pub struct Stm32 {
     initialised: bool,
     process: Process,
     next_iteration: Option<Picos>,
-    last_commands: MotorCommands,
     pub power: DevicePower,
     pub stats: Stm32Stats,
 }
@@ -175,21 +168,16 @@ impl Stm32 {
                 target: [0.0; 3],
                 target_counter: 0,
                 num_iteration: 0,
-                target_reached: false,
                 counted: false,
                 height_desired: 0.0,
                 past_time: 0.0,
                 past_x: 0.0,
                 past_y: 0.0,
-                last_x: 0.0,
-                last_y: 0.0,
-                last_altitude: 0.0,
             },
             timestep: Millis(0),
             initialised: false,
             process: Process::Idle,
             next_iteration: None,
-            last_commands: MotorCommands::default(),
             power,
             stats: Stm32Stats::default(),
         }
@@ -274,7 +262,7 @@ impl Stm32 {
             INIT_PID => self.init_pid(now, ctx),
             GET_STABLE => {
                 self.flush_iteration(now, ctx)?;
-                let (x, y) = (self.flight.last_x, self.flight.last_y);
+                let (x, y) = (self.flight.past_x, self.flight.past_y);
                 self.new_target([x, y, self.cfg.stable_height]);
                 self.flight.height_desired = self.cfg.stable_height;
                 self.start_process(Process::Stabilising, now);
@@ -299,11 +287,11 @@ impl Stm32 {
                 Ok(())
             }
             RUN_SINGLE_STEP_PID => {
-                let outcome = self.pid_iteration(now, ctx, true)?;
+                let (outcome, commands) = self.pid_iteration(now, ctx, true)?;
                 ctx.time.add_to_iteration(self.cfg.pid_path_delay, now);
                 let iter = ctx.time.take_iteration();
                 let done = now + self.cfg.pid_path_delay.to_picos();
-                self.drive(now, iter, ctx)?;
+                Self::drive(commands, now, iter, ctx)?;
                 let code = if ctx.battery_low {
                     BATTERY_LOW
                 } else if outcome != Outcome::Flying {
@@ -321,7 +309,7 @@ impl Stm32 {
             }
             GO_DOWN => {
                 self.flush_iteration(now, ctx)?;
-                let (x, y) = (self.flight.last_x, self.flight.last_y);
+                let (x, y) = (self.flight.past_x, self.flight.past_y);
                 self.new_target([x, y, self.cfg.landing_height]);
                 self.start_process(Process::Landing { stage: 1 }, now);
                 Ok(())
@@ -389,9 +377,6 @@ impl Stm32 {
         f.past_time = time_s;
         f.past_x = x;
         f.past_y = y;
-        f.last_x = x;
-        f.last_y = y;
-        f.last_altitude = z;
         f.height_desired = z;
         f.target = [x, y, z];
         self.initialised = true;
@@ -411,7 +396,6 @@ impl Stm32 {
         f.target = target;
         f.target_counter = 0;
         f.num_iteration = 0;
-        f.target_reached = false;
         f.counted = false;
     }
 
@@ -462,12 +446,11 @@ impl Stm32 {
     }
 
     fn drive(
-        &mut self,
+        commands: MotorCommands,
         now: Picos,
         iter: Millis,
         ctx: &mut DeviceCtx<'_>,
     ) -> Result<(), DeviceError> {
-        let commands = self.last_commands;
         super::motors::drive_from_ctx(ctx, commands, iter, now).map_err(world_err)
     }
 
@@ -481,10 +464,10 @@ impl Stm32 {
         // (§4.2.4: iter_delay = timestep at the beginning and the end).
         let ts = self.timestep;
         let integrate_height = self.process != Process::Stabilising;
-        let outcome = self.pid_iteration(now, ctx, integrate_height)?;
+        let (outcome, commands) = self.pid_iteration(now, ctx, integrate_height)?;
         ctx.time.add_to_iteration(ts, now);
         let iter = ctx.time.take_iteration();
-        self.drive(now, iter, ctx)?;
+        Self::drive(commands, now, iter, ctx)?;
         let end = now + ts.to_picos();
         self.power.busy_reading(end);
         self.next_iteration = Some(end);
@@ -548,7 +531,6 @@ impl Stm32 {
 
     fn print_simul_time(&mut self, now: Picos, ctx: &mut DeviceCtx<'_>) {
         let r = ctx.time.report(now);
-        self.stats.printed_at = Some(now);
         let mut text = format!(
             "\n[STM32] Platform time: {:.3} ms\n[STM32] Sensors offset: {:.3} ms, core overshoot (sim_off_accum): {:.6} ms\n[STM32] Estimated world time: {:.3} ms\n",
             r.platform_time.0 as f64 / Picos::PER_MS as f64,
@@ -574,7 +556,7 @@ impl Stm32 {
         now: Picos,
         ctx: &mut DeviceCtx<'_>,
         integrate_height: bool,
-    ) -> Result<Outcome, DeviceError> {
+    ) -> Result<(Outcome, MotorCommands), DeviceError> {
         let reply = ctx
             .world
             .call(&Request::GetSensors, now)
@@ -661,7 +643,6 @@ impl Stm32 {
         if outside == 0 {
             f.target_counter += 1;
             if f.target_counter >= cfg.target_cycles {
-                f.target_reached = true;
                 outcome = Outcome::Reached;
                 f.num_iteration = 0;
             }
@@ -669,7 +650,6 @@ impl Stm32 {
         f.num_iteration += 1;
         let unlock = (u64::from(cfg.unlock_cycles) * 32 / self.timestep.0.max(1)) as u32;
         if f.num_iteration >= unlock {
-            f.target_reached = true;
             if outcome == Outcome::Flying {
                 outcome = Outcome::Bypassed;
             }
@@ -692,13 +672,9 @@ impl Stm32 {
                 "the controller produced non-finite motor commands {commands:?} from {s:?}"
             )));
         }
-        self.last_commands = commands;
         f.past_time = s.time_s;
         f.past_x = s.x;
         f.past_y = s.y;
-        f.last_x = s.x;
-        f.last_y = s.y;
-        f.last_altitude = s.z;
 
         // Targets set by the firmware are counted (GET_STABLE and landing are
         // the STM32's own).
@@ -722,7 +698,7 @@ impl Stm32 {
             }
             _ => {}
         }
-        Ok(outcome)
+        Ok((outcome, commands))
     }
 }
 

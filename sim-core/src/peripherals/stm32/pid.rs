@@ -92,10 +92,6 @@ impl MotorCommands {
     pub fn as_array(&self) -> [f64; 4] {
         [self.m1, self.m2, self.m3, self.m4]
     }
-    /// Mean of the four magnitudes (the input of the empirical power model).
-    pub fn mean(&self) -> f64 {
-        (self.m1 + self.m2 + self.m3 + self.m4) / 4.0
-    }
 }
 
 /// Intermediate commands of the cascade (before mixing).
