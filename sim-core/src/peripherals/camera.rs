@@ -122,7 +122,8 @@ impl Camera {
                 ),
             });
         }
-        self.image.copy_from_slice(&frame.data);
+        // The decoded frame becomes the image registers (no copy).
+        self.image = frame.data;
         self.frames += 1;
         let done = now + self.capture.to_picos();
         self.status.set_at(done, GET_IMAGE);
