@@ -7,8 +7,9 @@ use thiserror::Error;
 
 use crate::units::{Cycles, Hertz, Picos};
 
+use super::block::{FetchFault, Inst};
 use super::decode::{self, op, Decoded};
-use super::mem::{AccessSize, Memory, Mmio, MmioError};
+use super::mem::{ram_load, ram_store_data, AccessSize, Memory, Mmio, MmioError};
 use super::semihost::{self, Semihost};
 use super::timing::{self, BASE_CYCLES};
 
@@ -516,36 +517,56 @@ impl Cpu {
         }
     }
 
+    /// Run blocks until the deadline (or a break). Each block runs in
+    /// [`Cpu::exec_block`]; what it cannot do (device and code accesses,
+    /// system instructions) is done by [`Cpu::step`].
     fn run_block(&mut self, mem: &mut Memory, dev: &mut dyn Mmio) {
-        // Every step costs at least one cycle and retires at most one
+        // Every instruction costs at least one cycle and retires at most one
         // instruction, so bounding cycles by the remaining instruction budget
-        // stops the block no later than the instruction limit, with a single
-        // comparison per instruction; the run loop checks the limit itself.
+        // stops no later than the instruction limit, with the single
+        // per-instruction comparison the deadline needs anyway; the run loop
+        // checks the limit itself.
         let budget = self.instr_deadline - self.instret;
         self.deadline = self.deadline.min(self.cycles.saturating_add(budget));
-        let mut h = self.hot();
-        while h.cycles < self.deadline {
-            self.step(&mut h, mem, dev);
-        }
-        self.set_hot(h);
-    }
-
-    #[inline(always)]
-    fn hot(&self) -> Hot {
-        Hot {
-            pc: self.pc,
-            cycles: self.cycles,
-            instret: self.instret,
-            load_mask: self.load_mask,
+        while self.cycles < self.deadline {
+            let Some(first) = self.lookup(mem) else {
+                continue; // the fetch trapped (and ended the run slice)
+            };
+            match self.exec_block(mem, first) {
+                Exit::Poll { from, to } => self.poll_slow(mem, dev, from, to),
+                Exit::General(inst) => self.step(mem, dev, inst),
+                Exit::Paused => {}
+            }
         }
     }
 
+    /// The block at `pc` (index of its first instruction in `mem.insts`),
+    /// through the cached code region when it holds one; `None` when the
+    /// fetch faults (the trap has been taken).
     #[inline(always)]
-    fn set_hot(&mut self, h: Hot) {
-        self.pc = h.pc;
-        self.cycles = h.cycles;
-        self.instret = h.instret;
-        self.load_mask = h.load_mask;
+    fn lookup(&mut self, mem: &mut Memory) -> Option<usize> {
+        let off = self.pc.wrapping_sub(self.code_base);
+        if off < self.code_size {
+            // `code_size != 0` only while `code_idx` names a region of this
+            // `mem` with these bounds (checked on entry to `run_until`).
+            let id = mem.regions[self.code_idx].block_at[(off >> 1) as usize];
+            if id != 0 {
+                return Some(id as usize - 1);
+            }
+        }
+        match mem.block(self.pc) {
+            Ok((idx, first)) => {
+                let r = &mem.regions[idx];
+                self.code_idx = idx;
+                self.code_base = r.base;
+                self.code_size = r.size;
+                Some(first)
+            }
+            Err(FetchFault(addr)) => {
+                self.trap(mem, cause::FETCH_ACCESS, addr, self.pc);
+                None
+            }
+        }
     }
 
     /// Stop the inner loop after the current instruction.
@@ -561,37 +582,233 @@ impl Cpu {
         self.break_block();
     }
 
-    #[cold]
-    fn fetch_slow(&mut self, mem: &mut Memory, pc: u32) -> Option<u64> {
-        let Some((idx, off)) = mem.region_index(pc, 2) else {
-            self.trap(mem, cause::FETCH_ACCESS, pc, pc);
-            return None;
-        };
-        let r = &mem.regions[idx];
-        self.code_idx = idx;
-        self.code_base = r.base;
-        self.code_size = r.size;
-        let lo = u16::from_le_bytes([r.data[off], r.data[off + 1]]);
-        let hi = || {
-            r.offset_of(pc.wrapping_add(2), 2)
-                .map(|o| u16::from_le_bytes([r.data[o], r.data[o + 1]]))
-        };
-        match decode::decode(lo, hi) {
-            Some(d) => {
-                // Cache the op's base cycles next to rd (bits 13..16), so the
-                // hot loop needs no table lookup.
-                let w = d.pack() | (BASE_CYCLES[d.op as usize] as u64) << 13;
-                let r = &mut mem.regions[idx];
-                r.decoded[off >> 1] = w;
-                r.note_code(off);
-                Some(w)
+    /// Run the block whose first instruction is `mem.insts[first]`, from
+    /// `self.pc` = its start, until its control transfer or the deadline
+    /// (checked after every instruction, so the run stops on the same
+    /// instruction boundary as a one-by-one run), or until an instruction
+    /// needs the general path: a load or store outside RAM, a store near
+    /// cached code or to `tohost`, a system instruction. That one is handed
+    /// back unexecuted, with the core's state as it was just before it.
+    ///
+    /// Everything that changes per instruction stays in locals (host
+    /// registers); the core's counters are written once, on the way out.
+    #[inline(never)]
+    fn exec_block(&mut self, mem: &mut Memory, first: usize) -> Exit {
+        let regions = &mut mem.regions;
+        let all = &mem.insts;
+        let deadline = self.deadline;
+        let (code_base, code_size, code_idx) = (self.code_base, self.code_size, self.code_idx);
+        let mut insts = &all[first..];
+        let mut entry = self.cycles;
+        // The one load-use stall the block cannot know: behind whatever
+        // instruction ran before it.
+        let stall = (insts[0].reads() & self.load_mask != 0) as u64;
+        let mut cycles = entry + stall * timing::LOAD_USE_STALL;
+        let mut i = 0;
+        loop {
+            debug_assert!(i < insts.len());
+            // SAFETY: every block ends with an instruction whose arm below
+            // leaves the block (a jump, a branch, a system instruction,
+            // `END`; `block.rs` builds them so), so `i` never passes the
+            // block's end, which is within `insts`; `mem.insts` cannot change
+            // while borrowed here.
+            let inst = unsafe { insts.get_unchecked(i) };
+            cycles += inst.cost as u64;
+            let rd = (inst.rd & 31) as usize;
+            let imm = inst.imm;
+            macro_rules! a {
+                () => {
+                    self.regs[(inst.rs1 & 31) as usize]
+                };
             }
-            None => {
-                // The second half of a 32-bit instruction is not in RAM.
-                let a = pc.wrapping_add(2);
-                self.trap(mem, cause::FETCH_ACCESS, a, pc);
-                None
+            macro_rules! b {
+                () => {
+                    self.regs[(inst.rs2 & 31) as usize]
+                };
             }
+            // Leave before instruction `i`, for the general path to do it.
+            macro_rules! general {
+                () => {{
+                    let c = if i == 0 {
+                        entry
+                    } else {
+                        cycles - inst.cost as u64
+                    };
+                    self.leave(insts, i, c);
+                    return Exit::General(*inst);
+                }};
+            }
+            // The block's control transfer retired: go on with the block at
+            // `to` if it is cached and nothing needs the run loop, else
+            // leave. After a transfer nothing is in the load-use shadow.
+            macro_rules! transfer {
+                ($to:expr, $taken:expr, $conditional:expr) => {{
+                    let (from, to, taken) = (inst.pc, $to, $taken);
+                    self.jumps += taken as u64;
+                    self.instret += i as u64 + 1;
+                    self.load_mask = 0;
+                    let poll = $conditional
+                        && taken
+                        && to < from
+                        && from - to <= MAX_POLL_LOOP_BYTES
+                        && (self.poll.touched || self.poll.active);
+                    let off = to.wrapping_sub(code_base);
+                    let next = if cycles < deadline && !poll && off < code_size {
+                        regions[code_idx].block_at[(off >> 1) as usize]
+                    } else {
+                        0
+                    };
+                    if next == 0 {
+                        self.cycles = cycles;
+                        self.pc = to;
+                        return if poll {
+                            Exit::Poll { from, to }
+                        } else {
+                            Exit::Paused
+                        };
+                    }
+                    insts = &all[next as usize - 1..];
+                    entry = cycles;
+                    i = 0;
+                    continue;
+                }};
+            }
+            macro_rules! branch {
+                ($cond:expr) => {{
+                    if $cond {
+                        cycles += timing::BRANCH_TAKEN_EXTRA;
+                        transfer!(imm, true, true)
+                    }
+                    transfer!(inst.pc.wrapping_add(inst.len as u32), false, true)
+                }};
+            }
+            macro_rules! load {
+                ($size:expr, $conv:expr) => {{
+                    let addr = a!().wrapping_add(imm);
+                    match ram_load(regions, addr, $size) {
+                        Some(v) => {
+                            cycles += Self::split_cost(addr, $size);
+                            self.regs[rd] = $conv(v);
+                            self.regs[0] = 0;
+                        }
+                        None => general!(),
+                    }
+                }};
+            }
+            macro_rules! store {
+                ($size:expr) => {{
+                    let addr = a!().wrapping_add(imm);
+                    let watched = self.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
+                    if watched || !ram_store_data(regions, addr, $size, b!()) {
+                        general!();
+                    }
+                    cycles += Self::split_cost(addr, $size);
+                }};
+            }
+            // Op codes are below 64 (a test checks): masking lets the
+            // compiler's jump table cover every value, without a range check.
+            match inst.op & 63 {
+                op::NOP | op::FENCE | op::FENCE_I => {}
+                // `auipc` arrives as `lui` of its result.
+                op::LUI => self.regs[rd] = imm,
+                op::ADDI => self.regs[rd] = a!().wrapping_add(imm),
+                op::SLTI => self.regs[rd] = ((a!() as i32) < (imm as i32)) as u32,
+                op::SLTIU => self.regs[rd] = (a!() < imm) as u32,
+                op::XORI => self.regs[rd] = a!() ^ imm,
+                op::ORI => self.regs[rd] = a!() | imm,
+                op::ANDI => self.regs[rd] = a!() & imm,
+                op::SLLI => self.regs[rd] = a!() << (imm & 31),
+                op::SRLI => self.regs[rd] = a!() >> (imm & 31),
+                op::SRAI => self.regs[rd] = ((a!() as i32) >> (imm & 31)) as u32,
+                op::ADD => self.regs[rd] = a!().wrapping_add(b!()),
+                op::SUB => self.regs[rd] = a!().wrapping_sub(b!()),
+                op::SLL => self.regs[rd] = a!() << (b!() & 31),
+                op::SLT => self.regs[rd] = ((a!() as i32) < (b!() as i32)) as u32,
+                op::SLTU => self.regs[rd] = (a!() < b!()) as u32,
+                op::XOR => self.regs[rd] = a!() ^ b!(),
+                op::SRL => self.regs[rd] = a!() >> (b!() & 31),
+                op::SRA => self.regs[rd] = ((a!() as i32) >> (b!() & 31)) as u32,
+                op::OR => self.regs[rd] = a!() | b!(),
+                op::AND => self.regs[rd] = a!() & b!(),
+                op::MUL => self.regs[rd] = a!().wrapping_mul(b!()),
+                op::MULH => {
+                    self.regs[rd] = ((a!() as i32 as i64 * b!() as i32 as i64) >> 32) as u32
+                }
+                op::MULHSU => self.regs[rd] = ((a!() as i32 as i64 * b!() as i64) >> 32) as u32,
+                op::MULHU => self.regs[rd] = ((a!() as u64 * b!() as u64) >> 32) as u32,
+                op::DIV | op::REM => {
+                    let (a, b) = (a!(), b!());
+                    cycles += (b as i32).unsigned_abs().leading_zeros() as u64;
+                    let (x, y) = (a as i32, b as i32);
+                    self.regs[rd] = match (inst.op == op::DIV, y) {
+                        (true, 0) => u32::MAX,
+                        (false, 0) => a,
+                        (true, _) => x.wrapping_div(y) as u32,
+                        (false, _) => x.wrapping_rem(y) as u32,
+                    };
+                    self.regs[0] = 0;
+                }
+                op::DIVU | op::REMU => {
+                    let (a, b) = (a!(), b!());
+                    cycles += b.leading_zeros() as u64;
+                    self.regs[rd] = match (inst.op == op::DIVU, b) {
+                        (true, 0) => u32::MAX,
+                        (false, 0) => a,
+                        (true, _) => a / b,
+                        (false, _) => a % b,
+                    };
+                    self.regs[0] = 0;
+                }
+                op::LB => load!(AccessSize::Byte, |v: u32| v as u8 as i8 as i32 as u32),
+                op::LH => load!(AccessSize::Half, |v: u32| v as u16 as i16 as i32 as u32),
+                op::LW => load!(AccessSize::Word, |v: u32| v),
+                op::LBU => load!(AccessSize::Byte, |v: u32| v),
+                op::LHU => load!(AccessSize::Half, |v: u32| v),
+                op::SB => store!(AccessSize::Byte),
+                op::SH => store!(AccessSize::Half),
+                op::SW => store!(AccessSize::Word),
+                // Branches and `jal` carry their absolute target.
+                op::BEQ => branch!(a!() == b!()),
+                op::BNE => branch!(a!() != b!()),
+                op::BLT => branch!((a!() as i32) < (b!() as i32)),
+                op::BGE => branch!((a!() as i32) >= (b!() as i32)),
+                op::BLTU => branch!(a!() < b!()),
+                op::BGEU => branch!(a!() >= b!()),
+                op::JAL => {
+                    self.regs[rd] = inst.pc.wrapping_add(inst.len as u32);
+                    self.regs[0] = 0;
+                    transfer!(imm, true, false)
+                }
+                op::JALR => {
+                    let to = a!().wrapping_add(imm) & !1;
+                    self.regs[rd] = inst.pc.wrapping_add(inst.len as u32);
+                    self.regs[0] = 0;
+                    transfer!(to, true, false)
+                }
+                op::END => {
+                    // Not an instruction: the block ran out without a jump.
+                    self.leave(insts, i, cycles);
+                    return Exit::Paused;
+                }
+                _ => general!(),
+            }
+            i += 1;
+            if cycles >= deadline {
+                self.leave(insts, i, cycles);
+                return Exit::Paused;
+            }
+        }
+    }
+
+    /// Leave a block just before `insts[i]` (having run `insts[..i]`), at
+    /// `cycles`.
+    #[inline(always)]
+    fn leave(&mut self, insts: &[Inst], i: usize, cycles: u64) {
+        self.cycles = cycles;
+        self.instret += i as u64;
+        self.pc = insts[i].pc;
+        if i > 0 {
+            self.load_mask = insts[i - 1].load_mask();
         }
     }
 
@@ -625,121 +842,49 @@ impl Cpu {
         tracing::trace!(mcause, tval, epc, "trap");
     }
 
-    /// Execute one instruction. The state that changes on every
-    /// instruction lives in `h` (host registers); every slow path is called
-    /// through `slow!`, which hands it the up-to-date state and takes back
-    /// what it changed.
-    #[inline(always)]
-    fn step(&mut self, h: &mut Hot, mem: &mut Memory, dev: &mut dyn Mmio) {
-        macro_rules! slow {
-            ($e:expr) => {{
-                self.set_hot(*h);
-                let r = $e;
-                *h = self.hot();
-                r
-            }};
-        }
-        let pc = h.pc;
-        let off = pc.wrapping_sub(self.code_base);
-        let mut w = 0;
-        if off < self.code_size {
-            // SAFETY: `code_size != 0` only while `code_idx` names a region of
-            // this `mem` with base `code_base` and size `code_size` (checked
-            // on entry to `run_until`, set by `fetch_slow`; regions are never
-            // removed or resized), whose `decoded` holds `code_size / 2`
-            // entries, and `off < code_size`.
-            w = unsafe {
-                *mem.regions
-                    .get_unchecked(self.code_idx)
-                    .decoded
-                    .get_unchecked((off >> 1) as usize)
-            };
-        }
-        if w == 0 {
-            match slow!(self.fetch_slow(mem, pc)) {
-                Some(x) => w = x,
-                None => return,
-            }
-        }
-        let opc = w as u8;
-        let rd = ((w >> 8) as u8 & 31) as usize;
-        let rs1 = ((w >> 16) as u8 & 31) as usize;
-        let rs2 = ((w >> 24) as u8 & 31) as usize;
-        let imm = (w >> 32) as u32;
-        let len = 4 - (((w >> 30) as u32) & 2);
-
-        // Timing: table cost (cached in the decoded word) plus the load-use
-        // stall, branch-free as this runs for every instruction: `load_mask`
-        // is a one-hot mask of the register the previous instruction loaded
-        // (0 when it was not a load or loaded x0).
-        let reads = (1u32 << rs1) | (1u32 << rs2);
-        let stall = (reads & h.load_mask != 0) as u64;
-        h.cycles += ((w >> 13) & 7) + stall * timing::LOAD_USE_STALL;
-        h.load_mask = 0;
-
-        let a = self.regs[rs1];
-        let b = self.regs[rs2];
-        let mut next = pc.wrapping_add(len);
-        let mut val = 0u32;
-        let mut write = true;
-        macro_rules! branch {
-            ($cond:expr) => {{
-                write = false;
-                if $cond {
-                    next = pc.wrapping_add(imm);
-                    h.cycles += timing::BRANCH_TAKEN_EXTRA;
-                    self.jumps += 1;
-                }
-            }};
-        }
+    /// The general path: execute one instruction the block loop handed
+    /// back (a load, a store or a system instruction) with everything it
+    /// may involve: device accesses at their simulated time, `tohost`,
+    /// stores into code, CSRs, traps, semihosting.
+    fn step(&mut self, mem: &mut Memory, dev: &mut dyn Mmio, inst: Inst) {
+        let stall = (inst.reads() & self.load_mask != 0) as u64;
+        self.cycles += BASE_CYCLES[inst.op as usize] as u64 + stall * timing::LOAD_USE_STALL;
+        self.load_mask = 0;
+        let pc = inst.pc;
+        let rd = (inst.rd & 31) as usize;
+        let a = self.regs[(inst.rs1 & 31) as usize];
+        let b = self.regs[(inst.rs2 & 31) as usize];
+        let mut next = pc.wrapping_add(inst.len as u32);
         macro_rules! load {
             ($size:expr, $conv:expr) => {{
-                let addr = a.wrapping_add(imm);
+                let addr = a.wrapping_add(inst.imm);
                 let v = match mem.load_ram(addr, $size) {
                     Some(v) => {
-                        h.cycles += Self::split_cost(addr, $size);
+                        self.cycles += Self::split_cost(addr, $size);
                         v
                     }
-                    None => match slow!(self.load_slow(mem, dev, addr, $size, pc)) {
+                    None => match self.load_slow(mem, dev, addr, $size, pc) {
                         Some(v) => v,
                         None => return,
                     },
                 };
-                val = $conv(v);
-                h.load_mask = (1u32 << rd) & !1;
+                self.regs[rd] = $conv(v);
+                self.regs[0] = 0;
+                self.load_mask = inst.load_mask();
             }};
         }
         macro_rules! store {
             ($size:expr) => {{
-                write = false;
-                let addr = a.wrapping_add(imm);
+                let addr = a.wrapping_add(inst.imm);
                 let watched = self.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
                 if !watched && mem.store_ram(addr, $size, b) {
-                    h.cycles += Self::split_cost(addr, $size);
-                } else if !slow!(self.store_slow(mem, dev, addr, $size, b, pc)) {
+                    self.cycles += Self::split_cost(addr, $size);
+                } else if !self.store_slow(mem, dev, addr, $size, b, pc) {
                     return;
                 }
             }};
         }
-        match opc {
-            op::LUI => val = imm,
-            op::AUIPC => val = pc.wrapping_add(imm),
-            op::JAL => {
-                val = next;
-                next = pc.wrapping_add(imm);
-                self.jumps += 1;
-            }
-            op::JALR => {
-                val = next;
-                next = a.wrapping_add(imm) & !1;
-                self.jumps += 1;
-            }
-            op::BEQ => branch!(a == b),
-            op::BNE => branch!(a != b),
-            op::BLT => branch!((a as i32) < (b as i32)),
-            op::BGE => branch!((a as i32) >= (b as i32)),
-            op::BLTU => branch!(a < b),
-            op::BGEU => branch!(a >= b),
+        match inst.op {
             op::LB => load!(AccessSize::Byte, |v: u32| v as u8 as i8 as i32 as u32),
             op::LH => load!(AccessSize::Half, |v: u32| v as u16 as i16 as i32 as u32),
             op::LW => load!(AccessSize::Word, |v: u32| v),
@@ -748,101 +893,35 @@ impl Cpu {
             op::SB => store!(AccessSize::Byte),
             op::SH => store!(AccessSize::Half),
             op::SW => store!(AccessSize::Word),
-            op::ADDI => val = a.wrapping_add(imm),
-            op::SLTI => val = ((a as i32) < (imm as i32)) as u32,
-            op::SLTIU => val = (a < imm) as u32,
-            op::XORI => val = a ^ imm,
-            op::ORI => val = a | imm,
-            op::ANDI => val = a & imm,
-            op::SLLI => val = a << (imm & 31),
-            op::SRLI => val = a >> (imm & 31),
-            op::SRAI => val = ((a as i32) >> (imm & 31)) as u32,
-            op::ADD => val = a.wrapping_add(b),
-            op::SUB => val = a.wrapping_sub(b),
-            op::SLL => val = a << (b & 31),
-            op::SLT => val = ((a as i32) < (b as i32)) as u32,
-            op::SLTU => val = (a < b) as u32,
-            op::XOR => val = a ^ b,
-            op::SRL => val = a >> (b & 31),
-            op::SRA => val = ((a as i32) >> (b & 31)) as u32,
-            op::OR => val = a | b,
-            op::AND => val = a & b,
-            op::MUL => val = a.wrapping_mul(b),
-            op::MULH => val = ((a as i32 as i64 * b as i32 as i64) >> 32) as u32,
-            op::MULHSU => val = ((a as i32 as i64 * b as i64) >> 32) as u32,
-            op::MULHU => val = ((a as u64 * b as u64) >> 32) as u32,
-            op::DIV | op::REM => {
-                h.cycles += b.unsigned_abs_i32().leading_zeros() as u64;
-                let (x, y) = (a as i32, b as i32);
-                val = match (opc == op::DIV, y) {
-                    (true, 0) => u32::MAX,
-                    (false, 0) => a,
-                    (true, _) => x.wrapping_div(y) as u32,
-                    (false, _) => x.wrapping_rem(y) as u32,
-                };
-            }
-            op::DIVU | op::REMU => {
-                h.cycles += b.leading_zeros() as u64;
-                val = match (opc == op::DIVU, b) {
-                    (true, 0) => u32::MAX,
-                    (false, 0) => a,
-                    (true, _) => a / b,
-                    (false, _) => a % b,
-                };
-            }
-            op::FENCE | op::FENCE_I => {
-                // Stores keep the decoded cache coherent, so fence.i has
-                // nothing left to flush; it only costs its cycles.
-                write = false;
-            }
-            _ => match slow!(self.step_system(mem, dev, Decoded::unpack(w), pc, a)) {
+            _ => match self.step_system(mem, dev, inst.decoded(), pc, a) {
                 Sys::Trapped => return,
                 Sys::Next(v) => {
-                    write = v.is_some();
-                    val = v.unwrap_or(0);
+                    if let Some(v) = v {
+                        self.regs[rd] = v;
+                        self.regs[0] = 0;
+                    }
                 }
                 Sys::Jump(t) => {
-                    write = false;
                     next = t;
                     self.jumps += 1;
                 }
             },
         }
-        if write {
-            self.regs[rd] = val;
-            self.regs[0] = 0;
-        }
-        h.pc = next;
-        h.instret += 1;
-        if next < pc
-            && pc - next <= MAX_POLL_LOOP_BYTES
-            && (op::BEQ..=op::BGEU).contains(&opc)
-            && (self.poll.touched || self.poll.active)
-        {
-            slow!(self.poll_slow(mem, dev, pc, next));
-        }
+        self.pc = next;
+        self.instret += 1;
     }
 }
 
-/// The state that changes on every instruction, kept in host registers
-/// while a block runs (see [`Cpu::step`]).
-#[derive(Debug, Clone, Copy)]
-struct Hot {
-    pc: u32,
-    cycles: u64,
-    instret: u64,
-    load_mask: u32,
-}
-
-/// `|x|` of a register read as signed, as an unsigned magnitude.
-trait AbsI32 {
-    fn unsigned_abs_i32(self) -> u32;
-}
-impl AbsI32 for u32 {
-    #[inline(always)]
-    fn unsigned_abs_i32(self) -> u32 {
-        (self as i32).unsigned_abs()
-    }
+/// How [`Cpu::exec_block`] left its block.
+enum Exit {
+    /// A taken backward branch from `from` to `to` retired and closes a
+    /// loop the idle detector wants to see ([`Cpu::poll_slow`]).
+    Poll { from: u32, to: u32 },
+    /// At an instruction boundary: the deadline passed, or the next block
+    /// is not cached yet.
+    Paused,
+    /// This instruction needs [`Cpu::step`]; the core is just before it.
+    General(Inst),
 }
 
 /// Outcome of a system instruction.

@@ -1,23 +1,19 @@
 //! Instruction decoding: RV32IMC + Zicsr + Zifencei + the privileged
-//! instructions we implement, into a compact packed form that the core caches
-//! per halfword of RAM (see `mem.rs`).
+//! instructions we implement, into [`Decoded`], which the block cache
+//! (`block.rs`) turns into the core's pre-decoded blocks.
 //!
 //! Compressed instructions are first expanded to the 32-bit instruction they
 //! stand for ([`expand_compressed`]) and then decoded like any other, so the
 //! two forms cannot disagree; only the length differs.
 //!
-//! Packed layout of a decoded instruction (a `u64`, so the cache can be a
-//! zero-allocated `Vec<u64>` whose 0 means "not decoded"):
-//! byte 0 = op (never 0), byte 1 bits 0..5 = rd (the core keeps the
-//! op's base cycle cost in bits 5..8 of its cached copy), byte 2 = rs1, byte 3 bits 0..5 = rs2
-//! and bit 7 = "compressed", bytes 4..8 = immediate (sign-extended; for CSR
-//! instructions the CSR number in bits 0..12 and the 5-bit immediate above
-//! it; for illegal instructions the raw bits, which become `mtval`).
-//! Fields an instruction does not read are 0, so the load-use stall check can
-//! compare rs1/rs2 blindly.
+//! The immediate is sign-extended; for CSR instructions it holds the CSR
+//! number in bits 0..12 and the 5-bit immediate above it; for illegal
+//! instructions the raw bits, which become `mtval`. Fields an instruction
+//! does not read are 0, so the load-use stall check can compare rs1/rs2
+//! blindly.
 
-/// Operation codes of the packed form. A plain `u8` namespace instead of an
-/// enum so the packed word can be unpacked without a conversion table.
+/// Operation codes (never 0). A plain `u8` namespace instead of an enum so
+/// the core's dispatch is a jump table on a byte without a conversion.
 pub mod op {
     macro_rules! ops {
         ($($name:ident),* $(,)?) => {
@@ -39,11 +35,17 @@ pub mod op {
         ADDI, SLTI, SLTIU, XORI, ORI, ANDI, SLLI, SRLI, SRAI, ADD, SUB, SLL, SLT, SLTU, XOR, SRL,
         SRA, OR, AND, FENCE, FENCE_I, ECALL, EBREAK, MRET, WFI, CSRRW, CSRRS, CSRRC, CSRRWI,
         CSRRSI, CSRRCI, MUL, MULH, MULHSU, MULHU, DIV, DIVU, REM, REMU, ILLEGAL,
+        // Forms only the block cache produces (`block.rs`), never `decode`:
+        // a computation whose result goes to x0, and the end of a block that
+        // has no control transfer.
+        NOP, END,
     );
 }
 
-/// A decoded instruction, unpacked (used by the decoder, tests and the idle
-/// detector; the hot loop unpacks the `u64` directly).
+// The core's block loop dispatches on `op & 63`.
+const _: () = assert!(op::COUNT <= 64);
+
+/// A decoded instruction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Decoded {
     pub op: u8,
@@ -55,25 +57,6 @@ pub struct Decoded {
 }
 
 impl Decoded {
-    pub const fn pack(self) -> u64 {
-        (self.op as u64)
-            | (self.rd as u64) << 8
-            | (self.rs1 as u64) << 16
-            | ((self.rs2 as u64) | if self.compressed { 0x80 } else { 0 }) << 24
-            | (self.imm as u32 as u64) << 32
-    }
-
-    pub const fn unpack(w: u64) -> Decoded {
-        Decoded {
-            op: w as u8,
-            rd: (w >> 8) as u8 & 0x1f,
-            rs1: (w >> 16) as u8,
-            rs2: (w >> 24) as u8 & 0x1f,
-            imm: (w >> 32) as u32 as i32,
-            compressed: (w >> 31) & 1 == 1,
-        }
-    }
-
     /// Length of the instruction in bytes.
     #[allow(clippy::len_without_is_empty)] // an instruction is never empty
     pub const fn len(self) -> u32 {
@@ -407,17 +390,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn pack_round_trip() {
-        let d = Decoded {
-            op: op::SW,
-            rd: 0,
-            rs1: 31,
-            rs2: 17,
-            imm: -2048,
-            compressed: true,
-        };
-        assert_eq!(Decoded::unpack(d.pack()), d);
-        assert_ne!(d.pack(), 0);
+    fn op_names_cover_every_op() {
         assert_eq!(op::NAMES.len(), op::COUNT);
         assert_eq!(op::NAMES[op::ILLEGAL as usize], "ILLEGAL");
     }
@@ -531,9 +504,9 @@ mod tests {
 
     proptest::proptest! {
         #[test]
-        fn decoding_never_panics_and_packs_losslessly(inst: u32) {
+        fn decoding_never_panics_and_fields_are_in_range(inst: u32) {
             let d = decode32(inst);
-            proptest::prop_assert_eq!(Decoded::unpack(d.pack()), d);
+            proptest::prop_assert!(d.op != 0 && (d.op as usize) < op::COUNT);
             proptest::prop_assert!(d.rd < 32 && d.rs1 < 32 && d.rs2 < 32);
         }
     }

@@ -29,6 +29,8 @@ use thiserror::Error;
 
 use crate::units::Picos;
 
+use super::block::Inst;
+
 /// Width of a memory access in bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum AccessSize {
@@ -130,17 +132,20 @@ pub enum MemError {
     OutOfRam { addr: u32, len: u64 },
 }
 
-/// One RAM region with its pre-decoded instruction cache.
+/// One RAM region with the code-cache bookkeeping of the blocks decoded
+/// from it (see `block.rs`).
 pub(crate) struct Region {
     pub(crate) base: u32,
     pub(crate) size: u32,
     pub(crate) data: Vec<u8>,
-    /// One packed decoded instruction per halfword (see `decode.rs`); 0 means
-    /// "not decoded yet". Allocated zeroed, so the OS only backs the pages
-    /// that are really used as code.
-    pub(crate) decoded: Vec<u64>,
-    /// Byte offsets `[code_lo, code_hi)` that hold every decoded entry, so a
-    /// store to data (the common case) skips the decoded array entirely.
+    /// Per halfword: 1 + the index in [`Memory::insts`] of the first
+    /// instruction of the block starting there; 0 means none. Allocated
+    /// zeroed, so the OS only backs the pages that really hold code.
+    pub(crate) block_at: Vec<u32>,
+    /// One bit per halfword occupied by a cached instruction.
+    code_bits: Vec<u64>,
+    /// Byte offsets `[code_lo, code_hi)` that hold every cached instruction,
+    /// so a store to data (the common case) skips the bitmap entirely.
     pub(crate) code_lo: usize,
     pub(crate) code_hi: usize,
 }
@@ -157,28 +162,46 @@ impl Region {
         }
     }
 
-    /// Drop the decoded instructions that overlap bytes `[off, off + len)`:
-    /// the one starting there and a 32-bit one starting 2 bytes before.
-    /// Record that the instruction at `off` (up to 4 bytes) is decoded.
-    pub(crate) fn note_code(&mut self, off: usize) {
+    /// Record that bytes `[off, off + len)` hold a cached instruction.
+    pub(crate) fn mark_code(&mut self, off: usize, len: usize) {
+        for h in off >> 1..(off + len + 1) >> 1 {
+            self.code_bits[h >> 6] |= 1 << (h & 63);
+        }
         self.code_lo = self.code_lo.min(off);
-        self.code_hi = self.code_hi.max(off + 4);
+        self.code_hi = self.code_hi.max(off + len);
     }
 
+    /// Whether bytes `[off, off + len)` may overlap cached code (a cheap
+    /// range test; [`Region::overwrites_code`] is the exact one).
     #[inline(always)]
-    pub(crate) fn invalidate(&mut self, off: usize, len: usize) {
-        if off >= self.code_hi || off + len <= self.code_lo {
-            return;
-        }
-        let first = (off >> 1).saturating_sub(1);
-        let last = ((off + len - 1) >> 1).min(self.decoded.len() - 1);
-        for slot in &mut self.decoded[first..=last] {
+    pub(crate) fn near_code(&self, off: usize, len: usize) -> bool {
+        off < self.code_hi && off + len > self.code_lo
+    }
+
+    /// Whether writing bytes `[off, off + len)` changes a cached instruction.
+    pub(crate) fn overwrites_code(&self, off: usize, len: usize) -> bool {
+        self.near_code(off, len)
+            && (off >> 1..(off + len + 1) >> 1)
+                .any(|h| self.code_bits[h >> 6] & (1 << (h & 63)) != 0)
+    }
+
+    /// Forget every cached block of this region.
+    pub(crate) fn clear_code(&mut self) {
+        if self.code_lo < self.code_hi {
+            let halves = self.code_lo >> 1..(self.code_hi + 1) >> 1;
             // Reading a never-touched zero page costs nothing; writing would
-            // commit it, so only write when there is something to drop.
-            if *slot != 0 {
-                *slot = 0;
+            // commit it, so only write where there is something to drop.
+            for slot in &mut self.block_at[halves.clone()] {
+                if *slot != 0 {
+                    *slot = 0;
+                }
+            }
+            for w in &mut self.code_bits[halves.start >> 6..=(halves.end - 1) >> 6] {
+                *w = 0;
             }
         }
+        self.code_lo = usize::MAX;
+        self.code_hi = 0;
     }
 }
 
@@ -194,6 +217,8 @@ impl fmt::Debug for Region {
 pub struct Memory {
     pub(crate) regions: Vec<Region>,
     windows: Vec<(u32, u32)>,
+    /// The cached blocks' instructions, block after block (see `block.rs`).
+    pub(crate) insts: Vec<Inst>,
 }
 
 fn check_range(base: u32, size: u32) -> Result<(), MemError> {
@@ -238,7 +263,8 @@ impl Memory {
             base,
             size,
             data: vec![0; size as usize],
-            decoded: vec![0; (size / 2) as usize],
+            block_at: vec![0; (size / 2) as usize],
+            code_bits: vec![0; (size as usize / 2).div_ceil(64)],
             code_lo: usize::MAX,
             code_hi: 0,
         });
@@ -271,12 +297,7 @@ impl Memory {
 
     #[inline(always)]
     pub(crate) fn region_index(&self, addr: u32, len: u32) -> Option<(usize, usize)> {
-        for (i, r) in self.regions.iter().enumerate() {
-            if let Some(off) = r.offset_of(addr, len) {
-                return Some((i, off));
-            }
-        }
-        None
+        find(&self.regions, addr, len)
     }
 
     /// Copy bytes into RAM (ELF loading, a device writing a buffer). Drops
@@ -295,7 +316,9 @@ impl Memory {
         })?;
         let r = &mut self.regions[i];
         r.data[off..off + bytes.len()].copy_from_slice(bytes);
-        r.invalidate(off, bytes.len());
+        if r.overwrites_code(off, bytes.len()) {
+            self.flush_blocks();
+        }
         Ok(())
     }
 
@@ -321,20 +344,14 @@ impl Memory {
         Some(u32::from_le_bytes(b))
     }
 
-    /// Fast RAM load used by the core; `None` when not RAM.
+    /// RAM load used by the core's general path; `None` when not RAM.
     #[inline(always)]
     pub(crate) fn load_ram(&self, addr: u32, size: AccessSize) -> Option<u32> {
-        let n = size.bytes();
-        let (i, off) = self.region_index(addr, n)?;
-        let d = &self.regions[i].data;
-        Some(match size {
-            AccessSize::Byte => d[off] as u32,
-            AccessSize::Half => u16::from_le_bytes([d[off], d[off + 1]]) as u32,
-            AccessSize::Word => u32::from_le_bytes([d[off], d[off + 1], d[off + 2], d[off + 3]]),
-        })
+        ram_load(&self.regions, addr, size)
     }
 
-    /// Fast RAM store used by the core; `false` when not RAM.
+    /// RAM store used by the core's general path; `false` when not RAM.
+    /// Drops the cached blocks if it overwrites one of their instructions.
     #[inline(always)]
     pub(crate) fn store_ram(&mut self, addr: u32, size: AccessSize, value: u32) -> bool {
         let n = size.bytes();
@@ -344,23 +361,63 @@ impl Memory {
         let r = &mut self.regions[i];
         let bytes = value.to_le_bytes();
         r.data[off..off + n as usize].copy_from_slice(&bytes[..n as usize]);
-        r.invalidate(off, n as usize);
+        if r.overwrites_code(off, n as usize) {
+            self.flush_blocks();
+        }
         true
     }
 
-    /// Drop every decoded instruction (`fence.i` does not need this since
-    /// stores keep the cache coherent, but a platform that changes RAM
+    /// Drop every cached block (`fence.i` does not need this since
+    /// writes keep the cache coherent, but a platform that changes RAM
     /// behind the core's back may call it).
     pub fn flush_decoded(&mut self) {
-        for r in &mut self.regions {
-            if r.code_lo < r.code_hi {
-                let hi = (r.code_hi / 2).min(r.decoded.len());
-                r.decoded[r.code_lo / 2..hi].iter_mut().for_each(|s| *s = 0);
-            }
-            r.code_lo = usize::MAX;
-            r.code_hi = 0;
-        }
+        self.flush_blocks();
     }
+}
+
+/// The region holding `[addr, addr + len)` and the offset there.
+#[inline(always)]
+fn find(regions: &[Region], addr: u32, len: u32) -> Option<(usize, usize)> {
+    regions
+        .iter()
+        .enumerate()
+        .find_map(|(i, r)| r.offset_of(addr, len).map(|off| (i, off)))
+}
+
+/// A little-endian load from RAM; `None` when not RAM. (The core's block
+/// loop calls it with the regions borrowed apart from the block cache.)
+#[inline(always)]
+pub(crate) fn ram_load(regions: &[Region], addr: u32, size: AccessSize) -> Option<u32> {
+    let (i, off) = find(regions, addr, size.bytes())?;
+    let d = &regions[i].data;
+    Some(match size {
+        AccessSize::Byte => d[off] as u32,
+        AccessSize::Half => u16::from_le_bytes([d[off], d[off + 1]]) as u32,
+        AccessSize::Word => u32::from_le_bytes([d[off], d[off + 1], d[off + 2], d[off + 3]]),
+    })
+}
+
+/// A store to RAM that is not near cached code; `false` otherwise (not RAM,
+/// or possibly code: the core's general path then does it and keeps the
+/// block cache coherent).
+#[inline(always)]
+pub(crate) fn ram_store_data(
+    regions: &mut [Region],
+    addr: u32,
+    size: AccessSize,
+    value: u32,
+) -> bool {
+    let n = size.bytes();
+    let Some((i, off)) = find(regions, addr, n) else {
+        return false;
+    };
+    let r = &mut regions[i];
+    if r.near_code(off, n as usize) {
+        return false;
+    }
+    let bytes = value.to_le_bytes();
+    r.data[off..off + n as usize].copy_from_slice(&bytes[..n as usize]);
+    true
 }
 
 #[cfg(test)]

@@ -3,8 +3,8 @@
 //!
 //! - [`Cpu`]: RV32I + M + C + Zicsr + Zifencei, machine and user mode,
 //!   traps, `mret`, `wfi`, a CLINT machine timer, one external interrupt
-//!   line, CV32E40P cycle timing ([`timing`]), a pre-decoded instruction
-//!   cache and exact idle skipping.
+//!   line, CV32E40P cycle timing ([`timing`]), a cache of pre-decoded
+//!   basic blocks (`block.rs`) and exact idle skipping.
 //! - [`Memory`] / [`Mmio`]: RAM regions owned by the ISS and the device
 //!   window(s) the platform implements (see [`mem`] for the access-time and
 //!   idle-skip contracts).
@@ -78,11 +78,12 @@
 //! - `wfi` in user mode raises an illegal-instruction trap (the spec's
 //!   implementation-defined time limit is zero here); `mcounteren` gates
 //!   user access to `cycle`/`time`/`instret`.
-//! - The decoded cache is kept coherent by every store (and by
+//! - The block cache is kept coherent by every store (and by
 //!   [`Memory::write_bytes`]), so `fence.i` only costs its 2 cycles.
 //! - Semihosting times (`SYS_CLOCK`, `SYS_TIME`, `SYS_ELAPSED`) are
 //!   simulated time, never the wall clock.
 
+mod block;
 pub mod cpu;
 pub mod decode;
 pub mod elf;

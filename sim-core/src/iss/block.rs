@@ -1,0 +1,283 @@
+//! The pre-decoded code cache: basic blocks of unpacked instructions.
+//!
+//! A block is the straight-line run of instructions from some pc up to and
+//! including the first control transfer (branch, `jal`, `jalr`) or system
+//! instruction (CSR access, `ecall`, `ebreak`, `mret`, `wfi`, an illegal
+//! encoding), at most [`MAX_BLOCK_INSTS`] long. It is decoded once, into
+//! [`Inst`]s whose operands are already unpacked and whose costs already hold
+//! the CV32E40P table cycles plus every load-use stall between two
+//! instructions of the same block, so the core's inner loop
+//! (`Cpu::exec_block`) does no fetch lookup, no decoding, no stall logic and
+//! no per-instruction bookkeeping beyond the instruction itself. Only the
+//! stall on a block's first instruction (it depends on how the core got
+//! there) and data-dependent costs (taken branch, division, split access)
+//! are added while running.
+//!
+//! Blocks live in [`Memory`] beside the RAM they were decoded from: a block
+//! describes bytes, not a core. Each RAM region keeps, per halfword, the
+//! index of the block that starts there, and a bitmap of the halfwords any
+//! cached instruction occupies. A write to one of those halfwords (a store,
+//! [`Memory::write_bytes`]) drops every block (self-modifying code is rare;
+//! QEMU flushes whole translation caches for the same reason), which is what
+//! makes `fence.i` free. The core never stores into cached code from inside a
+//! block: such a store leaves the block and is done by the general path, so a
+//! block never runs stale instructions.
+
+use super::decode::{self, op, Decoded};
+use super::mem::{Memory, Region};
+use super::timing::BASE_CYCLES;
+
+/// Longest block. Long enough that the per-block entry cost is noise,
+/// short enough that a block built past a rarely taken exit wastes little.
+pub const MAX_BLOCK_INSTS: usize = 64;
+
+/// More cached instructions than this and the cache is dropped before the
+/// next block is built (bounds memory for programs that generate code).
+const MAX_CACHED_INSTS: usize = 1 << 20;
+
+/// One instruction of a block, unpacked (16 bytes, so a block is a dense
+/// array the inner loop walks).
+///
+/// Forms that differ from [`Decoded`]: `auipc` becomes `lui` of its result
+/// (the pc is known), branches and `jal` hold their absolute target in
+/// `imm`, a computation writing `x0` becomes [`op::NOP`] (keeping its cost),
+/// and a block that ends without a control transfer ends with an
+/// [`op::END`] whose `imm` is the next pc (cost 0, not an instruction).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(C)]
+pub(crate) struct Inst {
+    pub op: u8,
+    pub rd: u8,
+    pub rs1: u8,
+    pub rs2: u8,
+    pub imm: u32,
+    pub pc: u32,
+    /// Table cycles plus the load-use stall behind the previous instruction
+    /// of the same block.
+    pub cost: u8,
+    /// Length in bytes (2 or 4).
+    pub len: u8,
+    _pad: u16,
+}
+
+impl Inst {
+    /// Registers read (one-hot mask; unused fields are x0).
+    #[inline(always)]
+    pub fn reads(&self) -> u32 {
+        (1u32 << (self.rs1 & 31)) | (1u32 << (self.rs2 & 31))
+    }
+
+    /// One-hot mask of the register this instruction loads (0 if it is not
+    /// a load or loads x0): the next instruction's load-use hazard.
+    #[inline(always)]
+    pub fn load_mask(&self) -> u32 {
+        if is_load(self.op) {
+            (1u32 << (self.rd & 31)) & !1
+        } else {
+            0
+        }
+    }
+
+    /// The decoded instruction (for the general path, which only ever
+    /// receives loads, stores and system instructions, kept in their
+    /// decoded form).
+    pub fn decoded(&self) -> Decoded {
+        Decoded {
+            op: self.op,
+            rd: self.rd,
+            rs1: self.rs1,
+            rs2: self.rs2,
+            imm: self.imm as i32,
+            compressed: self.len == 2,
+        }
+    }
+}
+
+pub(crate) fn is_load(o: u8) -> bool {
+    (op::LB..=op::LHU).contains(&o)
+}
+
+/// Instructions after which a block ends.
+fn ends_block(o: u8) -> bool {
+    matches!(o, op::JAL | op::JALR)
+        || (op::BEQ..=op::BGEU).contains(&o)
+        || (op::ECALL..=op::CSRRCI).contains(&o)
+        || o == op::ILLEGAL
+}
+
+/// Computations without side effects: writing x0 makes them no-ops.
+fn pure(o: u8) -> bool {
+    matches!(o, op::LUI | op::AUIPC)
+        || (op::ADDI..=op::AND).contains(&o)
+        || (op::MUL..=op::MULHU).contains(&o)
+}
+
+/// The first instruction at `pc` cannot be fetched; the address that faulted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct FetchFault(pub u32);
+
+/// The halfword at `off` of a region, if inside it.
+fn half(r: &Region, off: usize) -> Option<u16> {
+    let b = r.data.get(off..off + 2)?;
+    Some(u16::from_le_bytes([b[0], b[1]]))
+}
+
+impl Memory {
+    /// The block starting at `pc`: `(region index, index of its first
+    /// instruction in [`Memory::insts`])`, decoding it if needed.
+    pub(crate) fn block(&mut self, pc: u32) -> Result<(usize, usize), FetchFault> {
+        let (idx, off) = self.region_index(pc, 2).ok_or(FetchFault(pc))?;
+        let cached = self.regions[idx].block_at[off >> 1];
+        if cached != 0 {
+            return Ok((idx, cached as usize - 1));
+        }
+        if self.insts.len() >= MAX_CACHED_INSTS {
+            self.flush_blocks();
+        }
+        self.build(idx, pc, off).map(|first| (idx, first))
+    }
+
+    fn build(&mut self, idx: usize, pc: u32, off: usize) -> Result<usize, FetchFault> {
+        let first = self.insts.len();
+        let r = &mut self.regions[idx];
+        let mut at = off;
+        let mut prev_load = 0u32;
+        loop {
+            let n = self.insts.len() - first;
+            let lo = half(r, at);
+            let d = lo.and_then(|lo| decode::decode(lo, || half(r, at + 2)));
+            let Some(d) = d else {
+                if n == 0 {
+                    // The first halfword, or the second half of a 32-bit
+                    // instruction, is not in this region.
+                    let bad = if lo.is_none() { pc } else { pc.wrapping_add(2) };
+                    return Err(FetchFault(bad));
+                }
+                // Leave the fault to a block that starts there.
+                self.insts.push(end(r.base.wrapping_add(at as u32)));
+                break;
+            };
+            let ipc = r.base.wrapping_add(at as u32);
+            let mut inst = Inst {
+                op: d.op,
+                rd: d.rd,
+                rs1: d.rs1,
+                rs2: d.rs2,
+                imm: d.imm as u32,
+                pc: ipc,
+                cost: BASE_CYCLES[d.op as usize],
+                len: d.len() as u8,
+                _pad: 0,
+            };
+            if n > 0 && inst.reads() & prev_load != 0 {
+                inst.cost += super::timing::LOAD_USE_STALL as u8;
+            }
+            prev_load = inst.load_mask();
+            match d.op {
+                op::AUIPC => {
+                    inst.op = op::LUI;
+                    inst.imm = ipc.wrapping_add(inst.imm);
+                }
+                op::JAL => inst.imm = ipc.wrapping_add(inst.imm),
+                o if (op::BEQ..=op::BGEU).contains(&o) => inst.imm = ipc.wrapping_add(inst.imm),
+                _ => {}
+            }
+            if inst.rd == 0 && pure(inst.op) {
+                inst.op = op::NOP;
+            }
+            r.mark_code(at, d.len() as usize);
+            self.insts.push(inst);
+            at += d.len() as usize;
+            if ends_block(d.op) {
+                break;
+            }
+            if n + 1 == MAX_BLOCK_INSTS {
+                self.insts.push(end(r.base.wrapping_add(at as u32)));
+                break;
+            }
+        }
+        r.block_at[off >> 1] = first as u32 + 1;
+        Ok(first)
+    }
+
+    /// Drop every cached block (code was overwritten, or the cache is full).
+    pub(crate) fn flush_blocks(&mut self) {
+        for r in &mut self.regions {
+            r.clear_code();
+        }
+        self.insts.clear();
+    }
+}
+
+/// The pseudo-instruction that ends a block without a control transfer.
+fn end(next: u32) -> Inst {
+    Inst {
+        op: op::END,
+        rd: 0,
+        rs1: 0,
+        rs2: 0,
+        imm: next,
+        pc: next,
+        cost: 0,
+        len: 0,
+        _pad: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mem_with(words: &[u32]) -> Memory {
+        let mut m = Memory::new();
+        m.add_ram(0x1000, 0x1000).unwrap();
+        for (k, w) in words.iter().enumerate() {
+            m.write_bytes(0x1000 + 4 * k as u32, &w.to_le_bytes())
+                .unwrap();
+        }
+        m
+    }
+
+    #[test]
+    fn blocks_end_at_control_transfers_and_fold_static_stalls() {
+        // lw x5,0(x6); addi x7,x5,1 (load-use: +1); auipc x8,1; addi x0,x1,1; beq x0,x0,-16
+        let m = &mut mem_with(&[
+            0x0003_2283,
+            0x0012_8393,
+            0x0000_1417,
+            0x0010_8013,
+            0xfe00_08e3,
+        ]);
+        let (_, first) = m.block(0x1000).unwrap();
+        let b = &m.insts[first..];
+        assert_eq!(b[0].op, op::LW);
+        assert_eq!((b[1].op, b[1].cost), (op::ADDI, 2));
+        assert_eq!((b[2].op, b[2].imm), (op::LUI, 0x1008 + 0x1000));
+        assert_eq!(b[3].op, op::NOP);
+        assert_eq!((b[4].op, b[4].imm), (op::BEQ, 0x1010 - 16));
+        assert_eq!(m.insts.len(), first + 5);
+        // Cached: the same block comes back.
+        assert_eq!(m.block(0x1000).unwrap().1, first);
+    }
+
+    #[test]
+    fn writing_cached_code_drops_the_blocks_and_data_writes_do_not() {
+        let m = &mut mem_with(&[0x0010_0093, 0x0000_006f]);
+        m.block(0x1000).unwrap();
+        m.write_bytes(0x1800, &[1, 2, 3, 4]).unwrap();
+        assert_eq!(m.insts.len(), 2);
+        m.write_bytes(0x1006, &[0]).unwrap();
+        assert!(m.insts.is_empty());
+        assert_eq!(m.regions[0].block_at[0], 0);
+    }
+
+    #[test]
+    fn a_fetch_outside_ram_faults_with_the_missing_address() {
+        let mut m = Memory::new();
+        m.add_ram(0x1000, 0x1000).unwrap();
+        assert_eq!(m.block(0x4000), Err(FetchFault(0x4000)));
+        // A 32-bit instruction whose second half is past the region.
+        m.write_bytes(0x1ffe, &[0x93, 0x00]).unwrap();
+        assert_eq!(m.block(0x1ffe), Err(FetchFault(0x2000)));
+    }
+}
