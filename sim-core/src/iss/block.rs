@@ -1,9 +1,12 @@
 //! The pre-decoded code cache: basic blocks of unpacked instructions.
 //!
-//! A block is the straight-line run of instructions from some pc up to and
-//! including the first control transfer (branch, `jal`, `jalr`) or system
-//! instruction (CSR access, `ecall`, `ebreak`, `mret`, `wfi`, an illegal
-//! encoding), at most [`MAX_BLOCK_INSTS`] long. It is decoded once, into
+//! A block is the run of instructions the core executes from some pc if no
+//! conditional branch is taken, up to and including the first indirect jump
+//! (`jalr`) or system instruction (CSR access, `ecall`, `ebreak`, `mret`,
+//! `wfi`, an illegal encoding), at most [`MAX_BLOCK_INSTS`] long: a
+//! conditional branch is a side exit, taken or not, and a `jal` is followed
+//! to its target (a superblock, in the literature's terms), so the core
+//! leaves a block only when control really goes elsewhere. It is decoded once, into
 //! [`Inst`]s whose operands are already unpacked and whose costs already hold
 //! the CV32E40P table cycles plus every load-use stall between two
 //! instructions of the same block, so the core's inner loop
@@ -40,8 +43,9 @@ const MAX_CACHED_INSTS: usize = 1 << 20;
 ///
 /// Forms that differ from [`Decoded`]: `auipc` becomes `lui` of its result
 /// (the pc is known), branches and `jal` hold their absolute target in
-/// `imm`, a computation writing `x0` becomes [`op::NOP`] (keeping its cost),
-/// and a block that ends without a control transfer ends with an
+/// `imm`, a `jal` whose target follows it in the block becomes
+/// [`op::JUMP`], a computation writing `x0` becomes [`op::NOP`] (keeping its
+/// cost), and a block that ends without a control transfer ends with an
 /// [`op::END`] whose `imm` is the next pc (cost 0, not an instruction).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(C)]
@@ -99,10 +103,7 @@ pub(crate) fn is_load(o: u8) -> bool {
 
 /// Instructions after which a block ends.
 fn ends_block(o: u8) -> bool {
-    matches!(o, op::JAL | op::JALR)
-        || (op::BEQ..=op::BGEU).contains(&o)
-        || (op::ECALL..=op::CSRRCI).contains(&o)
-        || o == op::ILLEGAL
+    matches!(o, op::JAL | op::JALR) || (op::ECALL..=op::CSRRCI).contains(&o) || o == op::ILLEGAL
 }
 
 /// Computations without side effects: writing x0 makes them no-ops.
@@ -158,6 +159,8 @@ impl Memory {
                 break;
             };
             let ipc = r.base.wrapping_add(at as u32);
+            // The core indexes its register file with these unchecked.
+            debug_assert!(d.rd < 32 && d.rs1 < 32 && d.rs2 < 32);
             let mut inst = Inst {
                 op: d.op,
                 rd: d.rd,
@@ -185,12 +188,26 @@ impl Memory {
             if inst.rd == 0 && pure(inst.op) {
                 inst.op = op::NOP;
             }
+            // Where the block goes on: after the instruction, or at the
+            // target of a `jal` (which becomes a `JUMP`), unless it jumps to
+            // itself or out of this region.
+            let next = match inst.op {
+                op::JAL => match r.offset_of(inst.imm, 2) {
+                    Some(t) if inst.imm != ipc => {
+                        inst.op = op::JUMP;
+                        Some(t)
+                    }
+                    _ => None,
+                },
+                o if ends_block(o) => None,
+                _ => Some(at + d.len() as usize),
+            };
             r.mark_code(at, d.len() as usize);
             self.insts.push(inst);
-            at += d.len() as usize;
-            if ends_block(d.op) {
+            let Some(next) = next else {
                 break;
-            }
+            };
+            at = next;
             if n + 1 == MAX_BLOCK_INSTS {
                 self.insts.push(end(r.base.wrapping_add(at as u32)));
                 break;
@@ -240,13 +257,16 @@ mod tests {
 
     #[test]
     fn blocks_end_at_control_transfers_and_fold_static_stalls() {
-        // lw x5,0(x6); addi x7,x5,1 (load-use: +1); auipc x8,1; addi x0,x1,1; beq x0,x0,-16
+        // lw x5,0(x6); addi x7,x5,1 (load-use: +1); auipc x8,1; addi x0,x1,1;
+        // beq x0,x0,-16 (a side exit); jal x0,-20 (followed); jal x0,0
         let m = &mut mem_with(&[
             0x0003_2283,
             0x0012_8393,
             0x0000_1417,
             0x0010_8013,
             0xfe00_08e3,
+            0xfedf_f06f,
+            0x0000_006f,
         ]);
         let (_, first) = m.block(0x1000).unwrap();
         let b = &m.insts[first..];
@@ -255,7 +275,13 @@ mod tests {
         assert_eq!((b[2].op, b[2].imm), (op::LUI, 0x1008 + 0x1000));
         assert_eq!(b[3].op, op::NOP);
         assert_eq!((b[4].op, b[4].imm), (op::BEQ, 0x1010 - 16));
-        assert_eq!(m.insts.len(), first + 5);
+        assert_eq!((b[5].op, b[5].imm), (op::JUMP, 0x1000));
+        // The jump's target starts again at the load, after a jump: no stall.
+        assert_eq!((b[6].op, b[6].pc), (op::LW, 0x1000));
+        assert_eq!((b[7].op, b[7].cost), (op::ADDI, 2));
+        // It loops until the length limit.
+        assert_eq!(m.insts.len(), first + MAX_BLOCK_INSTS + 1);
+        assert_eq!(m.insts.last().unwrap().op, op::END);
         // Cached: the same block comes back.
         assert_eq!(m.block(0x1000).unwrap().1, first);
     }

@@ -604,37 +604,55 @@ impl Cpu {
         // instruction ran before it.
         let stall = (insts[0].reads() & self.load_mask != 0) as u64;
         let mut cycles = entry + stall * timing::LOAD_USE_STALL;
-        let mut i = 0;
+        // The next instruction: a pointer rather than an index, one host
+        // register less in the hot loop (the index is worked out on exits).
+        let mut p: *const Inst = insts.as_ptr();
+        // Instructions retired and jumps taken in the blocks before this
+        // one (chained in this call); written to the core on the way out.
+        let (mut retired, mut jumps) = (0u64, 0u64);
         loop {
-            debug_assert!(i < insts.len());
-            // SAFETY: every block ends with an instruction whose arm below
-            // leaves the block (a jump, a branch, a system instruction,
-            // `END`; `block.rs` builds them so), so `i` never passes the
-            // block's end, which is within `insts`; `mem.insts` cannot change
-            // while borrowed here.
-            let inst = unsafe { insts.get_unchecked(i) };
+            // SAFETY: `p` points into `insts`: it starts at its first
+            // instruction and only advances past instructions whose arm
+            // below does not leave, while every block ends with one that
+            // leaves (a jump, a system instruction, `END`; `block.rs` builds
+            // them so, and a taken branch leaves too). `mem.insts` cannot
+            // change while borrowed here.
+            let inst = unsafe { &*p };
+            // SAFETY: (for `i` on exits) `p` is within `insts`, see above.
+            let i = || unsafe { p.offset_from(insts.as_ptr()) } as usize;
             cycles += inst.cost as u64;
-            let rd = (inst.rd & 31) as usize;
+            // Register fields are below 32 (`decode` extracts 5-bit fields;
+            // `block.rs` asserts it in debug builds), so the register file
+            // needs no bounds check.
+            let rd = inst.rd as usize;
             let imm = inst.imm;
+            macro_rules! reg {
+                ($k:expr) => {
+                    // SAFETY: register fields are below 32, see above.
+                    *unsafe { self.regs.get_unchecked_mut($k as usize) }
+                };
+            }
             macro_rules! a {
                 () => {
-                    self.regs[(inst.rs1 & 31) as usize]
+                    reg!(inst.rs1)
                 };
             }
             macro_rules! b {
                 () => {
-                    self.regs[(inst.rs2 & 31) as usize]
+                    reg!(inst.rs2)
                 };
             }
             // Leave before instruction `i`, for the general path to do it.
             macro_rules! general {
                 () => {{
+                    let i = i();
                     let c = if i == 0 {
                         entry
                     } else {
                         cycles - inst.cost as u64
                     };
-                    self.leave(insts, i, c);
+                    self.jumps += jumps;
+                    self.leave(insts, i, retired, c);
                     return Exit::General(*inst);
                 }};
             }
@@ -642,13 +660,11 @@ impl Cpu {
             // `to` if it is cached and nothing needs the run loop, else
             // leave. After a transfer nothing is in the load-use shadow.
             macro_rules! transfer {
-                ($to:expr, $taken:expr, $conditional:expr) => {{
-                    let (from, to, taken) = (inst.pc, $to, $taken);
-                    self.jumps += taken as u64;
-                    self.instret += i as u64 + 1;
-                    self.load_mask = 0;
+                ($to:expr, $conditional:expr) => {{
+                    let (from, to) = (inst.pc, $to);
+                    jumps += 1;
+                    retired += i() as u64 + 1;
                     let poll = $conditional
-                        && taken
                         && to < from
                         && from - to <= MAX_POLL_LOOP_BYTES
                         && (self.poll.touched || self.poll.active);
@@ -660,6 +676,9 @@ impl Cpu {
                     };
                     if next == 0 {
                         self.cycles = cycles;
+                        self.instret += retired;
+                        self.jumps += jumps;
+                        self.load_mask = 0;
                         self.pc = to;
                         return if poll {
                             Exit::Poll { from, to }
@@ -668,18 +687,19 @@ impl Cpu {
                         };
                     }
                     insts = &all[next as usize - 1..];
+                    p = insts.as_ptr();
                     entry = cycles;
-                    i = 0;
                     continue;
                 }};
             }
+            // A conditional branch: a side exit when taken, else the block
+            // goes on.
             macro_rules! branch {
                 ($cond:expr) => {{
                     if $cond {
                         cycles += timing::BRANCH_TAKEN_EXTRA;
-                        transfer!(imm, true, true)
+                        transfer!(imm, true)
                     }
-                    transfer!(inst.pc.wrapping_add(inst.len as u32), false, true)
                 }};
             }
             macro_rules! load {
@@ -688,7 +708,7 @@ impl Cpu {
                     match ram_load(regions, addr, $size) {
                         Some(v) => {
                             cycles += Self::split_cost(addr, $size);
-                            self.regs[rd] = $conv(v);
+                            reg!(rd) = $conv(v);
                             self.regs[0] = 0;
                         }
                         None => general!(),
@@ -705,42 +725,38 @@ impl Cpu {
                     cycles += Self::split_cost(addr, $size);
                 }};
             }
-            // Op codes are below 64 (a test checks): masking lets the
-            // compiler's jump table cover every value, without a range check.
-            match inst.op & 63 {
+            match inst.op {
                 op::NOP | op::FENCE | op::FENCE_I => {}
                 // `auipc` arrives as `lui` of its result.
-                op::LUI => self.regs[rd] = imm,
-                op::ADDI => self.regs[rd] = a!().wrapping_add(imm),
-                op::SLTI => self.regs[rd] = ((a!() as i32) < (imm as i32)) as u32,
-                op::SLTIU => self.regs[rd] = (a!() < imm) as u32,
-                op::XORI => self.regs[rd] = a!() ^ imm,
-                op::ORI => self.regs[rd] = a!() | imm,
-                op::ANDI => self.regs[rd] = a!() & imm,
-                op::SLLI => self.regs[rd] = a!() << (imm & 31),
-                op::SRLI => self.regs[rd] = a!() >> (imm & 31),
-                op::SRAI => self.regs[rd] = ((a!() as i32) >> (imm & 31)) as u32,
-                op::ADD => self.regs[rd] = a!().wrapping_add(b!()),
-                op::SUB => self.regs[rd] = a!().wrapping_sub(b!()),
-                op::SLL => self.regs[rd] = a!() << (b!() & 31),
-                op::SLT => self.regs[rd] = ((a!() as i32) < (b!() as i32)) as u32,
-                op::SLTU => self.regs[rd] = (a!() < b!()) as u32,
-                op::XOR => self.regs[rd] = a!() ^ b!(),
-                op::SRL => self.regs[rd] = a!() >> (b!() & 31),
-                op::SRA => self.regs[rd] = ((a!() as i32) >> (b!() & 31)) as u32,
-                op::OR => self.regs[rd] = a!() | b!(),
-                op::AND => self.regs[rd] = a!() & b!(),
-                op::MUL => self.regs[rd] = a!().wrapping_mul(b!()),
-                op::MULH => {
-                    self.regs[rd] = ((a!() as i32 as i64 * b!() as i32 as i64) >> 32) as u32
-                }
-                op::MULHSU => self.regs[rd] = ((a!() as i32 as i64 * b!() as i64) >> 32) as u32,
-                op::MULHU => self.regs[rd] = ((a!() as u64 * b!() as u64) >> 32) as u32,
+                op::LUI => reg!(rd) = imm,
+                op::ADDI => reg!(rd) = a!().wrapping_add(imm),
+                op::SLTI => reg!(rd) = ((a!() as i32) < (imm as i32)) as u32,
+                op::SLTIU => reg!(rd) = (a!() < imm) as u32,
+                op::XORI => reg!(rd) = a!() ^ imm,
+                op::ORI => reg!(rd) = a!() | imm,
+                op::ANDI => reg!(rd) = a!() & imm,
+                op::SLLI => reg!(rd) = a!() << (imm & 31),
+                op::SRLI => reg!(rd) = a!() >> (imm & 31),
+                op::SRAI => reg!(rd) = ((a!() as i32) >> (imm & 31)) as u32,
+                op::ADD => reg!(rd) = a!().wrapping_add(b!()),
+                op::SUB => reg!(rd) = a!().wrapping_sub(b!()),
+                op::SLL => reg!(rd) = a!() << (b!() & 31),
+                op::SLT => reg!(rd) = ((a!() as i32) < (b!() as i32)) as u32,
+                op::SLTU => reg!(rd) = (a!() < b!()) as u32,
+                op::XOR => reg!(rd) = a!() ^ b!(),
+                op::SRL => reg!(rd) = a!() >> (b!() & 31),
+                op::SRA => reg!(rd) = ((a!() as i32) >> (b!() & 31)) as u32,
+                op::OR => reg!(rd) = a!() | b!(),
+                op::AND => reg!(rd) = a!() & b!(),
+                op::MUL => reg!(rd) = a!().wrapping_mul(b!()),
+                op::MULH => reg!(rd) = ((a!() as i32 as i64 * b!() as i32 as i64) >> 32) as u32,
+                op::MULHSU => reg!(rd) = ((a!() as i32 as i64 * b!() as i64) >> 32) as u32,
+                op::MULHU => reg!(rd) = ((a!() as u64 * b!() as u64) >> 32) as u32,
                 op::DIV | op::REM => {
                     let (a, b) = (a!(), b!());
                     cycles += (b as i32).unsigned_abs().leading_zeros() as u64;
                     let (x, y) = (a as i32, b as i32);
-                    self.regs[rd] = match (inst.op == op::DIV, y) {
+                    reg!(rd) = match (inst.op == op::DIV, y) {
                         (true, 0) => u32::MAX,
                         (false, 0) => a,
                         (true, _) => x.wrapping_div(y) as u32,
@@ -751,7 +767,7 @@ impl Cpu {
                 op::DIVU | op::REMU => {
                     let (a, b) = (a!(), b!());
                     cycles += b.leading_zeros() as u64;
-                    self.regs[rd] = match (inst.op == op::DIVU, b) {
+                    reg!(rd) = match (inst.op == op::DIVU, b) {
                         (true, 0) => u32::MAX,
                         (false, 0) => a,
                         (true, _) => a / b,
@@ -775,40 +791,69 @@ impl Cpu {
                 op::BLTU => branch!(a!() < b!()),
                 op::BGEU => branch!(a!() >= b!()),
                 op::JAL => {
-                    self.regs[rd] = inst.pc.wrapping_add(inst.len as u32);
+                    reg!(rd) = inst.pc.wrapping_add(inst.len as u32);
                     self.regs[0] = 0;
-                    transfer!(imm, true, false)
+                    transfer!(imm, false)
+                }
+                op::JUMP => {
+                    // A `jal` whose target is the next instruction here.
+                    reg!(rd) = inst.pc.wrapping_add(inst.len as u32);
+                    self.regs[0] = 0;
+                    jumps += 1;
                 }
                 op::JALR => {
                     let to = a!().wrapping_add(imm) & !1;
-                    self.regs[rd] = inst.pc.wrapping_add(inst.len as u32);
+                    reg!(rd) = inst.pc.wrapping_add(inst.len as u32);
                     self.regs[0] = 0;
-                    transfer!(to, true, false)
+                    transfer!(to, false)
                 }
                 op::END => {
                     // Not an instruction: the block ran out without a jump.
-                    self.leave(insts, i, cycles);
+                    self.jumps += jumps;
+                    self.leave(insts, i(), retired, cycles);
                     return Exit::Paused;
                 }
-                _ => general!(),
+                op::AUIPC
+                | op::ECALL
+                | op::EBREAK
+                | op::MRET
+                | op::WFI
+                | op::CSRRW
+                | op::CSRRS
+                | op::CSRRC
+                | op::CSRRWI
+                | op::CSRRSI
+                | op::CSRRCI
+                | op::ILLEGAL => general!(),
+                // SAFETY: every op code `decode` and `block.rs` produce is
+                // listed above (`auipc` never reaches here, it is rewritten),
+                // so this arm cannot run; saying so lets the dispatch jump
+                // table go without a range check.
+                _ => unsafe { std::hint::unreachable_unchecked() },
             }
-            i += 1;
+            let i = i() + 1;
+            // SAFETY: see the top of the loop.
+            p = unsafe { p.add(1) };
             if cycles >= deadline {
-                self.leave(insts, i, cycles);
+                self.jumps += jumps;
+                self.leave(insts, i, retired, cycles);
                 return Exit::Paused;
             }
         }
     }
 
-    /// Leave a block just before `insts[i]` (having run `insts[..i]`), at
-    /// `cycles`.
+    /// Leave a block just before `insts[i]` (having run `insts[..i]` after
+    /// `retired` instructions of earlier blocks), at `cycles`.
     #[inline(always)]
-    fn leave(&mut self, insts: &[Inst], i: usize, cycles: u64) {
+    fn leave(&mut self, insts: &[Inst], i: usize, retired: u64, cycles: u64) {
         self.cycles = cycles;
-        self.instret += i as u64;
+        self.instret += retired + i as u64;
         self.pc = insts[i].pc;
         if i > 0 {
             self.load_mask = insts[i - 1].load_mask();
+        } else if retired > 0 {
+            // A chained block: entered by a control transfer.
+            self.load_mask = 0;
         }
     }
 

@@ -36,14 +36,11 @@ pub mod op {
         SRA, OR, AND, FENCE, FENCE_I, ECALL, EBREAK, MRET, WFI, CSRRW, CSRRS, CSRRC, CSRRWI,
         CSRRSI, CSRRCI, MUL, MULH, MULHSU, MULHU, DIV, DIVU, REM, REMU, ILLEGAL,
         // Forms only the block cache produces (`block.rs`), never `decode`:
-        // a computation whose result goes to x0, and the end of a block that
-        // has no control transfer.
-        NOP, END,
+        // a computation whose result goes to x0, the end of a block that
+        // has no control transfer, a `jal` the block follows.
+        NOP, END, JUMP,
     );
 }
-
-// The core's block loop dispatches on `op & 63`.
-const _: () = assert!(op::COUNT <= 64);
 
 /// A decoded instruction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
