@@ -9,7 +9,8 @@ use crate::units::{Cycles, Hertz, Picos};
 
 use super::block::{FetchFault, Inst};
 use super::decode::{self, op, Decoded};
-use super::mem::{ram_load, ram_store_data, AccessSize, Memory, Mmio, MmioError};
+use super::exec;
+use super::mem::{AccessSize, Memory, Mmio, MmioError};
 use super::semihost::{self, Semihost};
 use super::timing::{self, BASE_CYCLES};
 
@@ -583,277 +584,47 @@ impl Cpu {
     }
 
     /// Run the block whose first instruction is `mem.insts[first]`, from
-    /// `self.pc` = its start, until its control transfer or the deadline
+    /// `self.pc` = its start, and the blocks it leads to, until the deadline
     /// (checked after every instruction, so the run stops on the same
-    /// instruction boundary as a one-by-one run), or until an instruction
-    /// needs the general path: a load or store outside RAM, a store near
-    /// cached code or to `tohost`, a system instruction. That one is handed
-    /// back unexecuted, with the core's state as it was just before it.
-    ///
-    /// Everything that changes per instruction stays in locals (host
-    /// registers); the core's counters are written once, on the way out.
-    #[inline(never)]
+    /// instruction boundary as a one-by-one run), a block not cached yet, a
+    /// loop the idle detector wants to see, or an instruction that needs the
+    /// general path: a load or store outside RAM, a store near cached code
+    /// or to `tohost`, a system instruction. That one is handed back
+    /// unexecuted, with the core's state as it was just before it.
     fn exec_block(&mut self, mem: &mut Memory, first: usize) -> Exit {
-        let regions = &mut mem.regions;
-        let all = &mem.insts;
-        let deadline = self.deadline;
-        let (code_base, code_size, code_idx) = (self.code_base, self.code_size, self.code_idx);
-        let mut insts = &all[first..];
-        let mut entry = self.cycles;
-        // The one load-use stall the block cannot know: behind whatever
+        let mut run = exec::Run::new(&mut mem.regions, &mem.insts);
+        run.code_base = self.code_base;
+        run.code_size = self.code_size;
+        run.code_idx = self.code_idx;
+        run.tohost = self.tohost;
+        run.poll_armed = self.poll.touched || self.poll.active;
+        // The one load-use stall a block cannot know: behind whatever
         // instruction ran before it.
-        let stall = (insts[0].reads() & self.load_mask != 0) as u64;
-        let mut cycles = entry + stall * timing::LOAD_USE_STALL;
-        // The next instruction: a pointer rather than an index, one host
-        // register less in the hot loop (the index is worked out on exits).
-        let mut p: *const Inst = insts.as_ptr();
-        // Instructions retired and jumps taken in the blocks before this
-        // one (chained in this call); written to the core on the way out.
-        let (mut retired, mut jumps) = (0u64, 0u64);
-        loop {
-            // SAFETY: `p` points into `insts`: it starts at its first
-            // instruction and only advances past instructions whose arm
-            // below does not leave, while every block ends with one that
-            // leaves (a jump, a system instruction, `END`; `block.rs` builds
-            // them so, and a taken branch leaves too). `mem.insts` cannot
-            // change while borrowed here.
-            let inst = unsafe { &*p };
-            // SAFETY: (for `i` on exits) `p` is within `insts`, see above.
-            let i = || unsafe { p.offset_from(insts.as_ptr()) } as usize;
-            cycles += inst.cost as u64;
-            // Register fields are below 32 (`decode` extracts 5-bit fields;
-            // `block.rs` asserts it in debug builds), so the register file
-            // needs no bounds check.
-            let rd = inst.rd as usize;
-            let imm = inst.imm;
-            macro_rules! reg {
-                ($k:expr) => {
-                    // SAFETY: register fields are below 32, see above.
-                    *unsafe { self.regs.get_unchecked_mut($k as usize) }
-                };
-            }
-            macro_rules! a {
-                () => {
-                    reg!(inst.rs1)
-                };
-            }
-            macro_rules! b {
-                () => {
-                    reg!(inst.rs2)
-                };
-            }
-            // Leave before instruction `i`, for the general path to do it.
-            macro_rules! general {
-                () => {{
-                    let i = i();
-                    let c = if i == 0 {
-                        entry
-                    } else {
-                        cycles - inst.cost as u64
-                    };
-                    self.jumps += jumps;
-                    self.leave(insts, i, retired, c);
-                    return Exit::General(*inst);
-                }};
-            }
-            // The block's control transfer retired: go on with the block at
-            // `to` if it is cached and nothing needs the run loop, else
-            // leave. After a transfer nothing is in the load-use shadow.
-            macro_rules! transfer {
-                ($to:expr, $conditional:expr) => {{
-                    let (from, to) = (inst.pc, $to);
-                    jumps += 1;
-                    retired += i() as u64 + 1;
-                    let poll = $conditional
-                        && to < from
-                        && from - to <= MAX_POLL_LOOP_BYTES
-                        && (self.poll.touched || self.poll.active);
-                    let off = to.wrapping_sub(code_base);
-                    let next = if cycles < deadline && !poll && off < code_size {
-                        regions[code_idx].block_at[(off >> 1) as usize]
-                    } else {
-                        0
-                    };
-                    if next == 0 {
-                        self.cycles = cycles;
-                        self.instret += retired;
-                        self.jumps += jumps;
-                        self.load_mask = 0;
-                        self.pc = to;
-                        return if poll {
-                            Exit::Poll { from, to }
-                        } else {
-                            Exit::Paused
-                        };
-                    }
-                    insts = &all[next as usize - 1..];
-                    p = insts.as_ptr();
-                    entry = cycles;
-                    continue;
-                }};
-            }
-            // A conditional branch: a side exit when taken, else the block
-            // goes on.
-            macro_rules! branch {
-                ($cond:expr) => {{
-                    if $cond {
-                        cycles += timing::BRANCH_TAKEN_EXTRA;
-                        transfer!(imm, true)
-                    }
-                }};
-            }
-            macro_rules! load {
-                ($size:expr, $conv:expr) => {{
-                    let addr = a!().wrapping_add(imm);
-                    match ram_load(regions, addr, $size) {
-                        Some(v) => {
-                            cycles += Self::split_cost(addr, $size);
-                            reg!(rd) = $conv(v);
-                            self.regs[0] = 0;
-                        }
-                        None => general!(),
-                    }
-                }};
-            }
-            macro_rules! store {
-                ($size:expr) => {{
-                    let addr = a!().wrapping_add(imm);
-                    let watched = self.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
-                    if watched || !ram_store_data(regions, addr, $size, b!()) {
-                        general!();
-                    }
-                    cycles += Self::split_cost(addr, $size);
-                }};
-            }
-            match inst.op {
-                op::NOP | op::FENCE | op::FENCE_I => {}
-                // `auipc` arrives as `lui` of its result.
-                op::LUI => reg!(rd) = imm,
-                op::ADDI => reg!(rd) = a!().wrapping_add(imm),
-                op::SLTI => reg!(rd) = ((a!() as i32) < (imm as i32)) as u32,
-                op::SLTIU => reg!(rd) = (a!() < imm) as u32,
-                op::XORI => reg!(rd) = a!() ^ imm,
-                op::ORI => reg!(rd) = a!() | imm,
-                op::ANDI => reg!(rd) = a!() & imm,
-                op::SLLI => reg!(rd) = a!() << (imm & 31),
-                op::SRLI => reg!(rd) = a!() >> (imm & 31),
-                op::SRAI => reg!(rd) = ((a!() as i32) >> (imm & 31)) as u32,
-                op::ADD => reg!(rd) = a!().wrapping_add(b!()),
-                op::SUB => reg!(rd) = a!().wrapping_sub(b!()),
-                op::SLL => reg!(rd) = a!() << (b!() & 31),
-                op::SLT => reg!(rd) = ((a!() as i32) < (b!() as i32)) as u32,
-                op::SLTU => reg!(rd) = (a!() < b!()) as u32,
-                op::XOR => reg!(rd) = a!() ^ b!(),
-                op::SRL => reg!(rd) = a!() >> (b!() & 31),
-                op::SRA => reg!(rd) = ((a!() as i32) >> (b!() & 31)) as u32,
-                op::OR => reg!(rd) = a!() | b!(),
-                op::AND => reg!(rd) = a!() & b!(),
-                op::MUL => reg!(rd) = a!().wrapping_mul(b!()),
-                op::MULH => reg!(rd) = ((a!() as i32 as i64 * b!() as i32 as i64) >> 32) as u32,
-                op::MULHSU => reg!(rd) = ((a!() as i32 as i64 * b!() as i64) >> 32) as u32,
-                op::MULHU => reg!(rd) = ((a!() as u64 * b!() as u64) >> 32) as u32,
-                op::DIV | op::REM => {
-                    let (a, b) = (a!(), b!());
-                    cycles += (b as i32).unsigned_abs().leading_zeros() as u64;
-                    let (x, y) = (a as i32, b as i32);
-                    reg!(rd) = match (inst.op == op::DIV, y) {
-                        (true, 0) => u32::MAX,
-                        (false, 0) => a,
-                        (true, _) => x.wrapping_div(y) as u32,
-                        (false, _) => x.wrapping_rem(y) as u32,
-                    };
-                    self.regs[0] = 0;
-                }
-                op::DIVU | op::REMU => {
-                    let (a, b) = (a!(), b!());
-                    cycles += b.leading_zeros() as u64;
-                    reg!(rd) = match (inst.op == op::DIVU, b) {
-                        (true, 0) => u32::MAX,
-                        (false, 0) => a,
-                        (true, _) => a / b,
-                        (false, _) => a % b,
-                    };
-                    self.regs[0] = 0;
-                }
-                op::LB => load!(AccessSize::Byte, |v: u32| v as u8 as i8 as i32 as u32),
-                op::LH => load!(AccessSize::Half, |v: u32| v as u16 as i16 as i32 as u32),
-                op::LW => load!(AccessSize::Word, |v: u32| v),
-                op::LBU => load!(AccessSize::Byte, |v: u32| v),
-                op::LHU => load!(AccessSize::Half, |v: u32| v),
-                op::SB => store!(AccessSize::Byte),
-                op::SH => store!(AccessSize::Half),
-                op::SW => store!(AccessSize::Word),
-                // Branches and `jal` carry their absolute target.
-                op::BEQ => branch!(a!() == b!()),
-                op::BNE => branch!(a!() != b!()),
-                op::BLT => branch!((a!() as i32) < (b!() as i32)),
-                op::BGE => branch!((a!() as i32) >= (b!() as i32)),
-                op::BLTU => branch!(a!() < b!()),
-                op::BGEU => branch!(a!() >= b!()),
-                op::JAL => {
-                    reg!(rd) = inst.pc.wrapping_add(inst.len as u32);
-                    self.regs[0] = 0;
-                    transfer!(imm, false)
-                }
-                op::JUMP => {
-                    // A `jal` whose target is the next instruction here.
-                    reg!(rd) = inst.pc.wrapping_add(inst.len as u32);
-                    self.regs[0] = 0;
-                    jumps += 1;
-                }
-                op::JALR => {
-                    let to = a!().wrapping_add(imm) & !1;
-                    reg!(rd) = inst.pc.wrapping_add(inst.len as u32);
-                    self.regs[0] = 0;
-                    transfer!(to, false)
-                }
-                op::END => {
-                    // Not an instruction: the block ran out without a jump.
-                    self.jumps += jumps;
-                    self.leave(insts, i(), retired, cycles);
-                    return Exit::Paused;
-                }
-                op::AUIPC
-                | op::ECALL
-                | op::EBREAK
-                | op::MRET
-                | op::WFI
-                | op::CSRRW
-                | op::CSRRS
-                | op::CSRRC
-                | op::CSRRWI
-                | op::CSRRSI
-                | op::CSRRCI
-                | op::ILLEGAL => general!(),
-                // SAFETY: every op code `decode` and `block.rs` produce is
-                // listed above (`auipc` never reaches here, it is rewritten),
-                // so this arm cannot run; saying so lets the dispatch jump
-                // table go without a range check.
-                _ => unsafe { std::hint::unreachable_unchecked() },
-            }
-            let i = i() + 1;
-            // SAFETY: see the top of the loop.
-            p = unsafe { p.add(1) };
-            if cycles >= deadline {
-                self.jumps += jumps;
-                self.leave(insts, i, retired, cycles);
-                return Exit::Paused;
-            }
+        let stall = (mem.insts[first].reads() & self.load_mask != 0) as u64;
+        let entry = self.cycles;
+        let cycles = entry + stall * timing::LOAD_USE_STALL;
+        let flow = exec::run(
+            &mut run,
+            &mut self.regs,
+            first,
+            entry,
+            cycles,
+            self.deadline,
+        );
+        self.cycles = run.cycles;
+        self.pc = run.pc;
+        self.instret += run.retired;
+        self.jumps += run.jumps;
+        if let Some(m) = run.load_mask {
+            self.load_mask = m;
         }
-    }
-
-    /// Leave a block just before `insts[i]` (having run `insts[..i]` after
-    /// `retired` instructions of earlier blocks), at `cycles`.
-    #[inline(always)]
-    fn leave(&mut self, insts: &[Inst], i: usize, retired: u64, cycles: u64) {
-        self.cycles = cycles;
-        self.instret += retired + i as u64;
-        self.pc = insts[i].pc;
-        if i > 0 {
-            self.load_mask = insts[i - 1].load_mask();
-        } else if retired > 0 {
-            // A chained block: entered by a control transfer.
-            self.load_mask = 0;
+        match flow {
+            exec::Flow::Poll => Exit::Poll {
+                from: run.poll_from,
+                to: run.pc,
+            },
+            exec::Flow::General => Exit::General(run.general.expect("general path instruction")),
+            exec::Flow::Paused | exec::Flow::Chain => Exit::Paused,
         }
     }
 

@@ -87,6 +87,7 @@ mod block;
 pub mod cpu;
 pub mod decode;
 pub mod elf;
+mod exec;
 pub mod mem;
 pub mod run_elf;
 pub mod semihost;
