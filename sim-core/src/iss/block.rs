@@ -27,6 +27,7 @@
 //! block never runs stale instructions.
 
 use super::decode::{self, op, Decoded};
+use super::exec::{handler, Handler};
 use super::mem::{Memory, Region};
 use super::timing::BASE_CYCLES;
 
@@ -38,8 +39,8 @@ pub const MAX_BLOCK_INSTS: usize = 64;
 /// next block is built (bounds memory for programs that generate code).
 const MAX_CACHED_INSTS: usize = 1 << 20;
 
-/// One instruction of a block, unpacked (16 bytes, so a block is a dense
-/// array the inner loop walks).
+/// One instruction of a block, unpacked (24 bytes, a dense array the
+/// executor walks).
 ///
 /// Forms that differ from [`Decoded`]: `auipc` becomes `lui` of its result
 /// (the pc is known), branches and `jal` hold their absolute target in
@@ -47,9 +48,12 @@ const MAX_CACHED_INSTS: usize = 1 << 20;
 /// [`op::JUMP`], a computation writing `x0` becomes [`op::NOP`] (keeping its
 /// cost), and a block that ends without a control transfer ends with an
 /// [`op::END`] whose `imm` is the next pc (cost 0, not an instruction).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy)]
 #[repr(C)]
 pub(crate) struct Inst {
+    /// The executor's handler for `op` (`exec.rs`), looked up once here so
+    /// the dispatch is a single load.
+    pub(super) handler: Handler,
     pub op: u8,
     pub rd: u8,
     pub rs1: u8,
@@ -61,7 +65,8 @@ pub(crate) struct Inst {
     pub cost: u8,
     /// Length in bytes (2 or 4).
     pub len: u8,
-    _pad: u16,
+    /// Position in its block.
+    pub idx: u8,
 }
 
 impl Inst {
@@ -155,7 +160,7 @@ impl Memory {
                     return Err(FetchFault(bad));
                 }
                 // Leave the fault to a block that starts there.
-                self.insts.push(end(r.base.wrapping_add(at as u32)));
+                self.insts.push(end(r.base.wrapping_add(at as u32), n));
                 break;
             };
             let ipc = r.base.wrapping_add(at as u32);
@@ -170,7 +175,8 @@ impl Memory {
                 pc: ipc,
                 cost: BASE_CYCLES[d.op as usize],
                 len: d.len() as u8,
-                _pad: 0,
+                handler: handler(0),
+                idx: n as u8,
             };
             if n > 0 && inst.reads() & prev_load != 0 {
                 inst.cost += super::timing::LOAD_USE_STALL as u8;
@@ -203,13 +209,14 @@ impl Memory {
                 _ => Some(at + d.len() as usize),
             };
             r.mark_code(at, d.len() as usize);
+            inst.handler = handler(inst.op);
             self.insts.push(inst);
             let Some(next) = next else {
                 break;
             };
             at = next;
             if n + 1 == MAX_BLOCK_INSTS {
-                self.insts.push(end(r.base.wrapping_add(at as u32)));
+                self.insts.push(end(r.base.wrapping_add(at as u32), n + 1));
                 break;
             }
         }
@@ -226,8 +233,9 @@ impl Memory {
     }
 }
 
-/// The pseudo-instruction that ends a block without a control transfer.
-fn end(next: u32) -> Inst {
+/// The pseudo-instruction that ends a block without a control transfer,
+/// at position `idx`.
+fn end(next: u32, idx: usize) -> Inst {
     Inst {
         op: op::END,
         rd: 0,
@@ -237,7 +245,8 @@ fn end(next: u32) -> Inst {
         pc: next,
         cost: 0,
         len: 0,
-        _pad: 0,
+        handler: handler(op::END),
+        idx: idx as u8,
     }
 }
 

@@ -593,9 +593,9 @@ impl Cpu {
     /// unexecuted, with the core's state as it was just before it.
     fn exec_block(&mut self, mem: &mut Memory, first: usize) -> Exit {
         let mut run = exec::Run::new(&mut mem.regions, &mem.insts);
-        run.code_base = self.code_base;
-        run.code_size = self.code_size;
-        run.code_idx = self.code_idx;
+        if self.code_size != 0 {
+            run.set_code_region(self.code_idx);
+        }
         run.tohost = self.tohost;
         run.poll_armed = self.poll.touched || self.poll.active;
         // The one load-use stall a block cannot know: behind whatever

@@ -26,18 +26,20 @@ pub(super) struct Run<'a> {
     pub regions: &'a mut [Region],
     /// All cached instructions (blocks are slices of it).
     pub all: &'a [Inst],
-    /// The code region whose blocks can be chained without the core.
-    pub code_base: u32,
-    pub code_size: u32,
-    pub code_idx: usize,
+    /// The code region's block index (`Region::block_at`), so blocks there
+    /// chain without the core: `(base, size in bytes, entries)`.
+    code_base: u32,
+    code_size: u32,
+    block_at: *const u32,
     /// Stores here (8 bytes) go to the core's general path.
     pub tohost: Option<u32>,
     /// The idle detector wants to see taken backward branches.
     pub poll_armed: bool,
-    /// First instruction of the running block, and the cycle count on
-    /// entering it (before any entry stall).
-    block: *const Inst,
+    /// The cycle count on entering the running block (before any entry
+    /// stall).
     entry: u64,
+    /// Blocks entered by a direct tail call since the trampoline last ran.
+    chains: u32,
     /// Instructions retired and jumps taken so far.
     pub retired: u64,
     pub jumps: u64,
@@ -52,6 +54,34 @@ pub(super) struct Run<'a> {
     pub poll_from: u32,
     /// For [`Flow::Chain`]: the next block's first instruction.
     chain: *const Inst,
+    /// The RAM region the code runs from, where most data lives too.
+    fast: FastRam,
+}
+
+/// Direct access to one RAM region, for the loads and stores of the hot
+/// path (the others search every region). The buffer is never reallocated
+/// while a [`Run`] exists (regions are fixed in size), and while it exists
+/// all accesses to it go through this pointer or through `Run::regions`
+/// one at a time.
+#[derive(Clone, Copy)]
+struct FastRam {
+    ptr: *mut u8,
+    base: u32,
+    /// Size in bytes (0: no region).
+    size: u32,
+    /// Byte offsets `[code_lo, code_hi)` holding cached code: stores there
+    /// take the general path, which keeps the block cache coherent.
+    code_lo: u32,
+    code_hi: u32,
+}
+
+impl FastRam {
+    /// Offset of an `n`-byte access at `addr`, if inside.
+    #[inline(always)]
+    fn offset(&self, addr: u32, n: u32) -> Option<usize> {
+        let off = addr.wrapping_sub(self.base);
+        ((off as u64) + (n as u64) <= self.size as u64).then_some(off as usize)
+    }
 }
 
 /// Why [`run`] returned. A bare byte, so handlers return it in a register
@@ -72,7 +102,18 @@ pub(super) enum Flow {
     Chain,
 }
 
-type Handler = fn(&mut Run, &mut [u32; 32], *const Inst, u64, u64) -> Flow;
+/// Runs the instruction at the pointer (and, by tail calls, the ones after
+/// it): `(run, registers, instruction, cycles, deadline)`.
+pub(super) type Handler = fn(&mut Run, &mut [u32; 32], *const Inst, u64, u64) -> Flow;
+
+/// Blocks entered in a row by tail calls before going through the
+/// trampoline (see [`transfer`]).
+const MAX_DIRECT_CHAINS: u32 = 16;
+
+/// The handler of an op code.
+pub(super) fn handler(op: u8) -> Handler {
+    HANDLERS[op as usize]
+}
 
 impl<'a> Run<'a> {
     pub fn new(regions: &'a mut [Region], all: &'a [Inst]) -> Run<'a> {
@@ -81,11 +122,11 @@ impl<'a> Run<'a> {
             all,
             code_base: 0,
             code_size: 0,
-            code_idx: 0,
+            block_at: std::ptr::null(),
             tohost: None,
             poll_armed: false,
-            block: std::ptr::null(),
             entry: 0,
+            chains: 0,
             retired: 0,
             jumps: 0,
             cycles: 0,
@@ -94,14 +135,39 @@ impl<'a> Run<'a> {
             general: None,
             poll_from: 0,
             chain: std::ptr::null(),
+            fast: FastRam {
+                ptr: std::ptr::null_mut(),
+                base: 0,
+                size: 0,
+                code_lo: 0,
+                code_hi: 0,
+            },
+        }
+    }
+
+    /// Region `idx` holds the code: chain its blocks directly, and give
+    /// the hot path direct access to its bytes.
+    pub fn set_code_region(&mut self, idx: usize) {
+        if let Some(reg) = self.regions.get_mut(idx) {
+            self.code_base = reg.base;
+            self.code_size = reg.size;
+            // `block_at` has one entry per halfword: `size / 2` entries.
+            self.block_at = reg.block_at.as_ptr();
+            self.fast = FastRam {
+                ptr: reg.data.as_mut_ptr(),
+                base: reg.base,
+                size: reg.size,
+                code_lo: reg.code_lo.min(u32::MAX as usize) as u32,
+                code_hi: reg.code_hi as u32,
+            };
         }
     }
 
     /// Index of `p` in the running block.
     #[inline(always)]
     fn index(&self, p: *const Inst) -> usize {
-        // SAFETY: `p` and `block` point into the same block of `all`.
-        unsafe { p.offset_from(self.block) as usize }
+        // SAFETY: `p` points into the running block.
+        unsafe { (*p).idx as usize }
     }
 
     /// Leave just before the instruction at `p`, at `cycles`.
@@ -138,14 +204,13 @@ pub(super) fn run(
     let mut p: *const Inst = &r.all[first];
     r.entry = entry;
     loop {
-        r.block = p;
+        r.chains = 0;
         // SAFETY: `p` is the first instruction of a block of `all`.
-        let h = HANDLERS[unsafe { (*p).op } as usize];
+        let h = unsafe { (*p).handler };
         match h(r, regs, p, cycles, deadline) {
             Flow::Chain => {
                 p = r.chain;
                 cycles = r.cycles;
-                r.entry = cycles;
             }
             flow => return flow,
         }
@@ -163,8 +228,8 @@ fn next(r: &mut Run, regs: &mut [u32; 32], p: *const Inst, cycles: u64, deadline
     if cycles >= deadline {
         return r.leave(p, cycles);
     }
-    // SAFETY: as above; op codes index `HANDLERS` (256 entries).
-    let h = HANDLERS[unsafe { (*p).op } as usize];
+    // SAFETY: as above.
+    let h = unsafe { (*p).handler };
     h(r, regs, p, cycles, deadline)
 }
 
@@ -298,53 +363,105 @@ fn general(r: &mut Run, p: *const Inst, cycles: u64) -> Flow {
     Flow::General
 }
 
+/// The hot load and store handlers only touch the fast region; everything
+/// else continues in a cold twin with the same signature, entered by a tail
+/// call, so the hot handler needs no stack frame.
 macro_rules! loads {
-    ($($name:ident: $size:expr, $conv:expr;)*) => {$(
+    ($($name:ident, $slow:ident: $size:expr, $conv:expr;)*) => {$(
         handler!($name, |r, regs, inst, cycles, p, deadline| {
+            let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
+            const N: u32 = $size.bytes();
+            let Some(off) = r.fast.offset(addr, N) else {
+                return $slow(r, regs, p, cycles, deadline);
+            };
+            let mut b = [0u8; 4];
+            // SAFETY: `off + N` is within the fast region's buffer (see
+            // `FastRam`).
+            unsafe { std::ptr::copy_nonoverlapping(r.fast.ptr.add(off), b.as_mut_ptr(), N as usize) };
+            cycles += split_cost(addr, $size);
+            reg!(regs, inst.rd) = $conv(u32::from_le_bytes(b));
+            regs[0] = 0;
+        });
+
+        /// The load outside the fast region (`cycles` include the cost).
+        #[cold]
+        #[inline(never)]
+        fn $slow(r: &mut Run, regs: &mut [u32; 32], p: *const Inst, mut cycles: u64, deadline: u64) -> Flow {
+            // SAFETY: `p` points into the running block.
+            let inst = unsafe { &*p };
             let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
             match ram_load(r.regions, addr, $size) {
                 Some(v) => {
                     cycles += split_cost(addr, $size);
                     reg!(regs, inst.rd) = $conv(v);
                     regs[0] = 0;
+                    next(r, regs, p, cycles, deadline)
                 }
-                None => return general(r, p, cycles),
+                None => general(r, p, cycles),
             }
-        });
+        }
     )*};
 }
 loads! {
-    h_lb: AccessSize::Byte, |v: u32| v as u8 as i8 as i32 as u32;
-    h_lh: AccessSize::Half, |v: u32| v as u16 as i16 as i32 as u32;
-    h_lw: AccessSize::Word, |v: u32| v;
-    h_lbu: AccessSize::Byte, |v: u32| v;
-    h_lhu: AccessSize::Half, |v: u32| v;
+    h_lb, h_lb_other: AccessSize::Byte, |v: u32| v as u8 as i8 as i32 as u32;
+    h_lh, h_lh_other: AccessSize::Half, |v: u32| v as u16 as i16 as i32 as u32;
+    h_lw, h_lw_other: AccessSize::Word, |v: u32| v;
+    h_lbu, h_lbu_other: AccessSize::Byte, |v: u32| v;
+    h_lhu, h_lhu_other: AccessSize::Half, |v: u32| v;
 }
 
 macro_rules! stores {
-    ($($name:ident: $size:expr;)*) => {$(
+    ($($name:ident, $slow:ident: $size:expr;)*) => {$(
         handler!($name, |r, regs, inst, cycles, p, deadline| {
             let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
+            const N: u32 = $size.bytes();
             let watched = r.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
-            if watched || !ram_store_data(r.regions, addr, $size, reg!(regs, inst.rs2)) {
+            let off = match r.fast.offset(addr, N) {
+                Some(off) if !watched && (off as u32 >= r.fast.code_hi || off as u32 + N <= r.fast.code_lo) => off,
+                _ => return $slow(r, regs, p, cycles, deadline),
+            };
+            let b = reg!(regs, inst.rs2).to_le_bytes();
+            // SAFETY: `off + N` is within the fast region's buffer (see
+            // `FastRam`).
+            unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), r.fast.ptr.add(off), N as usize) };
+            cycles += split_cost(addr, $size);
+        });
+
+        /// The store outside the fast region, near code or to `tohost`
+        /// (`cycles` include the cost).
+        #[cold]
+        #[inline(never)]
+        fn $slow(r: &mut Run, regs: &mut [u32; 32], p: *const Inst, mut cycles: u64, deadline: u64) -> Flow {
+            // SAFETY: `p` points into the running block.
+            let inst = unsafe { &*p };
+            let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
+            let watched = r.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
+            let in_fast = r.fast.offset(addr, $size.bytes()).is_some();
+            if watched || in_fast || !ram_store_data(r.regions, addr, $size, reg!(regs, inst.rs2)) {
                 return general(r, p, cycles);
             }
             cycles += split_cost(addr, $size);
-        });
+            next(r, regs, p, cycles, deadline)
+        }
     )*};
 }
 stores! {
-    h_sb: AccessSize::Byte;
-    h_sh: AccessSize::Half;
-    h_sw: AccessSize::Word;
+    h_sb, h_sb_other: AccessSize::Byte;
+    h_sh, h_sh_other: AccessSize::Half;
+    h_sw, h_sw_other: AccessSize::Word;
 }
 
 /// A control transfer from the instruction at `p` to `to` retired: go on
 /// with the block at `to` if it is cached and nothing needs the core, else
 /// leave. After a transfer nothing is in the load-use shadow.
+///
+/// The next block is entered by a tail call (a jump, optimised) up to
+/// [`MAX_DIRECT_CHAINS`] times in a row, then through the trampoline in
+/// [`run`], which bounds the stack even where tail calls are not optimised.
 #[inline(always)]
 fn transfer(
     r: &mut Run,
+    regs: &mut [u32; 32],
     p: *const Inst,
     to: u32,
     cycles: u64,
@@ -355,19 +472,30 @@ fn transfer(
     let from = unsafe { (*p).pc };
     r.jumps += 1;
     r.retired += r.index(p) as u64 + 1;
-    r.cycles = cycles;
     let poll =
-        conditional && to < from && from - to <= super::cpu::MAX_POLL_LOOP_BYTES && r.poll_armed;
+        conditional && r.poll_armed && to < from && from - to <= super::cpu::MAX_POLL_LOOP_BYTES;
     let off = to.wrapping_sub(r.code_base);
     let next = if cycles < deadline && !poll && off < r.code_size {
-        r.regions[r.code_idx].block_at[(off >> 1) as usize]
+        // SAFETY: `off < code_size`, and `block_at` has `code_size / 2`
+        // entries (see `set_code_region`); nothing changes it during a run.
+        unsafe { *r.block_at.add((off >> 1) as usize) }
     } else {
         0
     };
     if next != 0 {
-        r.chain = &r.all[next as usize - 1];
+        let q: *const Inst = &r.all[next as usize - 1];
+        r.entry = cycles;
+        if r.chains < MAX_DIRECT_CHAINS {
+            r.chains += 1;
+            // SAFETY: `q` is the first instruction of a block of `all`.
+            let h = unsafe { (*q).handler };
+            return h(r, regs, q, cycles, deadline);
+        }
+        r.cycles = cycles;
+        r.chain = q;
         return Flow::Chain;
     }
+    r.cycles = cycles;
     r.pc = to;
     r.load_mask = Some(0);
     if poll {
@@ -385,7 +513,7 @@ macro_rules! branches {
             let ($a, $b) = (reg!(regs, inst.rs1), reg!(regs, inst.rs2));
             if $cond {
                 cycles += timing::BRANCH_TAKEN_EXTRA;
-                return transfer(r, p, inst.imm, cycles, deadline, true);
+                return transfer(r, regs, p, inst.imm, cycles, deadline, true);
             }
         });
     )*};
@@ -402,13 +530,13 @@ branches! {
 handler!(h_jal, |r, regs, inst, cycles, p, deadline| {
     reg!(regs, inst.rd) = inst.pc.wrapping_add(inst.len as u32);
     regs[0] = 0;
-    return transfer(r, p, inst.imm, cycles, deadline, false);
+    return transfer(r, regs, p, inst.imm, cycles, deadline, false);
 });
 handler!(h_jalr, |r, regs, inst, cycles, p, deadline| {
     let to = reg!(regs, inst.rs1).wrapping_add(inst.imm) & !1;
     reg!(regs, inst.rd) = inst.pc.wrapping_add(inst.len as u32);
     regs[0] = 0;
-    return transfer(r, p, to, cycles, deadline, false);
+    return transfer(r, regs, p, to, cycles, deadline, false);
 });
 // A `jal` whose target is the next instruction of the block.
 handler!(h_jump, |r, regs, inst, cycles, p, deadline| {
