@@ -676,7 +676,7 @@ impl Cpu {
                 let addr = a.wrapping_add(inst.imm);
                 let v = match mem.load_ram(addr, $size) {
                     Some(v) => {
-                        self.cycles += Self::split_cost(addr, $size);
+                        self.cycles += timing::split_cost(addr, $size);
                         v
                     }
                     None => match self.load_slow(mem, dev, addr, $size, pc) {
@@ -694,7 +694,7 @@ impl Cpu {
                 let addr = a.wrapping_add(inst.imm);
                 let watched = self.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
                 if !watched && mem.store_ram(addr, $size, b) {
-                    self.cycles += Self::split_cost(addr, $size);
+                    self.cycles += timing::split_cost(addr, $size);
                 } else if !self.store_slow(mem, dev, addr, $size, b, pc) {
                     return;
                 }
@@ -1013,13 +1013,6 @@ impl Cpu {
         }
     }
 
-    /// Extra cycle of an access that needs two bus transactions (crosses a
-    /// word boundary).
-    #[inline(always)]
-    fn split_cost(addr: u32, size: AccessSize) -> u64 {
-        ((addr & 3) + size.bytes() > 4) as u64 * timing::SPLIT_ACCESS_EXTRA
-    }
-
     /// The cycle at which the current load/store issued: the table charges
     /// loads and stores 1 cycle, already added.
     fn issue_cycle(&self) -> u64 {
@@ -1099,7 +1092,7 @@ impl Cpu {
     ) -> bool {
         let issue = self.issue_cycle();
         if mem.store_ram(addr, size, value) {
-            self.cycles += Self::split_cost(addr, size);
+            self.cycles += timing::split_cost(addr, size);
             if let Some(th) = self.tohost {
                 // riscv-tests: a non-zero tohost ends the test; 1 is a pass,
                 // any other odd value v a failure of test v >> 1.

@@ -342,12 +342,6 @@ handler!(h_divu, |r, regs, inst, cycles, p, deadline| {
     regs[0] = 0;
 });
 
-/// Extra cycle of an access that needs two bus transactions.
-#[inline(always)]
-fn split_cost(addr: u32, size: AccessSize) -> u64 {
-    ((addr & 3) + size.bytes() > 4) as u64 * timing::SPLIT_ACCESS_EXTRA
-}
-
 /// Leave before the instruction at `p` for the general path.
 #[cold]
 fn general(r: &mut Run, p: *const Inst, cycles: u64) -> Flow {
@@ -378,7 +372,7 @@ macro_rules! loads {
             // SAFETY: `off + N` is within the fast region's buffer (see
             // `FastRam`).
             unsafe { std::ptr::copy_nonoverlapping(r.fast.ptr.add(off), b.as_mut_ptr(), N as usize) };
-            cycles += split_cost(addr, $size);
+            cycles += timing::split_cost(addr, $size);
             reg!(regs, inst.rd) = $conv(u32::from_le_bytes(b));
             regs[0] = 0;
         });
@@ -392,7 +386,7 @@ macro_rules! loads {
             let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
             match ram_load(r.regions, addr, $size) {
                 Some(v) => {
-                    cycles += split_cost(addr, $size);
+                    cycles += timing::split_cost(addr, $size);
                     reg!(regs, inst.rd) = $conv(v);
                     regs[0] = 0;
                     next(r, regs, p, cycles, deadline)
@@ -424,7 +418,7 @@ macro_rules! stores {
             // SAFETY: `off + N` is within the fast region's buffer (see
             // `FastRam`).
             unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), r.fast.ptr.add(off), N as usize) };
-            cycles += split_cost(addr, $size);
+            cycles += timing::split_cost(addr, $size);
         });
 
         /// The store outside the fast region, near code or to `tohost`
@@ -440,7 +434,7 @@ macro_rules! stores {
             if watched || in_fast || !ram_store_data(r.regions, addr, $size, reg!(regs, inst.rs2)) {
                 return general(r, p, cycles);
             }
-            cycles += split_cost(addr, $size);
+            cycles += timing::split_cost(addr, $size);
             next(r, regs, p, cycles, deadline)
         }
     )*};

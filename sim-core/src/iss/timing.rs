@@ -17,6 +17,7 @@
 //! manual's table assumes).
 
 use super::decode::op;
+use super::mem::AccessSize;
 
 /// Extra cycles of a taken branch (3 in total, "Branch (Taken)").
 pub const BRANCH_TAKEN_EXTRA: u64 = 2;
@@ -61,6 +62,13 @@ pub const BASE_CYCLES: [u8; 256] = {
 #[inline(always)]
 pub fn div_cycles(b: u32) -> u64 {
     3 + b.leading_zeros() as u64
+}
+
+/// Extra cycles of an access at `addr` that crosses a word boundary (two
+/// bus transactions).
+#[inline(always)]
+pub fn split_cost(addr: u32, size: AccessSize) -> u64 {
+    ((addr & 3) + size.bytes() > 4) as u64 * SPLIT_ACCESS_EXTRA
 }
 
 /// Whether a CSR is in the manual's 4-cycle group.
