@@ -335,6 +335,8 @@ fn cmd_list() -> anyhow::Result<ExitCode> {
     let mut names: Vec<PathBuf> = std::fs::read_dir(&dir)?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        // The crate's own manifest shares the directory with the scenarios.
+        .filter(|p| p.file_name().is_some_and(|n| n != "Cargo.toml"))
         .collect();
     names.sort();
     for p in names {

@@ -431,3 +431,27 @@ fn a_failed_run_is_a_row_of_the_sweep() {
     let failed_dir = out.join("run-001_max_time_s=3");
     assert!(failed_dir.join("power.csv").is_file() && failed_dir.join("cosim.log").is_file());
 }
+
+#[test]
+fn list_shows_every_scenario_file_and_nothing_else() {
+    let b = bins();
+    let out = Command::new(&b.cosim)
+        .arg("list")
+        .current_dir(repo_root())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+    let listing = text(&out);
+    assert!(!listing.contains("invalid"), "{listing}");
+    let dir = repo_root().join("scenarios");
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        if let Some(stem) = name.strip_suffix(".toml").filter(|_| name != "Cargo.toml") {
+            assert!(
+                listing.lines().any(|l| l.starts_with(stem)),
+                "{stem} missing from:\n{listing}"
+            );
+        }
+    }
+}

@@ -80,6 +80,13 @@ impl World {
         }
         let mut phys = PhysicsWorld::new();
         phys.gravity = DVec3::new(0.0, 0.0, -GRAVITY);
+        // One integration step per physics step, as ODE does in Webots
+        // (DESIGN.md §5: "Physics steps at basicTimeStep unless --substeps
+        // says otherwise"). rapier's default splits every step into 4 internal
+        // solver substeps with the propeller forces held, which changes the
+        // closed-loop attitude response: the race flipped at 8/16 ms and at
+        // 32 ms with --substeps 4. Finer stepping stays available as --substeps.
+        phys.integration_parameters.num_solver_iterations = 1;
 
         let ground = ColliderBuilder::halfspace(rapier3d::na::Unit::new_unchecked(Vector::Z))
             .friction(FRICTION)
