@@ -9,8 +9,8 @@
 //! leaves a block only when control really goes elsewhere. It is decoded once, into
 //! [`Inst`]s whose operands are already unpacked and whose costs already hold
 //! the CV32E40P table cycles plus every load-use stall between two
-//! instructions of the same block, so the core's inner loop
-//! (`Cpu::exec_block`) does no fetch lookup, no decoding, no stall logic and
+//! instructions of the same block, so the executor's handlers (`exec.rs`)
+//! do no fetch lookup, no decoding, no stall logic and
 //! no per-instruction bookkeeping beyond the instruction itself. Only the
 //! stall on a block's first instruction (it depends on how the core got
 //! there) and data-dependent costs (taken branch, division, split access)
