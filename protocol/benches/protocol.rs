@@ -43,6 +43,7 @@ fn sensors() -> Reply {
         range_left: 1234.5678,
         range_back: 2000.0,
         range_right: 876.54321,
+        ..Sensors::default()
     })
 }
 

@@ -164,6 +164,8 @@ pub enum Val<'a> {
     F64(f64),
     U64(u64),
     Str(&'a str),
+    /// An already encoded JSON value (a nested object or array), copied as is.
+    Raw(&'a [u8]),
 }
 
 /// Writes `{"k":v,...}`. Entries must already be in byte order of their keys,
@@ -187,6 +189,7 @@ pub fn write_object(out: &mut Vec<u8>, entries: &[(&str, Val<'_>)]) {
             Val::F64(x) => write_f64(out, *x),
             Val::U64(x) => write_u64(out, *x),
             Val::Str(s) => write_str(out, s),
+            Val::Raw(b) => out.extend_from_slice(b),
         }
     }
     out.push(b'}');

@@ -5,7 +5,7 @@
 //!
 //! - [`frame`]: 4-byte little-endian length + compact UTF-8 JSON body,
 //!   maximum frame size ([`DEFAULT_MAX_FRAME`]) checked before allocating.
-//! - [`Request`] / [`Reply`]: the nine commands and their replies, plus
+//! - [`Request`] / [`Reply`]: the eleven commands and their replies, plus
 //!   `ERROR`; [`encode_request`], [`encode_reply`] (nlohmann `dump()`
 //!   spelling: sorted keys, no spaces) and [`decode_request`],
 //!   [`decode_reply`] (unknown keys ignored, errors typed as
@@ -41,6 +41,7 @@ mod error;
 pub mod frame;
 mod image;
 mod message;
+pub mod radio;
 pub mod tokio_transport;
 pub mod trace;
 
@@ -52,4 +53,5 @@ pub use message::{
     command, decode_reply, decode_request, encode_reply, encode_request, Reply, Request, Sensors,
     State,
 };
+pub use radio::{Radio, RadioPacket, TxDone};
 pub use trace::{Direction, FrameEvent, Observer};

@@ -8,6 +8,9 @@
 //! decoding through [`crate::decode`] (serde for the small fields, a
 //! hand-written fast path for the pixel array). Unknown keys are ignored.
 
+use std::collections::BTreeMap;
+
+use base64::Engine as _;
 use serde::{Deserialize, Deserializer, Serialize};
 use serde_json::{Map, Value};
 
@@ -15,6 +18,7 @@ use crate::decode::{parse_message, Parsed};
 use crate::dump::{write_key, write_object, write_str, write_u64, Val};
 use crate::error::{ProtocolError, Result};
 use crate::image::{write_image_data, Image, ImageEncoding};
+use crate::radio::{Radio, RadioPacket, TxDone};
 
 /// Command names on the wire.
 pub mod command {
@@ -27,6 +31,8 @@ pub mod command {
     pub const ADVANCE_TIME: &str = "ADVANCE_TIME";
     pub const STOP: &str = "STOP";
     pub const GET_STATE: &str = "GET_STATE";
+    pub const RADIO_SEND: &str = "RADIO_SEND";
+    pub const RADIO_RECV: &str = "RADIO_RECV";
     pub const ERROR: &str = "ERROR";
 }
 
@@ -35,9 +41,11 @@ pub mod command {
 pub enum Request {
     /// `{"command":"GET_INIT_DATA"}`, optionally with
     /// `"image_encoding":"array"|"base64"` (`None` = key absent = array, as in
-    /// the thesis).
+    /// the thesis). In a world with several drones it claims one with
+    /// `"drone":NAME` (DESIGN.md §7); `None` = key absent.
     GetInitData {
         image_encoding: Option<ImageEncoding>,
+        drone: Option<String>,
     },
     GetSensors,
     GetImage,
@@ -60,6 +68,17 @@ pub enum Request {
     Stop,
     /// Ground truth (extension of the thesis's protocol).
     GetState,
+    /// DESIGN.md §8, no reply: a transmission starting at this drone's clock
+    /// plus `offset_ps`. `data` is 1 to `radio.max_payload()` bytes (base64
+    /// on the wire).
+    RadioSend {
+        radio: Radio,
+        data: Vec<u8>,
+        offset_ps: u64,
+    },
+    /// DESIGN.md §8: the receptions and finished transmissions of this
+    /// drone up to its clock.
+    RadioRecv,
 }
 
 impl Request {
@@ -76,22 +95,26 @@ impl Request {
             Request::AdvanceTime { .. } => ADVANCE_TIME,
             Request::Stop => STOP,
             Request::GetState => GET_STATE,
+            Request::RadioSend { .. } => RADIO_SEND,
+            Request::RadioRecv => RADIO_RECV,
         }
     }
 
-    /// False for the two commands the world never answers (`SET_VELOCITY`,
-    /// `ADVANCE_TIME`), as in the thesis's controller (Appendix E returns
-    /// before `sendMessage` for them).
+    /// False for the commands the world never answers (`SET_VELOCITY`,
+    /// `ADVANCE_TIME` as in the thesis's controller, whose Appendix E returns
+    /// before `sendMessage` for them, and `RADIO_SEND`).
     pub fn expects_reply(&self) -> bool {
         !matches!(
             self,
-            Request::SetVelocity { .. } | Request::AdvanceTime { .. }
+            Request::SetVelocity { .. } | Request::AdvanceTime { .. } | Request::RadioSend { .. }
         )
     }
 }
 
-/// `GET_SENSORS` reply: what the thesis's `getSensors` sends.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// `GET_SENSORS` reply: what the thesis's `getSensors` sends, plus the
+/// optional indoor-flight keys of DESIGN.md §9 (absent unless the world has
+/// them, so the thesis's frames are unchanged).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Sensors {
     /// World time, s.
     #[serde(rename = "TIME", deserialize_with = "f64_or_null")]
@@ -129,10 +152,20 @@ pub struct Sensors {
     pub range_back: f64,
     #[serde(rename = "RANGE_RIGHT", deserialize_with = "f64_or_null")]
     pub range_right: f64,
+    /// Upward and downward range sensors, mm (DESIGN.md §9).
+    #[serde(rename = "RANGE_UP", default, deserialize_with = "opt_f64_or_null")]
+    pub range_up: Option<f64>,
+    #[serde(rename = "RANGE_DOWN", default, deserialize_with = "opt_f64_or_null")]
+    pub range_down: Option<f64>,
+    /// Optical-flow velocity, body frame, m/s (DESIGN.md §9).
+    #[serde(rename = "FLOW_VX", default, deserialize_with = "opt_f64_or_null")]
+    pub flow_vx: Option<f64>,
+    #[serde(rename = "FLOW_VY", default, deserialize_with = "opt_f64_or_null")]
+    pub flow_vy: Option<f64>,
 }
 
 /// `GET_STATE` reply: ground truth.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct State {
     #[serde(rename = "TIME", deserialize_with = "f64_or_null")]
     pub time_s: f64,
@@ -177,6 +210,10 @@ pub struct State {
     /// Number of contacts begun since the start.
     #[serde(rename = "COLLISIONS")]
     pub collisions: u64,
+    /// In a world with several drones: the distance (m) from this drone's
+    /// centre to every other drone's (DESIGN.md §7). Absent otherwise.
+    #[serde(rename = "DRONE_DISTANCES", default)]
+    pub drone_distances: Option<BTreeMap<String, f64>>,
 }
 
 /// A reply, world → virtual platform. Each carries the `"command"` of the
@@ -192,6 +229,8 @@ pub enum Reply {
         time_s: f64,
         timestep_ms: u64,
         image_encoding: ImageEncoding,
+        /// The claimed drone, echoed in a world with several drones only.
+        drone: Option<String>,
     },
     Sensors(Sensors),
     /// `GET_IMAGE`: `"camera":{"width","height","data"}`.
@@ -209,12 +248,20 @@ pub enum Reply {
         pitch: f64,
     },
     /// `STOP`: world time when the propellers stood still (s) and the time
-    /// spent stopping them (ms).
+    /// spent stopping them (ms); `GATES_PASSED` (DESIGN.md §10) when the
+    /// world counts gates.
     Stop {
         time_s: f64,
         stop_time_ms: u64,
+        gates_passed: Option<u64>,
     },
     State(State),
+    /// `RADIO_RECV` (DESIGN.md §8): receptions in the order they ended, and
+    /// this drone's own finished transmissions.
+    RadioRecv {
+        packets: Vec<RadioPacket>,
+        tx_done: Vec<TxDone>,
+    },
     /// `{"command":"ERROR","error":"..."}`.
     Error {
         error: String,
@@ -233,6 +280,7 @@ impl Reply {
             Reply::Data3 { .. } => GET_DATA_3,
             Reply::Stop { .. } => STOP,
             Reply::State(_) => GET_STATE,
+            Reply::RadioRecv { .. } => RADIO_RECV,
             Reply::Error { .. } => ERROR,
         }
     }
@@ -250,8 +298,31 @@ pub fn encode_request(req: &Request, out: &mut Vec<u8>) {
     let cmd = ("command", Val::Str(req.command()));
     match req {
         Request::GetInitData {
-            image_encoding: Some(enc),
-        } => write_object(out, &[cmd, ("image_encoding", Val::Str(enc.as_str()))]),
+            image_encoding,
+            drone,
+        } => {
+            let mut e = vec![cmd];
+            if let Some(d) = drone {
+                e.push(("drone", Val::Str(d)));
+            }
+            if let Some(enc) = image_encoding {
+                e.push(("image_encoding", Val::Str(enc.as_str())));
+            }
+            write_object(out, &e)
+        }
+        Request::RadioSend {
+            radio,
+            data,
+            offset_ps,
+        } => write_object(
+            out,
+            &[
+                cmd,
+                ("data", Val::Str(&BASE64.encode(data))),
+                ("offset_ps", Val::U64(*offset_ps)),
+                ("radio", Val::Str(radio.as_str())),
+            ],
+        ),
         Request::SetVelocity { m1, m2, m3, m4 } => write_object(
             out,
             &[
@@ -279,39 +350,54 @@ pub fn encode_reply(reply: &Reply, encoding: ImageEncoding, out: &mut Vec<u8>) {
             time_s,
             timestep_ms,
             image_encoding,
-        } => write_object(
-            out,
-            &[
+            drone,
+        } => {
+            let mut e = vec![
                 ("COORDINATE_X", Val::F64(*x)),
                 ("COORDINATE_Y", Val::F64(*y)),
                 ("COORDINATE_Z", Val::F64(*z)),
                 ("TIME", Val::F64(*time_s)),
                 ("TIMESTEP", Val::U64(*timestep_ms)),
                 cmd,
-                ("image_encoding", Val::Str(image_encoding.as_str())),
-            ],
-        ),
-        Reply::Sensors(s) => write_object(
-            out,
-            &[
-                ("ALTITUDE", Val::F64(s.altitude)),
-                ("COORDINATE_X", Val::F64(s.x)),
-                ("COORDINATE_Y", Val::F64(s.y)),
-                ("COORDINATE_Z", Val::F64(s.z)),
-                ("PITCH", Val::F64(s.pitch)),
-                ("PITCH_RATE", Val::F64(s.pitch_rate)),
-                ("RANGE_BACK", Val::F64(s.range_back)),
-                ("RANGE_FRONT", Val::F64(s.range_front)),
-                ("RANGE_LEFT", Val::F64(s.range_left)),
-                ("RANGE_RIGHT", Val::F64(s.range_right)),
-                ("ROLL", Val::F64(s.roll)),
-                ("ROLL_RATE", Val::F64(s.roll_rate)),
-                ("TIME", Val::F64(s.time_s)),
-                ("YAW", Val::F64(s.yaw)),
-                ("YAW_RATE", Val::F64(s.yaw_rate)),
-                cmd,
-            ],
-        ),
+            ];
+            if let Some(d) = drone {
+                e.push(("drone", Val::Str(d)));
+            }
+            e.push(("image_encoding", Val::Str(image_encoding.as_str())));
+            write_object(out, &e)
+        }
+        Reply::Sensors(s) => {
+            let mut e = Vec::with_capacity(22);
+            e.push(("ALTITUDE", Val::F64(s.altitude)));
+            e.push(("COORDINATE_X", Val::F64(s.x)));
+            e.push(("COORDINATE_Y", Val::F64(s.y)));
+            e.push(("COORDINATE_Z", Val::F64(s.z)));
+            if let Some(v) = s.flow_vx {
+                e.push(("FLOW_VX", Val::F64(v)));
+            }
+            if let Some(v) = s.flow_vy {
+                e.push(("FLOW_VY", Val::F64(v)));
+            }
+            e.push(("PITCH", Val::F64(s.pitch)));
+            e.push(("PITCH_RATE", Val::F64(s.pitch_rate)));
+            e.push(("RANGE_BACK", Val::F64(s.range_back)));
+            if let Some(v) = s.range_down {
+                e.push(("RANGE_DOWN", Val::F64(v)));
+            }
+            e.push(("RANGE_FRONT", Val::F64(s.range_front)));
+            e.push(("RANGE_LEFT", Val::F64(s.range_left)));
+            e.push(("RANGE_RIGHT", Val::F64(s.range_right)));
+            if let Some(v) = s.range_up {
+                e.push(("RANGE_UP", Val::F64(v)));
+            }
+            e.push(("ROLL", Val::F64(s.roll)));
+            e.push(("ROLL_RATE", Val::F64(s.roll_rate)));
+            e.push(("TIME", Val::F64(s.time_s)));
+            e.push(("YAW", Val::F64(s.yaw)));
+            e.push(("YAW_RATE", Val::F64(s.yaw_rate)));
+            e.push(cmd);
+            write_object(out, &e)
+        }
         Reply::Image(img) => {
             // {"camera":{"data":…,["encoding":"base64",]"height":H,"width":W},"command":"GET_IMAGE"}
             out.push(b'{');
@@ -364,21 +450,42 @@ pub fn encode_reply(reply: &Reply, encoding: ImageEncoding, out: &mut Vec<u8>) {
         Reply::Stop {
             time_s,
             stop_time_ms,
-        } => write_object(
-            out,
-            &[
-                ("STOP_TIME", Val::U64(*stop_time_ms)),
-                ("TIME", Val::F64(*time_s)),
-                cmd,
-            ],
-        ),
-        Reply::State(s) => write_object(
-            out,
-            &[
+            gates_passed,
+        } => {
+            let mut e = Vec::with_capacity(4);
+            if let Some(g) = gates_passed {
+                e.push(("GATES_PASSED", Val::U64(*g)));
+            }
+            e.push(("STOP_TIME", Val::U64(*stop_time_ms)));
+            e.push(("TIME", Val::F64(*time_s)));
+            e.push(cmd);
+            write_object(out, &e)
+        }
+        Reply::State(s) => {
+            let distances = s.drone_distances.as_ref().map(|d| {
+                let mut o = Vec::new();
+                o.push(b'{');
+                for (i, (name, m)) in d.iter().enumerate() {
+                    if i > 0 {
+                        o.push(b',');
+                    }
+                    write_str(&mut o, name);
+                    o.push(b':');
+                    crate::dump::write_f64(&mut o, *m);
+                }
+                o.push(b'}');
+                o
+            });
+            let mut e = vec![
                 ("COLLISIONS", Val::U64(s.collisions)),
                 ("COORDINATE_X", Val::F64(s.x)),
                 ("COORDINATE_Y", Val::F64(s.y)),
                 ("COORDINATE_Z", Val::F64(s.z)),
+            ];
+            if let Some(d) = &distances {
+                e.push(("DRONE_DISTANCES", Val::Raw(d)));
+            }
+            e.extend([
                 ("OMEGA_X", Val::F64(s.omega_x)),
                 ("OMEGA_Y", Val::F64(s.omega_y)),
                 ("OMEGA_Z", Val::F64(s.omega_z)),
@@ -395,8 +502,53 @@ pub fn encode_reply(reply: &Reply, encoding: ImageEncoding, out: &mut Vec<u8>) {
                 ("W3", Val::F64(s.w3)),
                 ("W4", Val::F64(s.w4)),
                 cmd,
-            ],
-        ),
+            ]);
+            write_object(out, &e)
+        }
+        Reply::RadioRecv { packets, tx_done } => {
+            // {"command":"RADIO_RECV","packets":[{"data","from","radio","rssi",
+            // ["rx_stamp",]"time_ps"}…],"tx_done":[{"radio","time_ps"[,"tx_stamp"]}…]}
+            out.push(b'{');
+            write_key(out, "command");
+            write_str(out, command::RADIO_RECV);
+            out.push(b',');
+            write_key(out, "packets");
+            out.push(b'[');
+            for (i, p) in packets.iter().enumerate() {
+                if i > 0 {
+                    out.push(b',');
+                }
+                let data = BASE64.encode(&p.data);
+                let mut e = vec![
+                    ("data", Val::Str(&data)),
+                    ("from", Val::Str(&p.from)),
+                    ("radio", Val::Str(p.radio.as_str())),
+                    ("rssi", Val::F64(p.rssi)),
+                ];
+                if let Some(st) = p.rx_stamp {
+                    e.push(("rx_stamp", Val::U64(st)));
+                }
+                e.push(("time_ps", Val::U64(p.time_ps)));
+                write_object(out, &e);
+            }
+            out.extend_from_slice(b"],");
+            write_key(out, "tx_done");
+            out.push(b'[');
+            for (i, t) in tx_done.iter().enumerate() {
+                if i > 0 {
+                    out.push(b',');
+                }
+                let mut e = vec![
+                    ("radio", Val::Str(t.radio.as_str())),
+                    ("time_ps", Val::U64(t.time_ps)),
+                ];
+                if let Some(st) = t.tx_stamp {
+                    e.push(("tx_stamp", Val::U64(st)));
+                }
+                write_object(out, &e);
+            }
+            out.extend_from_slice(b"]}");
+        }
         Reply::Error { error } => write_object(out, &[cmd, ("error", Val::Str(error))]),
     }
 }
@@ -419,7 +571,20 @@ pub fn decode_request(body: &[u8]) -> Result<Request> {
                     )
                 })?),
             };
-            Request::GetInitData { image_encoding }
+            let drone = match fields.get("drone") {
+                None | Some(Value::Null) => None,
+                Some(Value::String(s)) if !s.is_empty() => Some(s.clone()),
+                Some(v) => {
+                    return Err(ProtocolError::bad(
+                        GET_INIT_DATA,
+                        format!("drone must be a non-empty string, got {v}"),
+                    ))
+                }
+            };
+            Request::GetInitData {
+                image_encoding,
+                drone,
+            }
         }
         GET_SENSORS => Request::GetSensors,
         GET_IMAGE => Request::GetImage,
@@ -440,6 +605,38 @@ pub fn decode_request(body: &[u8]) -> Result<Request> {
         }
         STOP => Request::Stop,
         GET_STATE => Request::GetState,
+        RADIO_SEND => {
+            let w: RadioSendWire = typed(RADIO_SEND, fields)?;
+            let radio: Radio = w
+                .radio
+                .parse()
+                .map_err(|e: String| ProtocolError::bad(RADIO_SEND, e))?;
+            let data = BASE64
+                .decode(w.data.as_bytes())
+                .map_err(|e| ProtocolError::bad(RADIO_SEND, format!("data is not base64: {e}")))?;
+            if data.is_empty() || data.len() > radio.max_payload() {
+                return Err(ProtocolError::bad(
+                    RADIO_SEND,
+                    format!(
+                        "a {radio} frame carries 1 to {} bytes, got {}",
+                        radio.max_payload(),
+                        data.len()
+                    ),
+                ));
+            }
+            let Some(offset_ps) = w.offset_ps.as_u64() else {
+                return Err(ProtocolError::bad(
+                    RADIO_SEND,
+                    format!("offset_ps must be an integer >= 0, got {}", w.offset_ps),
+                ));
+            };
+            Request::RadioSend {
+                radio,
+                data,
+                offset_ps,
+            }
+        }
+        RADIO_RECV => Request::RadioRecv,
         _ => return Err(ProtocolError::UnknownCommand(cmd)),
     })
 }
@@ -460,6 +657,7 @@ pub fn decode_reply(body: &[u8]) -> Result<Reply> {
                 time_s: w.time_s,
                 timestep_ms: w.timestep_ms,
                 image_encoding: w.image_encoding,
+                drone: w.drone,
             }
         }
         GET_SENSORS => Reply::Sensors(typed(GET_SENSORS, fields)?),
@@ -488,9 +686,40 @@ pub fn decode_reply(body: &[u8]) -> Result<Reply> {
             Reply::Stop {
                 time_s: w.time_s,
                 stop_time_ms: w.stop_time_ms,
+                gates_passed: w.gates_passed,
             }
         }
         GET_STATE => Reply::State(typed(GET_STATE, fields)?),
+        RADIO_RECV => {
+            let w: RadioRecvWire = typed(RADIO_RECV, fields)?;
+            let packets = w
+                .packets
+                .into_iter()
+                .map(|p| {
+                    let data = BASE64.decode(p.data.as_bytes()).map_err(|e| {
+                        ProtocolError::bad(RADIO_RECV, format!("packet data is not base64: {e}"))
+                    })?;
+                    Ok(RadioPacket {
+                        radio: p.radio,
+                        from: p.from,
+                        data,
+                        time_ps: p.time_ps,
+                        rssi: p.rssi,
+                        rx_stamp: p.rx_stamp,
+                    })
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let tx_done = w
+                .tx_done
+                .into_iter()
+                .map(|t| TxDone {
+                    radio: t.radio,
+                    time_ps: t.time_ps,
+                    tx_stamp: t.tx_stamp,
+                })
+                .collect();
+            Reply::RadioRecv { packets, tx_done }
+        }
         ERROR => {
             let w: ErrorWire = typed(ERROR, fields)?;
             Reply::Error { error: w.error }
@@ -518,6 +747,47 @@ fn typed<T: for<'de> Deserialize<'de>>(cmd: &str, fields: Map<String, Value>) ->
 /// frame written by either side always decodes.
 fn f64_or_null<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<f64, D::Error> {
     Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
+/// An optional key: absent = `None`, `null` = `Some(NaN)` (as above).
+fn opt_f64_or_null<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<Option<f64>, D::Error> {
+    Ok(Some(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN)))
+}
+
+/// Standard base64 with padding, as DESIGN.md §8 and the image encoding use.
+const BASE64: base64::engine::GeneralPurpose = base64::engine::general_purpose::STANDARD;
+
+#[derive(Deserialize)]
+struct RadioSendWire {
+    radio: String,
+    data: String,
+    offset_ps: Value,
+}
+
+#[derive(Deserialize)]
+struct RadioRecvWire {
+    packets: Vec<PacketWire>,
+    tx_done: Vec<TxDoneWire>,
+}
+
+#[derive(Deserialize)]
+struct PacketWire {
+    radio: Radio,
+    from: String,
+    data: String,
+    time_ps: u64,
+    #[serde(deserialize_with = "f64_or_null")]
+    rssi: f64,
+    #[serde(default)]
+    rx_stamp: Option<u64>,
+}
+
+#[derive(Deserialize)]
+struct TxDoneWire {
+    radio: Radio,
+    time_ps: u64,
+    #[serde(default)]
+    tx_stamp: Option<u64>,
 }
 
 #[derive(Deserialize)]
@@ -552,6 +822,8 @@ struct InitDataWire {
     /// Absent in a thesis-era world: then it can only mean the array form.
     #[serde(default)]
     image_encoding: ImageEncoding,
+    #[serde(default)]
+    drone: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -580,6 +852,8 @@ struct StopWire {
     time_s: f64,
     #[serde(rename = "STOP_TIME")]
     stop_time_ms: u64,
+    #[serde(rename = "GATES_PASSED", default)]
+    gates_passed: Option<u64>,
 }
 
 #[derive(Deserialize)]

@@ -118,6 +118,17 @@ impl<W: Write> TraceWriter<W> {
 
     /// Appends one record; `now` is the writer's clock (ms or ps).
     pub fn record(&mut self, ev: &FrameEvent<'_>, now: u64) -> io::Result<()> {
+        self.record_for(ev, now, None)
+    }
+
+    /// [`TraceWriter::record`] with the `"drone"` field of a world serving
+    /// several drones (DESIGN.md §7), written last on the line.
+    pub fn record_for(
+        &mut self,
+        ev: &FrameEvent<'_>,
+        now: u64,
+        drone: Option<&str>,
+    ) -> io::Result<()> {
         let l = &mut self.line;
         l.clear();
         l.push(b'{');
@@ -149,6 +160,11 @@ impl<W: Write> TraceWriter<W> {
         l.push(b',');
         write_key(l, self.clock.key());
         write_u64(l, now);
+        if let Some(d) = drone {
+            l.push(b',');
+            write_key(l, "drone");
+            write_str(l, d);
+        }
         l.extend_from_slice(b"}\n");
         self.out.write_all(l)?;
         self.seq += 1;
@@ -201,6 +217,9 @@ pub struct TraceRecord {
     pub world_ms: Option<u64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub platform_ps: Option<u64>,
+    /// The drone a frame belongs to, in a world with several drones.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drone: Option<String>,
 }
 
 impl TraceRecord {

@@ -258,7 +258,55 @@ fn unknown_keys_are_ignored() {
         decode_reply(br#"{"camera":"off","command":"STOP","STOP_TIME":96,"TIME":1.5}"#).unwrap(),
         Reply::Stop {
             time_s: 1.5,
-            stop_time_ms: 96
+            stop_time_ms: 96,
+            gates_passed: None
         }
     );
+}
+
+/// RADIO_SEND that cannot be served: each names the command and the fault.
+#[test]
+fn bad_radio_sends_are_refused_clearly() {
+    let cases: &[(&str, &str)] = &[
+        (
+            r#"{"command":"RADIO_SEND","radio":"uwb","data":"%%%","offset_ps":0}"#,
+            "not base64",
+        ),
+        (
+            r#"{"command":"RADIO_SEND","radio":"uwb","data":"","offset_ps":0}"#,
+            "1 to 127 bytes, got 0",
+        ),
+        (
+            r#"{"command":"RADIO_SEND","radio":"p2p","data":"AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA","offset_ps":0}"#,
+            "1 to 60 bytes, got 63",
+        ),
+        (
+            r#"{"command":"RADIO_SEND","radio":"uwb","data":"AA==","offset_ps":-5}"#,
+            "offset_ps",
+        ),
+        (
+            r#"{"command":"RADIO_SEND","radio":"wifi","data":"AA==","offset_ps":0}"#,
+            "unknown radio \"wifi\"",
+        ),
+        (
+            r#"{"command":"RADIO_SEND","radio":"uwb","offset_ps":0}"#,
+            "missing field `data`",
+        ),
+        (
+            r#"{"command":"GET_INIT_DATA","drone":3}"#,
+            "drone must be a non-empty string",
+        ),
+        (
+            r#"{"command":"GET_INIT_DATA","drone":""}"#,
+            "drone must be a non-empty string",
+        ),
+    ];
+    for (body, want) in cases {
+        let e = decode_request(body.as_bytes()).unwrap_err().to_string();
+        assert!(e.contains(want), "{body}: {e}");
+        assert!(
+            e.contains("RADIO_SEND") || e.contains("GET_INIT_DATA"),
+            "{e}"
+        );
+    }
 }

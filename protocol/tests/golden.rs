@@ -70,12 +70,14 @@ fn requests_match_write_on_channel() {
     check_request(
         Request::GetInitData {
             image_encoding: None,
+            drone: None,
         },
         r#"{"command":"GET_INIT_DATA"}"#,
     );
     check_request(
         Request::GetInitData {
             image_encoding: Some(ImageEncoding::Base64),
+            drone: None,
         },
         r#"{"command":"GET_INIT_DATA","image_encoding":"base64"}"#,
     );
@@ -121,6 +123,7 @@ fn replies_match_write_on_channel() {
             time_s: 2.0,
             timestep_ms: 32,
             image_encoding: ImageEncoding::Array,
+            drone: None,
         },
         ImageEncoding::Array,
         r#"{"COORDINATE_X":-2.6,"COORDINATE_Y":0.0,"COORDINATE_Z":0.015,"TIME":2.0,"TIMESTEP":32,"command":"GET_INIT_DATA","image_encoding":"array"}"#,
@@ -142,6 +145,7 @@ fn replies_match_write_on_channel() {
             range_left: 1234.5,
             range_back: 0.5,
             range_right: 1e16,
+            ..Sensors::default()
         }),
         ImageEncoding::Array,
         concat!(
@@ -188,6 +192,7 @@ fn replies_match_write_on_channel() {
         Reply::Stop {
             time_s: 146.208,
             stop_time_ms: 1024,
+            gates_passed: None,
         },
         ImageEncoding::Array,
         r#"{"STOP_TIME":1024,"TIME":146.208,"command":"STOP"}"#,
@@ -213,6 +218,7 @@ fn replies_match_write_on_channel() {
             w3: -48.0,
             w4: 48.0,
             collisions: 2,
+            drone_distances: None,
         }),
         ImageEncoding::Array,
         concat!(
@@ -247,4 +253,98 @@ fn a_full_size_image_frame_has_the_right_header() {
     // the header spans three bytes.
     assert_eq!(body.len(), 409_668);
     assert_eq!(&f[..4], &[0x44, 0x40, 0x06, 0x00]);
+}
+
+/// The multi-drone and radio messages (DESIGN.md §7–§8), spelled by hand.
+#[test]
+fn multi_drone_and_radio_frames() {
+    check_request(
+        Request::GetInitData {
+            image_encoding: Some(ImageEncoding::Array),
+            drone: Some("A".into()),
+        },
+        r#"{"command":"GET_INIT_DATA","drone":"A","image_encoding":"array"}"#,
+    );
+    check_request(
+        Request::RadioSend {
+            radio: protocol::Radio::Uwb,
+            data: b"hi!".to_vec(),
+            offset_ps: 1_500_000,
+        },
+        r#"{"command":"RADIO_SEND","data":"aGkh","offset_ps":1500000,"radio":"uwb"}"#,
+    );
+    check_request(Request::RadioRecv, r#"{"command":"RADIO_RECV"}"#);
+    check_reply(
+        Reply::InitData {
+            x: 0.0,
+            y: 1.0,
+            z: 0.015,
+            time_s: 2.0,
+            timestep_ms: 16,
+            image_encoding: ImageEncoding::Array,
+            drone: Some("B".into()),
+        },
+        ImageEncoding::Array,
+        r#"{"COORDINATE_X":0.0,"COORDINATE_Y":1.0,"COORDINATE_Z":0.015,"TIME":2.0,"TIMESTEP":16,"command":"GET_INIT_DATA","drone":"B","image_encoding":"array"}"#,
+    );
+    check_reply(
+        Reply::RadioRecv {
+            packets: vec![
+                protocol::RadioPacket {
+                    radio: protocol::Radio::Uwb,
+                    from: "B".into(),
+                    data: vec![1, 2, 3],
+                    time_ps: 2_000_188_600_000,
+                    rssi: -79.5,
+                    rx_stamp: Some(127_795_200_123),
+                },
+                protocol::RadioPacket {
+                    radio: protocol::Radio::P2p,
+                    from: "C".into(),
+                    data: vec![255],
+                    time_ps: 2_001_000_000_000,
+                    rssi: -48.25,
+                    rx_stamp: None,
+                },
+            ],
+            tx_done: vec![protocol::TxDone {
+                radio: protocol::Radio::Uwb,
+                time_ps: 2_000_100_000_000,
+                tx_stamp: Some(127_795_000_000),
+            }],
+        },
+        ImageEncoding::Array,
+        r#"{"command":"RADIO_RECV","packets":[{"data":"AQID","from":"B","radio":"uwb","rssi":-79.5,"rx_stamp":127795200123,"time_ps":2000188600000},{"data":"/w==","from":"C","radio":"p2p","rssi":-48.25,"time_ps":2001000000000}],"tx_done":[{"radio":"uwb","time_ps":2000100000000,"tx_stamp":127795000000}]}"#,
+    );
+    check_reply(
+        Reply::RadioRecv {
+            packets: vec![],
+            tx_done: vec![],
+        },
+        ImageEncoding::Array,
+        r#"{"command":"RADIO_RECV","packets":[],"tx_done":[]}"#,
+    );
+    let mut d = std::collections::BTreeMap::new();
+    d.insert("B".to_string(), 1.0);
+    d.insert("C".to_string(), 1.118033988749895);
+    check_reply(
+        Reply::State(State {
+            time_s: 2.0,
+            collisions: 0,
+            drone_distances: Some(d),
+            qw: 1.0,
+            ..State::default()
+        }),
+        ImageEncoding::Array,
+        r#"{"COLLISIONS":0,"COORDINATE_X":0.0,"COORDINATE_Y":0.0,"COORDINATE_Z":0.0,"DRONE_DISTANCES":{"B":1.0,"C":1.118033988749895},"OMEGA_X":0.0,"OMEGA_Y":0.0,"OMEGA_Z":0.0,"QW":1.0,"QX":0.0,"QY":0.0,"QZ":0.0,"TIME":2.0,"VELOCITY_X":0.0,"VELOCITY_Y":0.0,"VELOCITY_Z":0.0,"W1":0.0,"W2":0.0,"W3":0.0,"W4":0.0,"command":"GET_STATE"}"#,
+    );
+    check_reply(
+        Reply::Stop {
+            time_s: 30.5,
+            stop_time_ms: 64,
+            gates_passed: Some(10),
+        },
+        ImageEncoding::Array,
+        r#"{"GATES_PASSED":10,"STOP_TIME":64,"TIME":30.5,"command":"STOP"}"#,
+    );
 }

@@ -9,7 +9,7 @@ use protocol::frame::{read_frame, write_frame, DEFAULT_MAX_FRAME};
 use protocol::tokio_transport::{FrameCodec, ServerCodec};
 use protocol::{
     decode_reply, decode_request, encode_reply, encode_request, Image, ImageEncoding,
-    ProtocolError, Reply, Request, Sensors, State,
+    ProtocolError, Radio, RadioPacket, Reply, Request, Sensors, State, TxDone,
 };
 use serde_json::Value;
 use tokio_util::bytes::BytesMut;
@@ -31,8 +31,12 @@ fn encoding() -> impl Strategy<Value = ImageEncoding> {
 
 fn request() -> impl Strategy<Value = Request> {
     prop_oneof![
-        prop::option::of(encoding())
-            .prop_map(|image_encoding| Request::GetInitData { image_encoding }),
+        (prop::option::of(encoding()), prop::option::of(name())).prop_map(
+            |(image_encoding, drone)| Request::GetInitData {
+                image_encoding,
+                drone
+            }
+        ),
         Just(Request::GetSensors),
         Just(Request::GetImage),
         (finite(), finite(), finite(), finite())
@@ -42,7 +46,58 @@ fn request() -> impl Strategy<Value = Request> {
         any::<u64>().prop_map(|time| Request::AdvanceTime { time }),
         Just(Request::Stop),
         Just(Request::GetState),
+        radio()
+            .prop_flat_map(|radio| (
+                Just(radio),
+                prop::collection::vec(any::<u8>(), 1..=radio.max_payload()),
+                any::<u64>()
+            ))
+            .prop_map(|(radio, data, offset_ps)| Request::RadioSend {
+                radio,
+                data,
+                offset_ps
+            }),
+        Just(Request::RadioRecv),
     ]
+}
+
+fn radio() -> impl Strategy<Value = Radio> {
+    prop_oneof![Just(Radio::Uwb), Just(Radio::P2p)]
+}
+
+/// Drone names: any non-empty string (escapes included).
+fn name() -> impl Strategy<Value = String> {
+    prop_oneof!["[a-zA-Z][a-zA-Z0-9_-]{0,8}", any::<String>()]
+        .prop_filter("non-empty", |s| !s.is_empty())
+}
+
+fn packet() -> impl Strategy<Value = RadioPacket> {
+    (
+        radio(),
+        name(),
+        prop::collection::vec(any::<u8>(), 1..128),
+        any::<u64>(),
+        finite(),
+        prop::option::of(0u64..1 << 40),
+    )
+        .prop_map(|(radio, from, data, time_ps, rssi, rx_stamp)| RadioPacket {
+            radio,
+            from,
+            data,
+            time_ps,
+            rssi,
+            rx_stamp,
+        })
+}
+
+fn tx_done() -> impl Strategy<Value = TxDone> {
+    (radio(), any::<u64>(), prop::option::of(0u64..1 << 40)).prop_map(
+        |(radio, time_ps, tx_stamp)| TxDone {
+            radio,
+            time_ps,
+            tx_stamp,
+        },
+    )
 }
 
 fn image() -> impl Strategy<Value = Image> {
@@ -58,13 +113,16 @@ fn image() -> impl Strategy<Value = Image> {
 fn reply() -> impl Strategy<Value = Reply> {
     let f = || prop::collection::vec(finite(), 19);
     prop_oneof![
-        (f(), any::<u64>(), encoding()).prop_map(|(v, ts, e)| Reply::InitData {
-            x: v[0],
-            y: v[1],
-            z: v[2],
-            time_s: v[3],
-            timestep_ms: ts,
-            image_encoding: e
+        (f(), any::<u64>(), encoding(), prop::option::of(name())).prop_map(|(v, ts, e, drone)| {
+            Reply::InitData {
+                x: v[0],
+                y: v[1],
+                z: v[2],
+                time_s: v[3],
+                timestep_ms: ts,
+                image_encoding: e,
+                drone,
+            }
         }),
         f().prop_map(|v| Reply::Sensors(Sensors {
             time_s: v[0],
@@ -82,7 +140,19 @@ fn reply() -> impl Strategy<Value = Reply> {
             range_left: v[12],
             range_back: v[13],
             range_right: v[14],
+            ..Sensors::default()
         })),
+        (f(), prop::collection::vec(prop::option::of(finite()), 4)).prop_map(|(v, o)| {
+            Reply::Sensors(Sensors {
+                time_s: v[0],
+                x: v[1],
+                range_up: o[0],
+                range_down: o[1],
+                flow_vx: o[2],
+                flow_vy: o[3],
+                ..Sensors::default()
+            })
+        }),
         image().prop_map(Reply::Image),
         f().prop_map(|v| Reply::Data2 {
             velocity: v[0],
@@ -94,31 +164,45 @@ fn reply() -> impl Strategy<Value = Reply> {
             velocity_z: v[1],
             pitch: v[2]
         }),
-        (finite(), any::<u64>()).prop_map(|(t, s)| Reply::Stop {
-            time_s: t,
-            stop_time_ms: s
+        (finite(), any::<u64>(), prop::option::of(any::<u64>())).prop_map(|(t, s, g)| {
+            Reply::Stop {
+                time_s: t,
+                stop_time_ms: s,
+                gates_passed: g,
+            }
         }),
-        (f(), any::<u64>()).prop_map(|(v, c)| Reply::State(State {
-            time_s: v[0],
-            x: v[1],
-            y: v[2],
-            z: v[3],
-            qw: v[4],
-            qx: v[5],
-            qy: v[6],
-            qz: v[7],
-            vx: v[8],
-            vy: v[9],
-            vz: v[10],
-            omega_x: v[11],
-            omega_y: v[12],
-            omega_z: v[13],
-            w1: v[14],
-            w2: v[15],
-            w3: v[16],
-            w4: v[17],
-            collisions: c,
-        })),
+        (
+            f(),
+            any::<u64>(),
+            prop::option::of(prop::collection::btree_map(name(), finite(), 0..5))
+        )
+            .prop_map(|(v, c, d)| Reply::State(State {
+                time_s: v[0],
+                x: v[1],
+                y: v[2],
+                z: v[3],
+                qw: v[4],
+                qx: v[5],
+                qy: v[6],
+                qz: v[7],
+                vx: v[8],
+                vy: v[9],
+                vz: v[10],
+                omega_x: v[11],
+                omega_y: v[12],
+                omega_z: v[13],
+                w1: v[14],
+                w2: v[15],
+                w3: v[16],
+                w4: v[17],
+                collisions: c,
+                drone_distances: d,
+            })),
+        (
+            prop::collection::vec(packet(), 0..4),
+            prop::collection::vec(tx_done(), 0..3)
+        )
+            .prop_map(|(packets, tx_done)| Reply::RadioRecv { packets, tx_done }),
         any::<String>().prop_map(|error| Reply::Error { error }),
     ]
 }

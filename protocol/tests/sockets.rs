@@ -38,13 +38,14 @@ impl TinyWorld {
 
     fn handle(&mut self, req: &Request) -> Option<Reply> {
         match *req {
-            Request::GetInitData { image_encoding } => Some(Reply::InitData {
+            Request::GetInitData { image_encoding, .. } => Some(Reply::InitData {
                 x: -2.6,
                 y: 0.0,
                 z: 0.015,
                 time_s: 2.0,
                 timestep_ms: 32,
                 image_encoding: image_encoding.unwrap_or_default(),
+                drone: None,
             }),
             Request::SetVelocity { m1, m2, m3, m4 } => {
                 self.last_m = [m1, m2, m3, m4];
@@ -71,11 +72,13 @@ impl TinyWorld {
                 range_left: 2000.0,
                 range_back: 2000.0,
                 range_right: 2000.0,
+                ..Sensors::default()
             })),
             Request::GetImage => Some(Reply::Image(self.image())),
             Request::Stop => Some(Reply::Stop {
                 time_s: self.ms as f64 / 1000.0,
                 stop_time_ms: 0,
+                gates_passed: None,
             }),
             _ => Some(Reply::error(format!("{} not supported", req.command()))),
         }
@@ -127,6 +130,7 @@ fn blocking_platform(ep: &Endpoint, enc: ImageEncoding) {
     let init = c
         .request(&Request::GetInitData {
             image_encoding: Some(enc),
+            drone: None,
         })
         .unwrap()
         .unwrap();
@@ -209,6 +213,7 @@ fn tokio_platform_with_blocking_world_over_unix_socket() {
         let mut c = tokio_transport::connect(&ep).await.unwrap();
         c.send(&Request::GetInitData {
             image_encoding: Some(ImageEncoding::Base64),
+            drone: None,
         })
         .await
         .unwrap();
@@ -373,6 +378,7 @@ fn both_ends_trace_the_same_frames() {
     for req in [
         Request::GetInitData {
             image_encoding: None,
+            drone: None,
         },
         Request::SetVelocity {
             m1: 1.0,

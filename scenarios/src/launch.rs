@@ -11,6 +11,8 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use protocol::Endpoint;
+
 use crate::scenario::Scenario;
 
 /// Output file names of a run (DESIGN.md §6 plus the launcher's own).
@@ -49,7 +51,7 @@ pub enum LaunchError {
     Build(String),
 }
 
-fn io_err(what: impl std::fmt::Display, e: std::io::Error) -> LaunchError {
+pub(crate) fn io_err(what: impl std::fmt::Display, e: std::io::Error) -> LaunchError {
     LaunchError::Io(format!("{what}: {e}"))
 }
 
@@ -160,6 +162,10 @@ pub struct LaunchOptions {
     /// gets none of our world's flags (world file, timestep, traces,
     /// trajectory): the platform's trace and outputs are still written.
     pub world_cmd: Option<String>,
+    /// A world already running elsewhere (`tcp:HOST:PORT`, e.g. started
+    /// with `cosim world` on another host): only sim-core is started, and
+    /// connects there. The world's outputs stay where the world runs.
+    pub world_endpoint: Option<Endpoint>,
 }
 
 impl Default for LaunchOptions {
@@ -172,6 +178,7 @@ impl Default for LaunchOptions {
             timeout: None,
             sim_core_args: Vec::new(),
             world_cmd: None,
+            world_endpoint: None,
         }
     }
 }
@@ -198,13 +205,15 @@ impl RunStatus {
 /// Shared log file + optional echo, one line at a time so lines of the two
 /// processes never interleave mid-line.
 #[derive(Clone)]
-struct LogSink {
-    file: Arc<Mutex<File>>,
-    echo: bool,
+pub(crate) struct LogSink {
+    pub(crate) file: Arc<Mutex<File>>,
+    pub(crate) echo: bool,
+    /// Where echoed lines go while progress bars are drawn (above them).
+    pub(crate) bars: Option<indicatif::MultiProgress>,
 }
 
 impl LogSink {
-    fn line(&self, prefix: &str, line: &str) {
+    pub(crate) fn line(&self, prefix: &str, line: &str) {
         let text = format!("[{prefix}] {line}\n");
         if let Ok(mut f) = self.file.lock() {
             // A failing log write must not stop the run; the run's own
@@ -212,11 +221,21 @@ impl LogSink {
             let _ = f.write_all(text.as_bytes());
         }
         if self.echo {
-            eprint!("{text}");
+            match &self.bars {
+                Some(bars) if !bars.is_hidden() => bars.suspend(|| eprint!("{text}")),
+                _ => eprint!("{text}"),
+            }
         }
     }
 
-    fn forward(&self, prefix: &'static str, stream: impl Read + Send + 'static) -> JoinHandle<()> {
+    /// Forwards the lines of `stream` with `prefix`; the last one is also
+    /// shown on `bar` (the progress display of several processes).
+    fn forward(
+        &self,
+        prefix: String,
+        stream: impl Read + Send + 'static,
+        bar: Option<indicatif::ProgressBar>,
+    ) -> JoinHandle<()> {
         let sink = self.clone();
         std::thread::spawn(move || {
             let mut r = BufReader::new(stream);
@@ -227,7 +246,13 @@ impl LogSink {
                     Ok(0) | Err(_) => break,
                     Ok(_) => {
                         let text = String::from_utf8_lossy(&buf);
-                        sink.line(prefix, text.trim_end_matches(['\n', '\r']));
+                        let text = text.trim_end_matches(['\n', '\r']);
+                        sink.line(&prefix, text);
+                        if let Some(bar) = &bar {
+                            if !text.trim().is_empty() {
+                                bar.set_message(text.trim().to_string());
+                            }
+                        }
                     }
                 }
             }
@@ -236,15 +261,31 @@ impl LogSink {
 }
 
 /// A child process with its log forwarders.
-struct Supervised {
-    what: &'static str,
+pub(crate) struct Supervised {
+    pub(crate) what: String,
     child: Child,
     status: Option<ExitStatus>,
     forwarders: Vec<JoinHandle<()>>,
 }
 
 impl Supervised {
-    fn spawn(what: &'static str, mut cmd: Command, sink: &LogSink) -> Result<Self, LaunchError> {
+    pub(crate) fn spawn(
+        what: &'static str,
+        cmd: Command,
+        sink: &LogSink,
+    ) -> Result<Self, LaunchError> {
+        Self::spawn_named(what, what.to_string(), cmd, sink, None)
+    }
+
+    /// `kind` names the program in errors, `what` (its log prefix) the
+    /// process; `bar` shows its last line.
+    pub(crate) fn spawn_named(
+        kind: &'static str,
+        what: String,
+        mut cmd: Command,
+        sink: &LogSink,
+        bar: Option<indicatif::ProgressBar>,
+    ) -> Result<Self, LaunchError> {
         tracing::debug!(?cmd, "starting {what}");
         let mut child = cmd
             .stdin(Stdio::null())
@@ -252,16 +293,16 @@ impl Supervised {
             .stderr(Stdio::piped())
             .spawn()
             .map_err(|source| LaunchError::Spawn {
-                what,
+                what: kind,
                 path: PathBuf::from(cmd.get_program()),
                 source,
             })?;
         let mut forwarders = Vec::new();
         if let Some(out) = child.stdout.take() {
-            forwarders.push(sink.forward(what, out));
+            forwarders.push(sink.forward(what.clone(), out, bar.clone()));
         }
         if let Some(err) = child.stderr.take() {
-            forwarders.push(sink.forward(what, err));
+            forwarders.push(sink.forward(what.clone(), err, bar));
         }
         Ok(Supervised {
             what,
@@ -271,14 +312,14 @@ impl Supervised {
         })
     }
 
-    fn poll(&mut self) -> Option<ExitStatus> {
+    pub(crate) fn poll(&mut self) -> Option<ExitStatus> {
         if self.status.is_none() {
             self.status = self.child.try_wait().ok().flatten();
         }
         self.status
     }
 
-    fn kill(&mut self) {
+    pub(crate) fn kill(&mut self) {
         if self.poll().is_none() {
             let _ = self.child.kill();
             self.status = self.child.wait().ok();
@@ -286,7 +327,7 @@ impl Supervised {
     }
 
     /// Waits up to `grace` for the process to end by itself, then kills it.
-    fn finish_within(&mut self, grace: Duration) -> bool {
+    pub(crate) fn finish_within(&mut self, grace: Duration) -> bool {
         let until = Instant::now() + grace;
         while Instant::now() < until {
             if self.poll().is_some() {
@@ -299,7 +340,7 @@ impl Supervised {
         false
     }
 
-    fn join(self) -> Option<ExitStatus> {
+    pub(crate) fn join(self) -> Option<ExitStatus> {
         for f in self.forwarders {
             let _ = f.join();
         }
@@ -307,7 +348,7 @@ impl Supervised {
     }
 }
 
-fn describe(status: Option<ExitStatus>) -> String {
+pub(crate) fn describe(status: Option<ExitStatus>) -> String {
     match status {
         Some(s) => match s.code() {
             Some(c) => format!("exit code {c}"),
@@ -336,7 +377,11 @@ pub fn launch(
     let sink = LogSink {
         file: Arc::new(Mutex::new(log)),
         echo: opts.echo,
+        bars: None,
     };
+    if let Some(world) = &opts.world_endpoint {
+        return launch_platform_only(scenario, bins, world, &out, opts, &sink);
+    }
     // A private directory (mode 0700, tempfile's default) for the socket: no
     // other user can connect, and two runs never share a path.
     let sock_dir = tempfile::Builder::new()
@@ -345,49 +390,8 @@ pub fn launch(
         .map_err(|e| io_err("cannot create a private socket directory", e))?;
     let socket = sock_dir.path().join("world.sock");
 
-    let mut world_cmd = Command::new(&bins.world_server);
-    world_cmd
-        .arg("--socket")
-        .arg(&socket)
-        .arg("--world")
-        .arg(&scenario.world)
-        .arg("--timestep")
-        .arg(scenario.timestep_ms.to_string())
-        .arg("--substeps")
-        .arg(scenario.substeps.to_string())
-        .arg("--trajectory")
-        .arg(out.join(files::TRAJECTORY));
-    let mut sim_cmd = Command::new(&bins.sim_core);
-    sim_cmd
-        .arg("--socket")
-        .arg(&socket)
-        .arg("--firmware")
-        .arg(&scenario.firmware)
-        .arg("--config")
-        .arg(out.join(files::RUN_CONFIG))
-        .arg("--out")
-        .arg(&out)
-        .arg("--image-encoding")
-        .arg(scenario.image_encoding.as_str())
-        .arg("--no-progress");
-    if let Some(t) = scenario.max_time_s {
-        sim_cmd.arg("--max-time").arg(t.to_string());
-    }
-    if opts.traces {
-        world_cmd.arg("--trace").arg(out.join(files::WORLD_TRACE));
-        sim_cmd.arg("--trace").arg(out.join(files::PLATFORM_TRACE));
-        if opts.trace_images {
-            world_cmd.arg("--trace-images");
-            sim_cmd.arg("--trace-images");
-        }
-    }
-    if opts.frames {
-        let frames = out.join(files::FRAMES);
-        std::fs::create_dir_all(&frames)
-            .map_err(|e| io_err(format!("cannot create {}", frames.display()), e))?;
-        world_cmd.arg("--frames-dir").arg(frames);
-    }
-    sim_cmd.args(&opts.sim_core_args);
+    let mut world_cmd = world_command(scenario, bins, &Endpoint::Unix(socket.clone()), &out, opts)?;
+    let sim_cmd = sim_core_command(scenario, bins, &Endpoint::Unix(socket.clone()), &out, opts);
     if let Some(cmd) = &opts.world_cmd {
         let socket_text = socket.display().to_string();
         world_cmd = Command::new("sh");
@@ -498,13 +502,127 @@ pub fn launch(
     })
 }
 
+/// sim-core alone, against a world that was started elsewhere: it retries
+/// connecting for its `--connect-timeout` (30 s), so the world may come up
+/// after it; the run ends when sim-core does.
+fn launch_platform_only(
+    scenario: &Scenario,
+    bins: &Binaries,
+    world: &Endpoint,
+    out: &Path,
+    opts: &LaunchOptions,
+    sink: &LogSink,
+) -> Result<RunStatus, LaunchError> {
+    let started = Instant::now();
+    sink.line("cosim", &format!("world at {world} (not started here)"));
+    let cmd = sim_core_command(scenario, bins, world, out, opts);
+    let mut sim = Supervised::spawn("sim-core", cmd, sink)?;
+    let mut error = None;
+    while sim.poll().is_none() {
+        if let Some(limit) = opts.timeout {
+            if started.elapsed() > limit {
+                error = Some(format!(
+                    "timed out after {limit:?} of wall time; sim-core killed"
+                ));
+                sim.kill();
+                break;
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let status = sim.join();
+    if error.is_none() && !status.is_some_and(|s| s.success()) {
+        error = Some(format!("sim-core failed ({})", describe(status)));
+    }
+    Ok(RunStatus {
+        sim_core: status.and_then(|s| s.code()),
+        world: None,
+        error,
+        wall: started.elapsed(),
+    })
+}
+
+/// `world-server` for `scenario`, listening on `listen`: the world file,
+/// timestep and substeps, the trajectory (and traces, frames) into `out`.
+pub fn world_command(
+    scenario: &Scenario,
+    bins: &Binaries,
+    listen: &Endpoint,
+    out: &Path,
+    opts: &LaunchOptions,
+) -> Result<Command, LaunchError> {
+    let mut cmd = Command::new(&bins.world_server);
+    match listen {
+        Endpoint::Unix(path) => cmd.arg("--socket").arg(path),
+        Endpoint::Tcp(addr) => cmd.arg("--tcp").arg(addr),
+    };
+    cmd.arg("--world")
+        .arg(&scenario.world)
+        .arg("--timestep")
+        .arg(scenario.timestep_ms.to_string())
+        .arg("--substeps")
+        .arg(scenario.substeps.to_string())
+        .arg("--trajectory")
+        .arg(out.join(files::TRAJECTORY));
+    if opts.traces {
+        cmd.arg("--trace").arg(out.join(files::WORLD_TRACE));
+        if opts.trace_images {
+            cmd.arg("--trace-images");
+        }
+    }
+    if opts.frames {
+        let frames = out.join(files::FRAMES);
+        std::fs::create_dir_all(&frames)
+            .map_err(|e| io_err(format!("cannot create {}", frames.display()), e))?;
+        cmd.arg("--frames-dir").arg(frames);
+    }
+    Ok(cmd)
+}
+
+/// `sim-core` for `scenario`, connecting to `world`, its outputs into `out`
+/// (where `run.toml` was written).
+pub fn sim_core_command(
+    scenario: &Scenario,
+    bins: &Binaries,
+    world: &Endpoint,
+    out: &Path,
+    opts: &LaunchOptions,
+) -> Command {
+    let mut cmd = Command::new(&bins.sim_core);
+    match world {
+        // A bare path, as sim-core has always been given.
+        Endpoint::Unix(path) => cmd.arg("--socket").arg(path),
+        Endpoint::Tcp(_) => cmd.arg("--socket").arg(world.to_string()),
+    };
+    cmd.arg("--firmware")
+        .arg(&scenario.firmware)
+        .arg("--config")
+        .arg(out.join(files::RUN_CONFIG))
+        .arg("--out")
+        .arg(out)
+        .arg("--image-encoding")
+        .arg(scenario.image_encoding.as_str())
+        .arg("--no-progress");
+    if let Some(t) = scenario.max_time_s {
+        cmd.arg("--max-time").arg(t.to_string());
+    }
+    if opts.traces {
+        cmd.arg("--trace").arg(out.join(files::PLATFORM_TRACE));
+        if opts.trace_images {
+            cmd.arg("--trace-images");
+        }
+    }
+    cmd.args(&opts.sim_core_args);
+    cmd
+}
+
 /// Writes the resolved scenario and run configuration into the output
 /// directory: sim-core reads `run.toml`, and a user can rerun from both.
 fn write_inputs(scenario: &Scenario, out: &Path) -> Result<(), LaunchError> {
     let write = |name: &str, text: String| {
         std::fs::write(out.join(name), text).map_err(|e| io_err(format!("cannot write {name}"), e))
     };
-    write(files::RUN_CONFIG, run_toml(scenario))?;
+    write(files::RUN_CONFIG, run_toml(&scenario.run))?;
     let resolved = format!(
         "# Resolved from {} {}\ndescription = {:?}\nworld = {:?}\nfirmware = {:?}\ntimestep_ms = {}\nsubsteps = {}\nimage_encoding = {:?}\n{}targets = {:?}\n",
         scenario.path.display(),
@@ -526,15 +644,15 @@ fn write_inputs(scenario: &Scenario, out: &Path) -> Result<(), LaunchError> {
 
 /// The run configuration as sim-core reads it, with the platform file (when
 /// there is one) as an absolute path so the file can be used from anywhere.
-fn run_toml(scenario: &Scenario) -> String {
-    let mut run = scenario.run.clone();
+pub(crate) fn run_toml(run: &sim_core::config::RunConfig) -> String {
+    let mut run = run.clone();
     if let Some(p) = &run.platform {
         run.platform = Some(PathBuf::from(abs(p)));
     }
     run.to_toml()
 }
 
-fn abs(p: &Path) -> String {
+pub(crate) fn abs(p: &Path) -> String {
     p.canonicalize()
         .unwrap_or_else(|_| p.to_path_buf())
         .display()

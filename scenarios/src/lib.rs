@@ -7,11 +7,13 @@
 //! - [`replay`]: a world server that answers from a recorded trace.
 //! - [`tracetool`]: `cosim trace show` and `cosim trace-check`.
 //! - [`plot`]: the PNG figures.
+//! - [`swarm`]: scenarios with several drones (`[[platform]]` tables).
 
 pub mod launch;
 pub mod plot;
 pub mod report;
 pub mod scenario;
+pub mod swarm;
 pub mod sweep;
 pub mod tracetool;
 
@@ -34,15 +36,42 @@ pub struct RunOutcome {
     pub report_error: Option<String>,
     /// The printed summary (also in `report.txt`).
     pub text: String,
+    /// A scenario with `[[platform]]` tables: each platform's outcome, in
+    /// table order (then `summary` is None: the top-level `summary.json` is
+    /// the swarm's, see [`swarm::report::SwarmSummary`]). Empty otherwise.
+    pub drones: Vec<DroneOutcome>,
+}
+
+/// One platform of a run with several drones.
+#[derive(Debug, Clone)]
+pub struct DroneOutcome {
+    pub drone: String,
+    /// Its outputs (`<out>/<drone>`).
+    pub dir: PathBuf,
+    /// Its `summary.json` (None if its sim-core wrote none).
+    pub summary: Option<Summary>,
+    /// The same file as JSON (keys this launcher does not know included).
+    pub raw: Option<serde_json::Value>,
+    pub soc_init: f64,
+    pub plots: Vec<PathBuf>,
+    /// Its sim-core's exit code (None: killed).
+    pub exit_code: Option<i32>,
+    /// Its own report (`<drone>/report.txt`).
+    pub text: String,
 }
 
 impl RunOutcome {
     /// A run succeeded when both processes ended cleanly, the firmware
     /// completed and the report could be made.
     pub fn ok(&self) -> bool {
-        self.status.ok()
-            && self.report_error.is_none()
-            && self.summary.as_ref().is_some_and(|s| s.completed)
+        let completed = if self.drones.is_empty() {
+            self.summary.as_ref().is_some_and(|s| s.completed)
+        } else {
+            self.drones
+                .iter()
+                .all(|d| d.summary.as_ref().is_some_and(|s| s.completed))
+        };
+        self.status.ok() && self.report_error.is_none() && completed
     }
 
     /// The first thing that went wrong, in one line.
@@ -53,12 +82,54 @@ impl RunOutcome {
         if let Some(e) = &self.report_error {
             return Some(e.clone());
         }
+        for d in &self.drones {
+            match &d.summary {
+                None => return Some(format!("drone {}: no summary.json", d.drone)),
+                Some(s) if !s.completed => {
+                    return Some(format!(
+                        "drone {}: {}",
+                        d.drone,
+                        s.error.clone().unwrap_or_else(|| format!(
+                            "the run did not complete (exit code {})",
+                            s.exit_code
+                        ))
+                    ))
+                }
+                Some(_) => {}
+            }
+        }
         match &self.summary {
             Some(s) if !s.completed => Some(s.error.clone().unwrap_or_else(|| {
                 format!("the run did not complete (exit code {})", s.exit_code)
             })),
             _ => None,
         }
+    }
+
+    /// One outcome per drone, for tables with a row per drone (sweeps): each
+    /// platform's summary with the run's status; a run with one drone is
+    /// empty (its row is the run's).
+    pub fn per_drone(&self) -> Vec<(String, RunOutcome)> {
+        if self.drones.is_empty() {
+            return Vec::new();
+        }
+        self.drones
+            .iter()
+            .map(|d| {
+                (
+                    d.drone.clone(),
+                    RunOutcome {
+                        status: self.status.clone(),
+                        summary: d.summary.clone(),
+                        soc_init: d.soc_init,
+                        plots: d.plots.clone(),
+                        report_error: self.report_error.clone(),
+                        text: d.text.clone(),
+                        drones: Vec::new(),
+                    },
+                )
+            })
+            .collect()
     }
 }
 
@@ -72,6 +143,9 @@ pub fn run_scenario(
     opts: &LaunchOptions,
     draw: bool,
 ) -> Result<RunOutcome, LaunchError> {
+    if !scenario.platforms.is_empty() {
+        return swarm::run_swarm(scenario, bins, out, opts, draw);
+    }
     let status = launch(scenario, bins, out, opts)?;
     let summary = report::read_summary(out);
     let power: Vec<report::PowerRow> =
@@ -117,5 +191,6 @@ pub fn run_scenario(
         plots,
         report_error,
         text,
+        drones: Vec::new(),
     })
 }

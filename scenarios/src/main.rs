@@ -2,8 +2,13 @@
 //!
 //! - `cosim run [SCENARIO] [--out DIR] [--set KEY=VALUE]...`
 //! - `cosim sweep SCENARIO --param KEY=V1,V2,... [--jobs N]`
+//! - `cosim sweep SCENARIO --plan`, `cosim sweep SCENARIO --shard K/N [--out DIR]`,
+//!   `cosim sweep --merge DIR... --out DIR` (a sweep across machines)
 //! - `cosim replay TRACE --socket PATH [--frames DIR]`
 //! - `cosim trace show TRACE`, `cosim trace-check TRACE [--world-cmd CMD]`
+//! - `cosim world SCENARIO --listen tcp:HOST:PORT`, `cosim run SCENARIO
+//!   --world-endpoint tcp:HOST:PORT` (a platform and its world on two hosts)
+//! - `cosim bench swarm [--sizes 1,2,4,8]`
 //! - `cosim list`
 
 use std::path::{Path, PathBuf};
@@ -14,7 +19,7 @@ use anyhow::{bail, Context};
 use clap::{Args, Parser, Subcommand};
 use scenarios::launch::LaunchOptions;
 use scenarios::scenario::{find_repo_file, resolve_scenario, SCENARIO_KEYS};
-use scenarios::sweep::{self, Param};
+use scenarios::sweep::{self, Param, Plan, Shard};
 use scenarios::tracetool;
 use scenarios::{run_scenario, Binaries, Scenario};
 use world_server::replay::{self, ReplayOptions};
@@ -95,11 +100,46 @@ enum Cmd {
         /// Do not echo the two programs' logs (cosim.log still has them).
         #[arg(long, short)]
         quiet: bool,
+        /// Use a world that is already running, e.g. on another host
+        /// (`cosim world SCENARIO --listen tcp:0.0.0.0:PORT` there): only
+        /// sim-core is started, connecting to tcp:HOST:PORT (or unix:PATH).
+        #[arg(long, value_name = "ENDPOINT", conflicts_with = "world_cmd")]
+        world_endpoint: Option<protocol::Endpoint>,
     },
-    /// Runs every combination of parameter values, in parallel.
+    /// Serves the world of a scenario on an endpoint, for one platform run
+    /// elsewhere with `cosim run SCENARIO --world-endpoint ...`; exits after
+    /// the run's STOP.
+    World {
+        /// A scenario file or a name in scenarios/ (default: thesis-race).
+        scenario: Option<String>,
+        /// Where to listen: tcp:HOST:PORT (tcp:0.0.0.0:7000 for any
+        /// interface; the protocol has no authentication: a trusted network
+        /// only) or unix:PATH.
+        #[arg(long, value_name = "ENDPOINT")]
+        listen: protocol::Endpoint,
+        /// Output directory for trajectory.csv and world.trace (default: out/<scenario>-world).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Overrides a scenario key (repeatable), as on the platform's side.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// No world.trace.
+        #[arg(long)]
+        no_trace: bool,
+        /// Keep the camera pixels in the trace.
+        #[arg(long)]
+        trace_images: bool,
+        /// Write every camera frame as a PNG into OUT/frames.
+        #[arg(long)]
+        frames: bool,
+    },
+    /// Runs every combination of parameter values, in parallel; or prints
+    /// them (--plan), runs one shard of them (--shard) or merges shards
+    /// (--merge): a sweep across machines (docs/COSIM.md).
     Sweep {
-        /// A scenario file or a name in scenarios/.
-        scenario: String,
+        /// A scenario file or a name in scenarios/ (none with --merge).
+        #[arg(required_unless_present = "merge")]
+        scenario: Option<String>,
         /// KEY=V1,V2,... (repeatable; default: the scenario's [sweep] table).
         #[arg(long, value_name = "KEY=V1,V2,...")]
         param: Vec<String>,
@@ -109,6 +149,18 @@ enum Cmd {
         /// Output directory (default: out/<scenario>-sweep).
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Prints the runs, one a line (`NUMBER key=value...`), and exits.
+        #[arg(long, conflicts_with = "merge")]
+        plan: bool,
+        /// Runs only the runs whose number is ≡ K (mod N), 1 <= K <= N, into
+        /// OUT's run directories (no table: `--merge` makes it).
+        #[arg(long, value_name = "K/N", conflicts_with = "merge")]
+        shard: Option<Shard>,
+        /// Merges the runs under these directories (shard outputs) into
+        /// OUT: the table and plots of the whole sweep.
+        #[arg(long, value_name = "DIR", num_args = 1.., requires = "out",
+              conflicts_with_all = ["scenario", "param"])]
+        merge: Vec<PathBuf>,
         #[command(flatten)]
         run: RunArgs,
     },
@@ -116,6 +168,10 @@ enum Cmd {
     Replay {
         /// A trace (world.trace or platform.trace of a run).
         trace: PathBuf,
+        /// In a world trace of several drones: the drone whose frames are
+        /// served (to `sim-core --drone NAME`).
+        #[arg(long, value_name = "NAME")]
+        drone: Option<String>,
         /// UNIX socket to listen on.
         #[arg(long, value_name = "PATH")]
         socket: PathBuf,
@@ -147,6 +203,31 @@ enum Cmd {
     },
     /// Lists the scenarios shipped in scenarios/.
     List,
+    /// Measurements (not tests): what a run costs.
+    Bench {
+        #[command(subcommand)]
+        what: BenchCmd,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+enum BenchCmd {
+    /// Real-time factor of N drones hovering 60 s (scenarios swarm-hover-N),
+    /// run one after the other.
+    Swarm {
+        /// Swarm sizes (scenarios swarm-hover-N must exist).
+        #[arg(long, value_delimiter = ',', default_values_t = scenarios::swarm::bench::SIZES)]
+        sizes: Vec<usize>,
+        /// Output directory (default: out/bench-swarm).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Overrides a scenario or run key of every run (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Runs per size; the table keeps the fastest (others' load only slows).
+        #[arg(long, default_value_t = 1)]
+        repeat: usize,
+    },
 }
 
 #[derive(Subcommand, Debug)]
@@ -157,6 +238,9 @@ enum TraceCmd {
         /// Only this command.
         #[arg(long, value_name = "COMMAND")]
         command: Option<String>,
+        /// Only this drone's frames (a world trace of several drones).
+        #[arg(long, value_name = "NAME")]
+        drone: Option<String>,
         /// At most N lines.
         #[arg(long, value_name = "N")]
         limit: Option<usize>,
@@ -190,6 +274,7 @@ fn launch_options(run: &RunArgs, echo: bool) -> anyhow::Result<LaunchOptions> {
         timeout,
         sim_core_args: Vec::new(),
         world_cmd: run.world_cmd.clone(),
+        world_endpoint: None,
     })
 }
 
@@ -199,14 +284,31 @@ fn cmd_run(
     run: RunArgs,
     no_plots: bool,
     quiet: bool,
+    world_endpoint: Option<protocol::Endpoint>,
     bins: BinArgs,
 ) -> anyhow::Result<ExitCode> {
     let s = load_scenario(scenario.as_deref(), &run.set)?;
     let out = out.unwrap_or_else(|| Path::new("out").join(&s.name));
     let bins = bins.locate()?;
     eprintln!("cosim: {} — {} -> {}", s.name, s.description, out.display());
-    let o = run_scenario(&s, &bins, &out, &launch_options(&run, !quiet)?, !no_plots)?;
+    let opts = LaunchOptions {
+        world_endpoint: world_endpoint.clone(),
+        ..launch_options(&run, !quiet)?
+    };
+    let o = run_scenario(&s, &bins, &out, &opts, !no_plots)?;
     println!("{}", o.text);
+    // A world started by hand elsewhere may not be this scenario's: the
+    // platform learns the world's timestep in GET_INIT_DATA, so a mismatch
+    // shows in the summary.
+    if let (Some(ep), Some(sum)) = (&world_endpoint, &o.summary) {
+        if sum.timestep_ms != s.timestep_ms {
+            eprintln!(
+                "cosim: the world at {ep} ran at {} ms, the scenario says {} ms: start it with `cosim world {} --listen ...` and the same --set",
+                sum.timestep_ms, s.timestep_ms, s.name
+            );
+            return Ok(ExitCode::FAILURE);
+        }
+    }
     Ok(if o.ok() {
         ExitCode::SUCCESS
     } else {
@@ -214,16 +316,87 @@ fn cmd_run(
     })
 }
 
-fn cmd_sweep(
-    scenario: String,
+struct WorldArgs {
+    scenario: Option<String>,
+    listen: protocol::Endpoint,
+    out: Option<PathBuf>,
+    set: Vec<String>,
+    no_trace: bool,
+    trace_images: bool,
+    frames: bool,
+}
+
+fn cmd_world(a: WorldArgs, bins: BinArgs) -> anyhow::Result<ExitCode> {
+    let s = load_scenario(a.scenario.as_deref(), &a.set)?;
+    let out = a
+        .out
+        .unwrap_or_else(|| Path::new("out").join(format!("{}-world", s.name)));
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    let bins = bins.locate()?;
+    let opts = LaunchOptions {
+        traces: !a.no_trace,
+        trace_images: a.trace_images,
+        frames: a.frames,
+        ..LaunchOptions::default()
+    };
+    let mut cmd = scenarios::launch::world_command(&s, &bins, &a.listen, &out, &opts)?;
+    // What the platform's host connects to: this host's name in place of
+    // an any-interface address.
+    let connect = match &a.listen {
+        protocol::Endpoint::Tcp(addr) => match addr.rsplit_once(':') {
+            Some((host, port)) if ["0.0.0.0", "[::]", "::"].contains(&host) => {
+                format!("tcp:THIS-HOST:{port}")
+            }
+            _ => a.listen.to_string(),
+        },
+        unix => unix.to_string(),
+    };
+    eprintln!(
+        "cosim world: {} ({} ms) on {}, outputs in {}; on the platform's host: cosim run {}{} --world-endpoint {connect}",
+        s.name,
+        s.timestep_ms,
+        a.listen,
+        out.display(),
+        s.name,
+        s.overrides
+            .iter()
+            .map(|(k, v)| format!(" --set {k}={v}"))
+            .collect::<String>(),
+    );
+    let status = cmd
+        .status()
+        .with_context(|| format!("cannot start {}", bins.world_server.display()))?;
+    Ok(if status.success() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
+struct SweepArgs {
+    scenario: Option<String>,
     param: Vec<String>,
     jobs: usize,
     out: Option<PathBuf>,
+    plan: bool,
+    shard: Option<Shard>,
+    merge: Vec<PathBuf>,
     run: RunArgs,
-    bins: BinArgs,
-) -> anyhow::Result<ExitCode> {
-    let s = load_scenario(Some(&scenario), &run.set)?;
-    let params: Vec<Param> = if param.is_empty() {
+}
+
+fn cmd_sweep(a: SweepArgs, bins: BinArgs) -> anyhow::Result<ExitCode> {
+    if !a.merge.is_empty() {
+        if !a.run.set.is_empty() {
+            bail!("--merge takes no --set: the settings are in the runs' records");
+        }
+        let out = a.out.context("--merge needs --out DIR")?;
+        return cmd_merge(&a.merge, &out);
+    }
+    let scenario = a
+        .scenario
+        .context("a scenario is needed (or --merge DIR...)")?;
+    let s = load_scenario(Some(&scenario), &a.run.set)?;
+    let params: Vec<Param> = if a.param.is_empty() {
         s.sweep
             .iter()
             .map(|(k, v)| Param {
@@ -232,19 +405,76 @@ fn cmd_sweep(
             })
             .collect()
     } else {
-        param.iter().map(|p| p.parse()).collect::<Result<_, _>>()?
+        a.param
+            .iter()
+            .map(|p| p.parse())
+            .collect::<Result<_, _>>()?
     };
-    let out = out.unwrap_or_else(|| Path::new("out").join(format!("{}-sweep", s.name)));
+    let plan = Plan::new(&s, &params)?;
+    if a.plan {
+        print!("{}", plan.listing(a.shard));
+        return Ok(ExitCode::SUCCESS);
+    }
+    let out = a
+        .out
+        .unwrap_or_else(|| Path::new("out").join(format!("{}-sweep", s.name)));
+    if let Some(shard) = a.shard {
+        if plan.select(Some(shard)).is_empty() {
+            println!("shard {shard}: no runs (the sweep has {})", plan.runs.len());
+            return Ok(ExitCode::SUCCESS);
+        }
+    }
     let bins = bins.locate()?;
-    let opts = launch_options(&run, false)?;
-    let rows = sweep::run_sweep(&s, &params, &bins, &out, jobs, &opts)?;
+    let opts = launch_options(&a.run, false)?;
+    let rows = sweep::run_planned(&plan, a.shard, &bins, &out, a.jobs, &opts)?;
+    let failed = rows.iter().filter(|r| r.error.is_some()).count();
+    match a.shard {
+        None => {
+            let md = std::fs::read_to_string(out.join(sweep::files::MARKDOWN))
+                .context("reading the sweep table back")?;
+            println!("{md}");
+            println!(
+                "{} runs, {} failed; table {} and {}; plots in {}",
+                rows.len(),
+                failed,
+                out.join(sweep::files::MARKDOWN).display(),
+                out.join(sweep::files::CSV).display(),
+                out.display()
+            );
+        }
+        Some(shard) => {
+            let (header, table) = sweep::table(&plan.id.params, &rows);
+            println!("{}", sweep::markdown(&header, &table));
+            println!(
+                "shard {shard}: {} of {} runs, {} failed, in {}; once every shard is done: cosim sweep --merge {} --out {}",
+                rows.len(),
+                plan.runs.len(),
+                failed,
+                out.display(),
+                out.display(),
+                out.display()
+            );
+        }
+    }
+    Ok(if failed == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
+fn cmd_merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<ExitCode> {
+    let merged = sweep::merge(dirs, out)?;
     let md = std::fs::read_to_string(out.join(sweep::files::MARKDOWN))
         .context("reading the sweep table back")?;
     println!("{md}");
-    let failed = rows.iter().filter(|r| r.error.is_some()).count();
+    let failed = merged.rows.iter().filter(|r| r.error.is_some()).count();
     println!(
-        "{} runs, {} failed; table {} and {}; plots in {}",
-        rows.len(),
+        "{}: {} runs merged from {} director{}, {} failed; table {} and {}; plots in {}",
+        merged.id.scenario,
+        merged.rows.len(),
+        dirs.len(),
+        if dirs.len() == 1 { "y" } else { "ies" },
         failed,
         out.join(sweep::files::MARKDOWN).display(),
         out.join(sweep::files::CSV).display(),
@@ -259,6 +489,7 @@ fn cmd_sweep(
 
 fn cmd_replay(
     trace: PathBuf,
+    drone: Option<String>,
     socket: PathBuf,
     frames: Option<PathBuf>,
     tolerance: f64,
@@ -266,6 +497,38 @@ fn cmd_replay(
     if !(tolerance.is_finite() && tolerance >= 0.0) {
         bail!("--tolerance must be a number >= 0");
     }
+    // One drone of a world trace of several: its lines, byte for byte, in
+    // a file of their own (the replay serves one platform).
+    let scratch = tempfile::tempdir().context("cannot create a scratch directory")?;
+    let trace = match drone {
+        None => {
+            let drones = tracetool::trace_drones(&tracetool::read_trace(&trace)?);
+            if !drones.is_empty() {
+                bail!(
+                    "{} holds the frames of several drones ({}); pick one with --drone NAME",
+                    trace.display(),
+                    drones.join(", ")
+                );
+            }
+            trace
+        }
+        Some(d) => {
+            let dest = scratch.path().join("drone.trace");
+            if tracetool::extract_drone(&trace, &d, &dest)? == 0 {
+                let drones = tracetool::trace_drones(&tracetool::read_trace(&trace)?);
+                bail!(
+                    "{} has no frames of drone {d:?} (drones: {})",
+                    trace.display(),
+                    if drones.is_empty() {
+                        "none named: a trace of one drone needs no --drone".to_string()
+                    } else {
+                        drones.join(", ")
+                    }
+                );
+            }
+            dest
+        }
+    };
     let ok = replay::replay_and_report(
         &trace,
         &protocol::Endpoint::Unix(socket),
@@ -286,12 +549,18 @@ fn cmd_trace_check(
     bins: BinArgs,
 ) -> anyhow::Result<ExitCode> {
     let records = tracetool::read_trace(&trace)?;
+    let drones = tracetool::trace_drones(&records);
     let cmd = match world_cmd {
         Some(c) => c,
         None => {
             let ws = bins.locate()?.world_server;
             let world = match world {
                 Some(w) => w,
+                None if !drones.is_empty() => bail!(
+                    "{} is a trace of several drones ({}): pass --world with the world file it was recorded in",
+                    trace.display(),
+                    drones.join(", ")
+                ),
                 None => find_repo_file("scenarios/worlds/thesis-course.toml")
                     .context("the default world scenarios/worlds/thesis-course.toml was not found; pass --world")?,
             };
@@ -304,7 +573,7 @@ fn cmd_trace_check(
         }
     };
     let proc_ = tracetool::start_world(&cmd)?;
-    let report = tracetool::check(
+    let report = tracetool::check_drones(
         &records,
         &proc_.endpoint,
         tolerance,
@@ -326,6 +595,39 @@ fn cmd_trace_check(
             Ok(ExitCode::FAILURE)
         }
     }
+}
+
+fn cmd_bench_swarm(
+    sizes: Vec<usize>,
+    out: Option<PathBuf>,
+    set: Vec<String>,
+    repeat: usize,
+    bins: BinArgs,
+) -> anyhow::Result<ExitCode> {
+    if sizes.is_empty() || sizes.contains(&0) {
+        bail!("--sizes: expected swarm sizes >= 1, e.g. 1,2,4,8");
+    }
+    if repeat == 0 {
+        bail!("--repeat: expected at least 1 run per size");
+    }
+    let out = out.unwrap_or_else(|| Path::new("out").join("bench-swarm"));
+    let bins = bins.locate()?;
+    let opts = LaunchOptions {
+        echo: false,
+        ..LaunchOptions::default()
+    };
+    let rows =
+        scenarios::swarm::bench::bench_swarm(&sizes, &bins, &out, &set, repeat, &opts, |m| {
+            eprintln!("cosim bench: {m}")
+        })?;
+    let (header, cells) = scenarios::swarm::bench::table(&rows);
+    println!("{}", scenarios::swarm::bench::markdown(&header, &cells));
+    println!("table: {}", out.join("bench.md").display());
+    Ok(if rows.iter().all(|r| r.completed) {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
 }
 
 fn cmd_list() -> anyhow::Result<ExitCode> {
@@ -370,31 +672,72 @@ fn main() -> ExitCode {
             run,
             no_plots,
             quiet,
-        } => cmd_run(scenario, out, run, no_plots, quiet, bins),
+            world_endpoint,
+        } => cmd_run(scenario, out, run, no_plots, quiet, world_endpoint, bins),
+        Cmd::World {
+            scenario,
+            listen,
+            out,
+            set,
+            no_trace,
+            trace_images,
+            frames,
+        } => cmd_world(
+            WorldArgs {
+                scenario,
+                listen,
+                out,
+                set,
+                no_trace,
+                trace_images,
+                frames,
+            },
+            bins,
+        ),
         Cmd::Sweep {
             scenario,
             param,
             jobs,
             out,
+            plan,
+            shard,
+            merge,
             run,
-        } => cmd_sweep(scenario, param, jobs, out, run, bins),
+        } => cmd_sweep(
+            SweepArgs {
+                scenario,
+                param,
+                jobs,
+                out,
+                plan,
+                shard,
+                merge,
+                run,
+            },
+            bins,
+        ),
         Cmd::Replay {
             trace,
+            drone,
             socket,
             frames,
             tolerance,
-        } => cmd_replay(trace, socket, frames, tolerance),
+        } => cmd_replay(trace, drone, socket, frames, tolerance),
         Cmd::Trace {
             what:
                 TraceCmd::Show {
                     trace,
                     command,
+                    drone,
                     limit,
                     full,
                 },
         } => tracetool::read_trace(&trace)
             .map(|r| {
-                print!("{}", tracetool::show(&r, command.as_deref(), limit, full));
+                print!(
+                    "{}",
+                    tracetool::show(&r, command.as_deref(), drone.as_deref(), limit, full)
+                );
                 ExitCode::SUCCESS
             })
             .map_err(Into::into),
@@ -405,6 +748,15 @@ fn main() -> ExitCode {
             tolerance,
         } => cmd_trace_check(trace, world_cmd, world, tolerance, bins),
         Cmd::List => cmd_list(),
+        Cmd::Bench {
+            what:
+                BenchCmd::Swarm {
+                    sizes,
+                    out,
+                    set,
+                    repeat,
+                },
+        } => cmd_bench_swarm(sizes, out, set, repeat, bins),
     };
     match result {
         Ok(code) => code,

@@ -27,11 +27,11 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
-const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
 /// plotters draws text only with a registered font; the DejaVu font ships
 /// in the crate so the plots look the same on every machine.
-fn fonts() {
+pub(crate) fn fonts() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         let bytes: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");
@@ -44,7 +44,7 @@ fn fonts() {
     });
 }
 
-fn err(path: &Path, e: impl std::fmt::Display) -> PlotError {
+pub(crate) fn err(path: &Path, e: impl std::fmt::Display) -> PlotError {
     PlotError {
         path: path.display().to_string(),
         message: e.to_string(),
@@ -80,7 +80,7 @@ pub fn decimate(points: &[(f64, f64)], max: usize) -> Vec<(f64, f64)> {
 }
 
 /// Range of the values with a margin (a flat series gets a visible band).
-fn span(values: impl Iterator<Item = f64>, margin: f64) -> (f64, f64) {
+pub(crate) fn span(values: impl Iterator<Item = f64>, margin: f64) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for v in values.filter(|v| v.is_finite()) {
         lo = lo.min(v);
@@ -93,7 +93,7 @@ fn span(values: impl Iterator<Item = f64>, margin: f64) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-const PALETTE: [RGBColor; 8] = [
+pub(crate) const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
@@ -205,7 +205,7 @@ pub fn overlay(
 }
 
 /// The four corners of a rectangle of size (sx, sy) centred at c, turned by yaw.
-fn rect(c: [f64; 3], sx: f64, sy: f64, yaw: f64) -> Vec<(f64, f64)> {
+pub(crate) fn rect(c: [f64; 3], sx: f64, sy: f64, yaw: f64) -> Vec<(f64, f64)> {
     let (s, k) = yaw.sin_cos();
     [
         (-1.0, -1.0),

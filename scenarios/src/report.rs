@@ -100,8 +100,9 @@ pub fn initial_soc(power: &[PowerRow]) -> f64 {
     power.first().map_or(1.0, |r| r.soc)
 }
 
-/// Draws the three plots of a run into `out`; returns their paths.
-pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, ReportError> {
+/// The platform's two plots (Fig. 5.5): the three models' power, and the
+/// battery's SOC and voltage, from the CSVs in `out`.
+pub fn draw_power_plots(scenario: &Scenario, out: &Path) -> Result<[PathBuf; 2], ReportError> {
     let power: Vec<PowerRow> = read_csv(&out.join(POWER_CSV))?;
     let mut charts = Vec::new();
     for kind in PowerModelKind::ALL {
@@ -157,6 +158,12 @@ pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, R
         ],
         false,
     )?;
+    Ok([power_png, battery_png])
+}
+
+/// Draws the three plots of a run into `out`; returns their paths.
+pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, ReportError> {
+    let [power_png, battery_png] = draw_power_plots(scenario, out)?;
 
     let traj_path = out.join(files::TRAJECTORY);
     if !traj_path.exists() {

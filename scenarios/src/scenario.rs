@@ -13,6 +13,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sim_core::config::{RunConfig, RUN_KEYS};
 
+use crate::swarm::platforms::resolve_platforms;
+pub use crate::swarm::platforms::{PlatformSpec, PlatformTable, RADIO_ID_KEY};
+
 /// Why a scenario cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
@@ -40,6 +43,12 @@ pub enum ScenarioError {
     },
     #[error("{what} {path} does not exist")]
     Missing { what: &'static str, path: PathBuf },
+    #[error("platform for drone {drone:?}: {what} {path} does not exist")]
+    PlatformMissing {
+        drone: String,
+        what: &'static str,
+        path: PathBuf,
+    },
 }
 
 /// A scenario file as written.
@@ -51,17 +60,23 @@ pub struct ScenarioFile {
     pub description: String,
     /// World file (TOML, `scenarios/worlds/`).
     pub world: PathBuf,
-    /// Firmware ELF the platform runs.
-    pub firmware: PathBuf,
+    /// Firmware ELF the platform runs (with `[[platform]]` tables: the
+    /// default of the platforms that name none).
+    #[serde(default)]
+    pub firmware: Option<PathBuf>,
     /// basicTimeStep in ms (DESIGN.md §3: 8, 16, 24, 32 …).
     #[serde(default = "default_timestep")]
     pub timestep_ms: u64,
     /// Physics steps per basicTimeStep.
     #[serde(default = "default_substeps")]
     pub substeps: u32,
-    /// Platform file (MESSY JSON); absent = the embedded Crazyflie.
+    /// A string: the platform file (MESSY JSON; absent = the embedded
+    /// Crazyflie). An array of tables (`[[platform]]`): the platforms of a
+    /// scenario with several drones ([`PlatformTable`]). TOML has one key
+    /// for both; with `[[platform]]` a platform file is the run key
+    /// `platform` (in `[run]` or a platform's `run` table).
     #[serde(default)]
-    pub platform: Option<PathBuf>,
+    pub platform: Option<toml::Value>,
     /// Gives up after this many simulated seconds (a run that never ends).
     #[serde(default)]
     pub max_time_s: Option<f64>,
@@ -122,9 +137,12 @@ pub struct Scenario {
     pub overrides: Vec<(String, String)>,
     /// Default sweep parameters, values in text form.
     pub sweep: Vec<(String, Vec<String>)>,
+    /// `[[platform]]` tables in file order: empty for a scenario with one
+    /// drone (the thesis's; then `firmware` and `run` are the platform's).
+    pub platforms: Vec<PlatformSpec>,
 }
 
-fn value_text(v: &toml::Value) -> Result<String, String> {
+pub(crate) fn value_text(v: &toml::Value) -> Result<String, String> {
     match v {
         toml::Value::String(s) => Ok(s.clone()),
         toml::Value::Integer(i) => Ok(i.to_string()),
@@ -137,8 +155,29 @@ fn value_text(v: &toml::Value) -> Result<String, String> {
     }
 }
 
-fn is_run_key(key: &str) -> bool {
+pub(crate) fn is_run_key(key: &str) -> bool {
     RUN_KEYS.iter().any(|(k, _)| *k == key)
+}
+
+/// Applies a `run` table of the file (`what` names it in errors); a
+/// `platform` file is relative to the scenario file like the other paths.
+pub(crate) fn apply_run_table(
+    run: &mut RunConfig,
+    table: &BTreeMap<String, toml::Value>,
+    base: &Path,
+    what: &str,
+) -> Result<(), String> {
+    for (key, value) in table {
+        let text = value_text(value).map_err(|m| format!("{what}.{key}: {m}"))?;
+        let text = if key == "platform" {
+            base.join(&text).display().to_string()
+        } else {
+            text
+        };
+        run.set(key, &text)
+            .map_err(|e| format!("{what}.{key}: {e}"))?;
+    }
+    Ok(())
 }
 
 impl Scenario {
@@ -161,20 +200,35 @@ impl Scenario {
             .map_err(|e| invalid(e.to_string().trim_end().replace('\n', " ")))?;
         let base = path.parent().unwrap_or(Path::new("."));
         let mut run = RunConfig::default();
-        for (key, value) in &file.run {
-            let text = value_text(value).map_err(|m| invalid(format!("run.{key}: {m}")))?;
-            // `platform` is a path: relative to the scenario file like the others.
-            let text = if key == "platform" {
-                base.join(&text).display().to_string()
-            } else {
-                text
-            };
-            run.set(key, &text)
-                .map_err(|e| invalid(format!("run.{key}: {e}")))?;
-        }
-        if let Some(p) = &file.platform {
-            run.platform = Some(base.join(p));
-        }
+        apply_run_table(&mut run, &file.run, base, "run").map_err(invalid)?;
+        let tables = match &file.platform {
+            None => Vec::new(),
+            Some(toml::Value::String(p)) => {
+                run.platform = Some(base.join(p));
+                Vec::new()
+            }
+            Some(v @ toml::Value::Array(_)) => {
+                v.clone().try_into::<Vec<PlatformTable>>().map_err(|e| {
+                    invalid(format!(
+                        "[[platform]]: {}",
+                        e.to_string().trim_end().replace('\n', " ")
+                    ))
+                })?
+            }
+            Some(other) => {
+                return Err(invalid(format!(
+                "platform: expected a platform file (a string) or [[platform]] tables, got a {}",
+                other.type_str()
+            )))
+            }
+        };
+        let platforms = resolve_platforms(&tables, &run, &file, base).map_err(invalid)?;
+        let firmware = match (&file.firmware, platforms.first()) {
+            (Some(f), _) => base.join(f),
+            // Unused with [[platform]]: every platform has its own.
+            (None, Some(p)) => p.firmware.clone(),
+            (None, None) => return Err(invalid("missing field `firmware`".into())),
+        };
         let mut sweep = Vec::new();
         for (key, values) in &file.sweep {
             let texts = values
@@ -192,7 +246,7 @@ impl Scenario {
             path: path.to_path_buf(),
             description: file.description,
             world: base.join(&file.world),
-            firmware: base.join(&file.firmware),
+            firmware,
             timestep_ms: file.timestep_ms,
             substeps: file.substeps,
             max_time_s: file.max_time_s,
@@ -201,6 +255,7 @@ impl Scenario {
             run,
             overrides: Vec::new(),
             sweep,
+            platforms,
         };
         s.set_scenario_key("image_encoding", &file.image_encoding)
             .and_then(|_| s.set_scenario_key("timestep_ms", &file.timestep_ms.to_string()))
@@ -211,7 +266,8 @@ impl Scenario {
                 .map_err(|e| invalid(e.to_string()))?;
         }
         for (key, _) in &s.sweep {
-            if !is_run_key(key) && !SCENARIO_KEYS.iter().any(|(k, _)| k == key) {
+            let key = s.platform_key(key).map_or(key.as_str(), |(_, k)| k);
+            if !is_run_key(key) && !SCENARIO_KEYS.iter().any(|(k, _)| *k == key) {
                 return Err(invalid(format!("sweep.{key}: {}", unknown_key(key))));
             }
         }
@@ -219,11 +275,18 @@ impl Scenario {
     }
 
     /// Applies one `KEY=VALUE` (scenario key or run key; `run.KEY` also works).
+    /// With `[[platform]]` tables a run key or `firmware` applies to every
+    /// platform, and `DRONE.KEY=VALUE` (or `DRONE.run.KEY`) to one.
     pub fn set(&mut self, assignment: &str) -> Result<(), ScenarioError> {
         let (key, value) = assignment
             .split_once('=')
             .ok_or_else(|| ScenarioError::BadSet(assignment.to_string()))?;
         let (key, value) = (key.trim(), value.trim());
+        if let Some((i, k)) = self.platform_key(key) {
+            self.set_platform_key(i, k, value)?;
+            self.overrides.push((key.to_string(), value.to_string()));
+            return Ok(());
+        }
         let key = key.strip_prefix("run.").unwrap_or(key);
         if key.is_empty() {
             return Err(ScenarioError::BadSet(assignment.to_string()));
@@ -232,15 +295,31 @@ impl Scenario {
             if !is_run_key(key) {
                 return Err(unknown_key(key));
             }
-            self.run
-                .set(key, value)
-                .map_err(|e| ScenarioError::BadValue {
+            if key == RADIO_ID_KEY && !self.platforms.is_empty() {
+                return Err(ScenarioError::BadValue {
                     key: key.to_string(),
                     value: value.to_string(),
-                    reason: e.to_string(),
-                })?;
+                    reason:
+                        "one identifier for every radio; set it per platform (DRONE.radio_id=N)"
+                            .into(),
+                });
+            }
+            let bad = |e: sim_core::config::ConfigError| ScenarioError::BadValue {
+                key: key.to_string(),
+                value: value.to_string(),
+                reason: e.to_string(),
+            };
+            self.run.set(key, value).map_err(bad)?;
+            for p in &mut self.platforms {
+                p.run.set(key, value).map_err(bad)?;
+            }
         } else {
             self.set_scenario_key(key, value)?;
+            if key == "firmware" {
+                for p in &mut self.platforms {
+                    p.firmware = PathBuf::from(value);
+                }
+            }
         }
         self.overrides.push((key.to_string(), value.to_string()));
         Ok(())
@@ -282,10 +361,15 @@ impl Scenario {
     }
 
     /// Checks that every file the run needs exists.
+    /// With `[[platform]]` tables: every platform's firmware and platform
+    /// file, and the world's drones (each claimed by exactly one platform).
     pub fn check_files(&self) -> Result<(), ScenarioError> {
-        let mut files = vec![("world file", &self.world), ("firmware", &self.firmware)];
-        if let Some(p) = &self.run.platform {
-            files.push(("platform file", p));
+        let mut files = vec![("world file", &self.world)];
+        if self.platforms.is_empty() {
+            files.push(("firmware", &self.firmware));
+            if let Some(p) = &self.run.platform {
+                files.push(("platform file", p));
+            }
         }
         for (what, path) in files {
             if !path.is_file() {
@@ -295,20 +379,29 @@ impl Scenario {
                 });
             }
         }
+        for p in &self.platforms {
+            let mut files = vec![("firmware", &p.firmware)];
+            if let Some(f) = &p.run.platform {
+                files.push(("platform file", f));
+            }
+            for (what, path) in files {
+                if !path.is_file() {
+                    return Err(ScenarioError::PlatformMissing {
+                        drone: p.drone.clone(),
+                        what,
+                        path: path.clone(),
+                    });
+                }
+            }
+        }
+        if !self.platforms.is_empty() {
+            self.check_drones()?;
+        }
         Ok(())
-    }
-
-    /// A short label of the overrides (`battery=ufx250 timestep_ms=16`).
-    pub fn overrides_label(&self) -> String {
-        self.overrides
-            .iter()
-            .map(|(k, v)| format!("{k}={v}"))
-            .collect::<Vec<_>>()
-            .join(" ")
     }
 }
 
-fn unknown_key(key: &str) -> ScenarioError {
+pub(crate) fn unknown_key(key: &str) -> ScenarioError {
     ScenarioError::UnknownKey {
         key: key.to_string(),
         scenario: SCENARIO_KEYS.map(|(k, _)| k).join(", "),

@@ -96,16 +96,80 @@ pub fn format_record(r: &TraceRecord, full: bool) -> String {
             other => short_value(other),
         }
     };
+    // A world with several drones marks every line with its drone.
+    let drone = r
+        .drone
+        .as_deref()
+        .map_or(String::new(), |d| format!("[{d}] "));
     format!(
-        "{:>7} {clock} {arrow} {cmd:<13} {:>7} B  {fields}",
+        "{:>7} {clock} {arrow} {drone}{cmd:<13} {:>7} B  {fields}",
         r.seq, r.len
     )
+}
+
+/// The records of one drone (a world trace of several drones has a
+/// `"drone"` on every line; a platform's trace has none and is kept whole).
+pub fn only_drone(records: Vec<TraceRecord>, drone: &str) -> Vec<TraceRecord> {
+    if records.iter().all(|r| r.drone.is_none()) {
+        return records;
+    }
+    records
+        .into_iter()
+        .filter(|r| r.drone.as_deref() == Some(drone))
+        .collect()
+}
+
+/// The drones of a trace, in order of first appearance (empty for a trace
+/// of one drone).
+pub fn trace_drones(records: &[TraceRecord]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for r in records {
+        if let Some(d) = &r.drone {
+            if !out.contains(d) {
+                out.push(d.clone());
+            }
+        }
+    }
+    out
+}
+
+/// Writes the lines of `path` that belong to `drone` into `dest`, byte for
+/// byte (what `cosim replay --drone` serves to one platform). Returns how
+/// many lines were kept.
+pub fn extract_drone(path: &Path, drone: &str, dest: &Path) -> Result<usize, TraceToolError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| TraceToolError::Io(format!("{}: {e}", path.display())))?;
+    let mut kept = String::new();
+    let mut n = 0;
+    for (i, line) in text.lines().enumerate() {
+        let r: TraceRecord = match serde_json::from_str(line) {
+            Ok(r) => r,
+            // A cut last line (a writer that crashed) is left out, as the
+            // reader does.
+            Err(_) if i + 1 == text.lines().count() => break,
+            Err(e) => {
+                return Err(TraceToolError::Trace {
+                    path: path.to_path_buf(),
+                    message: format!("line {}: {e}", i + 1),
+                })
+            }
+        };
+        if r.drone.as_deref() == Some(drone) {
+            kept.push_str(line);
+            kept.push('\n');
+            n += 1;
+        }
+    }
+    std::fs::write(dest, kept)
+        .map_err(|e| TraceToolError::Io(format!("{}: {e}", dest.display())))?;
+    Ok(n)
 }
 
 /// `cosim trace show`: the listing, filtered by command, then totals.
 pub fn show(
     records: &[TraceRecord],
     command: Option<&str>,
+    drone: Option<&str>,
     limit: Option<usize>,
     full: bool,
 ) -> String {
@@ -114,6 +178,11 @@ pub fn show(
     let mut per_command: BTreeMap<(String, &'static str), (u64, u64)> = BTreeMap::new();
     for r in records {
         let cmd = r.command().unwrap_or("?").to_string();
+        if let (Some(want), Some(d)) = (drone, &r.drone) {
+            if want != d {
+                continue;
+            }
+        }
         let e = per_command
             .entry((cmd.clone(), r.dir.as_str()))
             .or_default();
@@ -246,6 +315,68 @@ pub fn trace_timestep(records: &[TraceRecord]) -> Option<u64> {
         .and_then(Value::as_u64)
 }
 
+/// [`check`] for a trace of several drones: one connection per drone, each
+/// sending its drone's requests in order from its own thread (the world's
+/// lockstep orders them as in the recording, docs/SWARM.md §2). The first
+/// difference is the one with the smallest sequence number: once a drone
+/// differs, the others see the world's ERROR after it.
+pub fn check_drones(
+    records: &[TraceRecord],
+    endpoint: &Endpoint,
+    tol: f64,
+    patience: Duration,
+) -> Result<CheckReport, TraceToolError> {
+    let drones = trace_drones(records);
+    if drones.is_empty() {
+        return check(records, endpoint, tol, patience);
+    }
+    let per: Vec<Vec<TraceRecord>> = drones
+        .iter()
+        .map(|d| only_drone(records.to_vec(), d))
+        .collect();
+    let results: Vec<Result<CheckReport, TraceToolError>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = per
+            .iter()
+            .map(|recs| scope.spawn(move || check(recs, endpoint, tol, patience)))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(TraceToolError::World("a check thread panicked".into()))
+                })
+            })
+            .collect()
+    });
+    let mut total = CheckReport {
+        requests: 0,
+        replies: 0,
+        first_difference: None,
+    };
+    let mut first_error = None;
+    for (d, r) in drones.iter().zip(results) {
+        match r {
+            Ok(r) => {
+                total.requests += r.requests;
+                total.replies += r.replies;
+                if let Some((seq, cmd, what)) = r.first_difference {
+                    if total.first_difference.as_ref().is_none_or(|f| seq < f.0) {
+                        total.first_difference = Some((seq, format!("{cmd} of {d}"), what));
+                    }
+                }
+            }
+            Err(e) => {
+                first_error.get_or_insert(TraceToolError::World(format!("drone {d}: {e}")));
+            }
+        }
+    }
+    match (first_error, &total.first_difference) {
+        // A difference explains why another drone's connection broke.
+        (Some(e), None) => Err(e),
+        _ => Ok(total),
+    }
+}
+
 /// Sends the trace's requests to the world at `endpoint` in order and
 /// compares every reply with the recorded one; stops at the first
 /// difference (after it the two worlds are in different states anyway).
@@ -331,6 +462,34 @@ mod tests {
         assert_eq!(d, "X: missing");
         let d = diff_json(&a, &json!({"command":"STOP","TIME":2.0,"X":1.0}), 1e-9).unwrap();
         assert!(d.starts_with("command: expected"), "{d}");
+    }
+
+    #[test]
+    fn a_drone_is_picked_out_of_a_world_trace_line_for_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("world.trace");
+        let lines = [
+            r#"{"seq":0,"dir":"to_world","len":2,"msg":{"command":"GET_INIT_DATA","drone":"A"},"world_ms":2000,"drone":"A"}"#,
+            r#"{"seq":1,"dir":"to_world","len":2,"msg":{"command":"GET_INIT_DATA","drone":"B"},"world_ms":2000,"drone":"B"}"#,
+            r#"{"seq":2,"dir":"to_platform","len":2,"msg":{"command":"GET_INIT_DATA","drone":"A"},"world_ms":2000,"drone":"A"}"#,
+        ];
+        std::fs::write(&p, lines.join("\n") + "\n").unwrap();
+        let records = read_trace(&p).unwrap();
+        assert_eq!(trace_drones(&records), ["A", "B"]);
+        let a = only_drone(records.clone(), "A");
+        assert_eq!(a.iter().map(|r| r.seq).collect::<Vec<_>>(), [0, 2]);
+        let dest = dir.path().join("a.trace");
+        assert_eq!(extract_drone(&p, "A", &dest).unwrap(), 2);
+        assert_eq!(
+            std::fs::read_to_string(&dest).unwrap(),
+            format!("{}\n{}\n", lines[0], lines[2])
+        );
+        let listing = show(&records, None, Some("B"), None, false);
+        assert!(
+            listing.contains("[B] GET_INIT_DATA") && !listing.contains("[A]"),
+            "{listing}"
+        );
+        assert!(listing.contains("-- 3 frames"), "{listing}");
     }
 
     #[test]

@@ -17,6 +17,7 @@ fn loads() -> Loads {
         core: CoreState::Running,
         camera: SensorState::Idle,
         stm32: SensorState::Read,
+        ..Loads::default()
     }
 }
 

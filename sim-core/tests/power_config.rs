@@ -181,6 +181,8 @@ fn non_default(key: &str) -> &'static str {
         "stolaroff_efficiency" => "0.7",
         "stolaroff_factor" => "3.5",
         "platform" => "/tmp/other.json",
+        // Above i64::MAX: the TOML round trip keeps it as text.
+        "radio_id" => "18446744073709551615",
         _ => panic!("a key without a test value: {key}"),
     }
 }
@@ -209,6 +211,7 @@ fn every_key_can_be_set_and_read_back() {
         c.platform.as_deref(),
         Some(std::path::Path::new("/tmp/other.json"))
     );
+    assert_eq!(c.radio_id, u64::MAX);
     // And the whole thing survives TOML.
     let back = RunConfig::from_toml_str(&c.to_toml(), "round trip").unwrap();
     assert_eq!(back, c);

@@ -30,6 +30,7 @@ fn flight_loads() -> Loads {
         core: CoreState::Running,
         camera: SensorState::Idle,
         stm32: SensorState::Read,
+        ..Loads::default()
     }
 }
 
@@ -159,7 +160,7 @@ fn a_battery_that_empties_stops_with_a_clear_error_and_valid_logs() {
         v["peripherals"]["harvesters"]["battery"]["soc_init"] = serde_json::json!(0.5);
     });
     let mut net = PowerNetwork::new(&platform, &RunConfig::default()).unwrap();
-    net.attach_logger(PowerLogger::create(dir.path()).unwrap());
+    net.attach_logger(PowerLogger::create(dir.path(), false).unwrap());
     let err = net
         .advance_to(Picos::from_ms(60_000), &flight_loads(), &hover_state())
         .unwrap_err();
@@ -189,7 +190,7 @@ fn logs_are_valid_csv_without_an_explicit_flush() {
     {
         let mut net =
             PowerNetwork::new(&PlatformConfig::default_crazyflie(), &RunConfig::default()).unwrap();
-        net.attach_logger(PowerLogger::create(dir.path()).unwrap());
+        net.attach_logger(PowerLogger::create(dir.path(), false).unwrap());
         net.advance_to(Picos::from_ms(250), &flight_loads(), &hover_state())
             .unwrap();
         // dropped here, as on an error path
@@ -212,7 +213,7 @@ fn a_panic_still_leaves_valid_logs() {
     let result = std::panic::catch_unwind(move || {
         let mut net =
             PowerNetwork::new(&PlatformConfig::default_crazyflie(), &RunConfig::default()).unwrap();
-        net.attach_logger(PowerLogger::create(&path).unwrap());
+        net.attach_logger(PowerLogger::create(&path, false).unwrap());
         net.advance_to(Picos::from_ms(40), &flight_loads(), &hover_state())
             .unwrap();
         panic!("simulated failure");

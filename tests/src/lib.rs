@@ -2,7 +2,7 @@
 //! binaries (`sim-core`, `world-server`, `cosim`) over real sockets.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 use std::sync::Mutex;
 
 /// The repository's root (the workspace).
@@ -82,4 +82,56 @@ pub fn wait_for_path(path: &Path, secs: u64) -> bool {
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
     true
+}
+
+/// The three binaries the `cosim` launcher drives, built for this test's
+/// profile; `cosim` is run from the repository's root with the other two
+/// named explicitly.
+pub struct CosimBins {
+    pub cosim: PathBuf,
+    pub sim_core: PathBuf,
+    pub world: PathBuf,
+}
+
+impl CosimBins {
+    pub fn new() -> CosimBins {
+        CosimBins {
+            cosim: binary("scenarios", "cosim"),
+            sim_core: binary("sim-core", "sim-core"),
+            world: binary("world-server", "world-server"),
+        }
+    }
+
+    /// `cosim ARGS --sim-core … --world-server …`, not started yet.
+    pub fn command(&self, args: &[&str]) -> Command {
+        let mut c = Command::new(&self.cosim);
+        c.args(args)
+            .arg("--sim-core")
+            .arg(&self.sim_core)
+            .arg("--world-server")
+            .arg(&self.world)
+            .current_dir(repo_root());
+        c
+    }
+
+    /// Runs `cosim ARGS` to the end.
+    pub fn cosim(&self, args: &[&str]) -> Output {
+        self.command(args).output().expect("run cosim")
+    }
+}
+
+impl Default for CosimBins {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// A finished process's status and output, for assertion messages.
+pub fn output_text(o: &Output) -> String {
+    format!(
+        "status {:?}\nstdout:\n{}\nstderr:\n{}",
+        o.status,
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
 }

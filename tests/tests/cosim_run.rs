@@ -5,48 +5,11 @@
 //! finds our world server identical to its own trace and finds a tampered
 //! reply.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::path::Path;
+use std::process::{Command, Stdio};
 
-use e2e_tests::{binary, repo_root};
+use e2e_tests::{output_text as text, repo_root, CosimBins as Bins};
 use serde_json::Value;
-
-struct Bins {
-    cosim: PathBuf,
-    sim_core: PathBuf,
-    world: PathBuf,
-}
-
-fn bins() -> Bins {
-    Bins {
-        cosim: binary("scenarios", "cosim"),
-        sim_core: binary("sim-core", "sim-core"),
-        world: binary("world-server", "world-server"),
-    }
-}
-
-impl Bins {
-    fn cosim(&self, args: &[&str]) -> Output {
-        Command::new(&self.cosim)
-            .args(args)
-            .arg("--sim-core")
-            .arg(&self.sim_core)
-            .arg("--world-server")
-            .arg(&self.world)
-            .current_dir(repo_root())
-            .output()
-            .expect("run cosim")
-    }
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "status {:?}\nstdout:\n{}\nstderr:\n{}",
-        o.status,
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 fn summary(dir: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
@@ -200,7 +163,7 @@ fn check_outputs(dir: &Path) {
 
 #[test]
 fn run_outputs_agree_repeat_bit_for_bit_and_replay() {
-    let b = bins();
+    let b = Bins::new();
     let tmp = tempfile::tempdir().unwrap();
     let a = tmp.path().join("a");
     let o = b.cosim(&[
@@ -349,7 +312,7 @@ fn run_outputs_agree_repeat_bit_for_bit_and_replay() {
 
 #[test]
 fn bad_input_is_one_clear_line() {
-    let b = bins();
+    let b = Bins::new();
     let tmp = tempfile::tempdir().unwrap();
     let cases: [(&[&str], &str); 4] = [
         (
@@ -399,7 +362,7 @@ fn bad_input_is_one_clear_line() {
 
 #[test]
 fn a_failed_run_is_a_row_of_the_sweep() {
-    let b = bins();
+    let b = Bins::new();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sweep");
     // max_time_s = 3 stops the platform long before the landing: a failed
@@ -434,7 +397,7 @@ fn a_failed_run_is_a_row_of_the_sweep() {
 
 #[test]
 fn list_shows_every_scenario_file_and_nothing_else() {
-    let b = bins();
+    let b = Bins::new();
     let out = Command::new(&b.cosim)
         .arg("list")
         .current_dir(repo_root())

@@ -71,6 +71,7 @@ fn python_world_from_the_docs_serves_a_session() {
         }) = c
             .request(&Request::GetInitData {
                 image_encoding: Some(enc),
+                drone: None,
             })
             .unwrap()
         else {
@@ -130,6 +131,7 @@ fn python_world_treats_a_bad_no_reply_command_as_fatal() {
     let mut c = connect(&w);
     c.request(&Request::GetInitData {
         image_encoding: None,
+        drone: None,
     })
     .unwrap();
     c.send(&Request::AdvanceTime { time: 10 }).unwrap();

@@ -158,6 +158,7 @@ fn timing_semantics_and_stop() {
     match conn
         .request(&Request::GetInitData {
             image_encoding: Some(ImageEncoding::Base64),
+            drone: None,
         })
         .unwrap()
     {
@@ -211,6 +212,7 @@ fn timing_semantics_and_stop() {
         Some(Reply::Stop {
             time_s,
             stop_time_ms,
+            ..
         }) => {
             assert_eq!(stop_time_ms, steps * 32);
             assert_eq!(time_s, (3024 + steps * 32) as f64 / 1000.0);
@@ -263,6 +265,7 @@ fn bad_input(body: &[u8]) -> (Option<String>, ExitStatus, String) {
     let mut conn = w.connect();
     conn.request(&Request::GetInitData {
         image_encoding: None,
+        drone: None,
     })
     .unwrap();
     conn.send_raw(body).unwrap();

@@ -64,15 +64,16 @@ fn steps(c: &mut Criterion) {
         // Hovering at 1 m among the gates, near gate 1.
         let h = hover_speed();
         w.teleport(
+            0,
             DVec3::new(-0.8, 1.0, 1.0),
             DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2),
         );
-        w.motors_mut().set_speeds_now([-h, h, -h, h]);
+        w.motors_mut(0).set_speeds_now([-h, h, -h, h]);
         g.bench_function(name, |b| {
             b.iter_custom(|iters| {
                 cpu_time(iters, || {
                     w.step();
-                    black_box(w.sensors());
+                    black_box(w.sensors(0));
                 })
             })
         });

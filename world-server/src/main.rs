@@ -2,10 +2,12 @@
 //!
 //! `world-server --socket PATH [--world FILE] [--timestep MS] [--substeps N]
 //! [--trace FILE] [--trace-images] [--frames-dir DIR] [--tcp HOST:PORT]
-//! [--trajectory FILE] [--replay TRACE [--replay-frames DIR]]`
+//! [--trajectory FILE] [--radio-log FILE] [--connect-timeout S]
+//! [--replay TRACE [--replay-frames DIR]]`
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Duration;
 
 use anyhow::{bail, Context};
 use clap::Parser;
@@ -42,9 +44,17 @@ struct Cli {
     /// Write every camera frame served as a PNG into this directory.
     #[arg(long, value_name = "DIR")]
     frames_dir: Option<PathBuf>,
-    /// Write one CSV row per world step (time, pose, velocities, motors, collisions).
+    /// Write one CSV row per world step (time, pose, velocities, motors, collisions);
+    /// with several drones one row per drone per step, with a `drone` column.
     #[arg(long, value_name = "FILE")]
     trajectory: Option<PathBuf>,
+    /// Write one CSV row per radio frame and receiver with its outcome.
+    #[arg(long, value_name = "FILE")]
+    radio_log: Option<PathBuf>,
+    /// Seconds to wait for every drone of the world file to be claimed by a
+    /// platform (wall time); then exit non-zero naming the unclaimed ones.
+    #[arg(long, value_name = "S", default_value_t = 60.0)]
+    connect_timeout: f64,
     /// Answer the platform from a recorded trace (world.trace or
     /// platform.trace of a run) instead of simulating; report the first
     /// request that differs from the recording (exit 1).
@@ -85,6 +95,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     if cli.substeps == 0 {
         bail!("--substeps must be at least 1");
     }
+    // Bounded so that Duration::from_secs_f64 cannot panic.
+    if !(cli.connect_timeout > 0.0 && cli.connect_timeout <= 1e9) {
+        bail!("--connect-timeout must be a number of seconds > 0");
+    }
     let endpoint = match (&cli.socket, &cli.tcp) {
         (_, Some(addr)) => format!("tcp:{addr}").parse::<Endpoint>()?,
         (Some(path), None) => Endpoint::Unix(path.clone()),
@@ -108,7 +122,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         None => default_world()?,
     };
     let world = WorldDesc::load(&world_path)?;
-    tracing::info!(world = %world_path.display(), gates = world.gates.len(), boxes = world.boxes.len(), "world loaded");
+    tracing::info!(world = %world_path.display(), drones = world.drones.len(), gates = world.gates.len(), boxes = world.boxes.len(), "world loaded");
     let cfg = ServerConfig {
         endpoint,
         world,
@@ -120,9 +134,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         trace_images: cli.trace_images,
         frames_dir: cli.frames_dir,
         trajectory: cli.trajectory,
+        radio_log: cli.radio_log,
+        connect_timeout: Duration::from_secs_f64(cli.connect_timeout),
     };
-    // One thread: the world is lockstep with one client, and a single thread
-    // keeps it deterministic and off the other cores.
+    // One thread: the drones' requests are processed one at a time in the
+    // lockstep's order anyway, and a single thread keeps the world off the
+    // cores the platforms need.
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()

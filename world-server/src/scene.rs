@@ -25,7 +25,13 @@ pub enum ObjectId {
     Gate(usize),
     /// Box `i` of the world file (0-based).
     Box(usize),
+    /// Drone `i` of the world file (0-based): another drone's hull.
+    Drone(usize),
 }
+
+/// Drones are tagged above every gate and box value (bit 64 set), so the
+/// gate/box packing stays what it was.
+const DRONE_TAG: u128 = 1 << 64;
 
 impl ObjectId {
     /// Packs the id into a collider's `user_data`.
@@ -34,12 +40,14 @@ impl ObjectId {
             ObjectId::Ground => 0,
             ObjectId::Gate(i) => 1 + 2 * i as u128,
             ObjectId::Box(i) => 2 + 2 * i as u128,
+            ObjectId::Drone(i) => DRONE_TAG | i as u128,
         }
     }
 
     pub fn from_user_data(d: u128) -> ObjectId {
         match d {
             0 => ObjectId::Ground,
+            d if d & DRONE_TAG != 0 => ObjectId::Drone((d & !DRONE_TAG) as usize),
             d if d % 2 == 1 => ObjectId::Gate(((d - 1) / 2) as usize),
             d => ObjectId::Box(((d - 2) / 2) as usize),
         }
@@ -108,6 +116,8 @@ mod tests {
             ObjectId::Gate(7),
             ObjectId::Box(0),
             ObjectId::Box(3),
+            ObjectId::Drone(0),
+            ObjectId::Drone(5),
         ] {
             assert_eq!(ObjectId::from_user_data(id.to_user_data()), id);
         }

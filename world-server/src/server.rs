@@ -1,34 +1,54 @@
-//! The server: the thesis's Webots controller (§4.4, Appendix E) on top of
-//! the protocol crate's tokio transport.
+//! The server: sockets around a [`Session`] (DESIGN.md §2, §7).
 //!
-//! [`Session`] answers one request at a time and knows nothing of sockets;
-//! [`serve`] binds, accepts one client, warms up and feeds it the requests.
-//! A replay of a trace (a later task) plugs in at [`Session::handle`]: feed
-//! it the trace's `to_world` messages and compare its replies with the
-//! trace's `to_platform` ones.
-//!
-//! Error policy: any request that cannot be served (bad JSON, unknown
-//! command, bad fields, ADVANCE_TIME not a multiple of the timestep, negative
-//! or NaN motor speeds) is answered with an ERROR frame, after which the
-//! world closes the connection and exits non-zero — for the no-reply commands
-//! DESIGN.md §2 requires it, and for the others the lockstep platform cannot
-//! continue after an ERROR either. A client that disconnects before STOP is
-//! an error too. Only STOP ends a run with exit status 0.
+//! 1. **Claims.** Connections are accepted on the one endpoint until every
+//!    drone of the world file is claimed. The first frame of a connection
+//!    claims a drone: with several drones it must be GET_INIT_DATA with
+//!    `"drone": NAME`; an unknown or already claimed name (or anything else)
+//!    gets ERROR and that connection is closed, and the world keeps waiting.
+//!    With one drone the first connection claims it whatever it sends first
+//!    (a thesis-era platform names no drone), unless it names another one.
+//!    Claims that do not arrive within `--connect-timeout` end the run,
+//!    naming the drones never claimed.
+//! 2. **Warm-up**, once, for all drones; then every connection's frames
+//!    are read as they come (one stream per connection, polled together on
+//!    the single-threaded runtime) and pushed into the session, which
+//!    processes them in the lockstep's canonical order. The world's trace is
+//!    written in that order (the frames' bytes as received and sent, with
+//!    `"drone"` when there are several), so two runs give the same trace
+//!    whatever the platforms' speeds.
+//! 3. **End.** After the last STOP reply: exit 0. A failure (a bad request,
+//!    a platform gone before its STOP): ERROR to the drone at fault (if it is
+//!    still connected) and `drone NAME: …` to every other platform, then the
+//!    world keeps reading (and discarding) until the platforms have closed
+//!    or [`DRAIN`] has passed, so that a platform's next request meets the
+//!    ERROR frame rather than a broken pipe; outputs are flushed and the run
+//!    fails.
 
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::path::PathBuf;
+use std::pin::Pin;
+use std::time::Duration;
 
-use futures::{SinkExt, StreamExt};
-use protocol::tokio_transport::Listener;
+use futures::stream::{self, FuturesUnordered, SelectAll};
+use futures::{Stream, StreamExt};
+use protocol::frame::{write_frame, DEFAULT_MAX_FRAME, HEADER_LEN};
+use protocol::tokio_transport::{FrameCodec, Listener};
 use protocol::trace::{TraceClock, TraceWriter};
-use protocol::{Endpoint, Image, ImageEncoding, Reply, Request, Sensors, State};
+use protocol::{
+    decode_request, encode_reply, Direction, Endpoint, FrameEvent, ImageEncoding, Reply, Request,
+};
+use tokio::io::AsyncWriteExt;
+use tokio::net::{tcp, unix};
+use tokio_util::codec::FramedRead;
+use tokio_util::either::Either;
 
-use crate::camera::{write_png, Camera};
-use crate::crazyflie::MotorCommands;
-use crate::physics::{StepConfig, World, WorldError};
-use crate::trajectory::TrajectoryWriter;
+use crate::physics::StepConfig;
+use crate::session::{Input, Outputs, Progress, Session, SessionError, SessionOutputs};
+use crate::time::Millis;
 use crate::world_file::WorldDesc;
+
+/// After a failure, how long the world keeps reading from platforms that
+/// have not closed yet (wall time), so they read the ERROR frame.
+pub const DRAIN: Duration = Duration::from_secs(5);
 
 /// Everything the command line configures.
 #[derive(Debug, Clone)]
@@ -40,6 +60,10 @@ pub struct ServerConfig {
     pub trace_images: bool,
     pub frames_dir: Option<PathBuf>,
     pub trajectory: Option<PathBuf>,
+    /// `--radio-log`: one CSV row per (frame, receiver).
+    pub radio_log: Option<PathBuf>,
+    /// How long to wait for every drone to be claimed (wall time).
+    pub connect_timeout: Duration,
 }
 
 /// Why a run failed.
@@ -48,13 +72,12 @@ pub enum ServerError {
     #[error(transparent)]
     Protocol(#[from] protocol::ProtocolError),
     #[error(transparent)]
-    World(#[from] WorldError),
-    #[error("bad request: {0}")]
-    BadRequest(String),
-    #[error("the client disconnected before STOP")]
-    Disconnected,
-    #[error("cannot write the trajectory: {0}")]
-    Trajectory(#[from] csv::Error),
+    Session(#[from] SessionError),
+    #[error(
+        "no platform claimed {} within {secs} s (--connect-timeout)",
+        describe_unclaimed(names)
+    )]
+    Unclaimed { names: Vec<String>, secs: f64 },
     #[error("cannot write {path}: {source}")]
     Output {
         path: PathBuf,
@@ -63,274 +86,51 @@ pub enum ServerError {
     },
 }
 
-/// What a request leads to.
-#[derive(Debug)]
-pub enum Outcome {
-    /// Send this reply and go on.
-    Reply(Reply),
-    /// SET_VELOCITY, ADVANCE_TIME: nothing to send.
-    NoReply,
-    /// STOP: send this reply, close, exit 0.
-    Stop(Reply),
-}
-
-/// The world serving one client.
-pub struct Session {
-    world: World,
-    camera: Camera,
-    trajectory: Option<TrajectoryWriter>,
-    trajectory_error: Option<csv::Error>,
-    frames_dir: Option<PathBuf>,
-    frames: u64,
-}
-
-impl Session {
-    /// Builds the world; no time passes yet.
-    pub fn new(
-        desc: &WorldDesc,
-        step: StepConfig,
-        trajectory: Option<&Path>,
-        frames_dir: Option<&Path>,
-    ) -> Result<Session, ServerError> {
-        let world = World::new(desc, step)?;
-        let camera = Camera::new(desc, world.scene_boxes());
-        let trajectory = trajectory
-            .map(TrajectoryWriter::create)
-            .transpose()
-            .map_err(ServerError::Trajectory)?;
-        if let Some(dir) = frames_dir {
-            std::fs::create_dir_all(dir).map_err(|source| ServerError::Output {
-                path: dir.to_path_buf(),
-                source,
-            })?;
-        }
-        Ok(Session {
-            world,
-            camera,
-            trajectory,
-            trajectory_error: None,
-            frames_dir: frames_dir.map(Path::to_path_buf),
-            frames: 0,
-        })
-    }
-
-    pub fn world(&self) -> &World {
-        &self.world
-    }
-
-    /// The thesis's 2000 ms warm-up at ±1 rad/s (before the first request).
-    pub fn warm_up(&mut self) -> Result<(), ServerError> {
-        let (traj, err) = (&mut self.trajectory, &mut self.trajectory_error);
-        self.world.warm_up(|w| record(traj, err, w));
-        self.take_trajectory_error()
-    }
-
-    /// Serves one request.
-    pub fn handle(&mut self, req: Request) -> Result<Outcome, ServerError> {
-        let out = match req {
-            Request::GetInitData { image_encoding } => {
-                let p = self.world.sensors().gps;
-                Outcome::Reply(Reply::InitData {
-                    x: p[0],
-                    y: p[1],
-                    z: p[2],
-                    time_s: self.world.time().as_secs_f64(),
-                    timestep_ms: self.world.config().timestep.0,
-                    image_encoding: image_encoding.unwrap_or(ImageEncoding::Array),
-                })
-            }
-            Request::GetSensors => Outcome::Reply(Reply::Sensors(self.sensors())),
-            Request::GetImage => Outcome::Reply(Reply::Image(self.image()?)),
-            Request::SetVelocity { m1, m2, m3, m4 } => {
-                self.world
-                    .set_motor_commands(MotorCommands([m1, m2, m3, m4]))?;
-                self.world.step();
-                self.record_step();
-                Outcome::NoReply
-            }
-            Request::AdvanceTime { time } => {
-                let (traj, err) = (&mut self.trajectory, &mut self.trajectory_error);
-                self.world
-                    .advance_observed(time, |w| record(traj, err, w))?;
-                Outcome::NoReply
-            }
-            Request::GetData2 => {
-                let s = self.world.state();
-                Outcome::Reply(Reply::Data2 {
-                    velocity: s.horizontal_speed(),
-                    velocity_x: s.velocity[0],
-                    velocity_y: s.velocity[1],
-                })
-            }
-            Request::GetData3 => {
-                let s = self.world.state();
-                Outcome::Reply(Reply::Data3 {
-                    velocity: s.horizontal_speed(),
-                    velocity_z: s.velocity[2],
-                    pitch: s.attitude()[1],
-                })
-            }
-            Request::GetState => Outcome::Reply(Reply::State(self.state())),
-            Request::Stop => {
-                let (traj, err) = (&mut self.trajectory, &mut self.trajectory_error);
-                let stop = self.world.stop_motors(|w| record(traj, err, w));
-                tracing::info!(
-                    time_ms = self.world.time().0,
-                    stop_ms = stop.0,
-                    collisions = self.world.state().collisions,
-                    "STOP: propellers stopped"
-                );
-                Outcome::Stop(Reply::Stop {
-                    time_s: self.world.time().as_secs_f64(),
-                    stop_time_ms: stop.0,
-                })
-            }
-        };
-        self.take_trajectory_error()?;
-        Ok(out)
-    }
-
-    /// Flushes the trajectory (every exit path calls it).
-    pub fn flush(&mut self) -> Result<(), ServerError> {
-        if let Some(t) = self.trajectory.as_mut() {
-            t.flush().map_err(|e| ServerError::Trajectory(e.into()))?;
-        }
-        Ok(())
-    }
-
-    fn record_step(&mut self) {
-        record(
-            &mut self.trajectory,
-            &mut self.trajectory_error,
-            &self.world,
-        );
-    }
-
-    fn take_trajectory_error(&mut self) -> Result<(), ServerError> {
-        match self.trajectory_error.take() {
-            Some(e) => Err(ServerError::Trajectory(e)),
-            None => Ok(()),
-        }
-    }
-
-    fn sensors(&self) -> Sensors {
-        let s = self.world.sensors();
-        let [x, y, z] = s.gps;
-        let [roll, pitch, yaw] = s.attitude;
-        let [roll_rate, pitch_rate, yaw_rate] = s.gyro;
-        let [range_front, range_left, range_back, range_right] = s.ranges_mm;
-        Sensors {
-            time_s: s.time.as_secs_f64(),
-            x,
-            y,
-            z,
-            altitude: z,
-            roll,
-            pitch,
-            yaw,
-            roll_rate,
-            pitch_rate,
-            yaw_rate,
-            range_front,
-            range_left,
-            range_back,
-            range_right,
-        }
-    }
-
-    fn state(&self) -> State {
-        let s = self.world.state();
-        let [x, y, z] = s.position;
-        let [qw, qx, qy, qz] = s.quaternion;
-        let [vx, vy, vz] = s.velocity;
-        let [omega_x, omega_y, omega_z] = s.omega_body;
-        let [w1, w2, w3, w4] = s.motor_speeds;
-        State {
-            time_s: s.time.as_secs_f64(),
-            x,
-            y,
-            z,
-            qw,
-            qx,
-            qy,
-            qz,
-            vx,
-            vy,
-            vz,
-            omega_x,
-            omega_y,
-            omega_z,
-            w1,
-            w2,
-            w3,
-            w4,
-            collisions: s.collisions,
-        }
-    }
-
-    fn image(&mut self) -> Result<Image, ServerError> {
-        let (pos, rot) = (self.world.position(), self.world.rotation());
-        let data = self.camera.render(pos, rot).to_vec();
-        let (w, h) = (self.camera.width(), self.camera.height());
-        if let Some(dir) = &self.frames_dir {
-            let path = dir.join(format!(
-                "frame-{:06}-{}ms.png",
-                self.frames,
-                self.world.time().0
-            ));
-            write_png(&path, w, h, &data).map_err(|source| ServerError::Output { path, source })?;
-        }
-        self.frames += 1;
-        Ok(Image {
-            width: w as u32,
-            height: h as u32,
-            data,
-        })
+fn describe_unclaimed(names: &[String]) -> String {
+    let quoted: Vec<String> = names.iter().map(|n| format!("{n:?}")).collect();
+    match quoted.len() {
+        1 => format!("drone {}", quoted[0]),
+        _ => format!("drones {}", quoted.join(", ")),
     }
 }
 
-/// Appends a trajectory row, keeping the first error for the caller.
-fn record(traj: &mut Option<TrajectoryWriter>, err: &mut Option<csv::Error>, w: &World) {
-    if let (Some(t), None) = (traj.as_mut(), err.as_ref()) {
-        if let Err(e) = t.row(&w.state()) {
-            *err = Some(e);
-        }
-    }
-}
+type ReadHalf = Either<unix::OwnedReadHalf, tcp::OwnedReadHalf>;
+type WriteHalf = Either<unix::OwnedWriteHalf, tcp::OwnedWriteHalf>;
+type Frames = FramedRead<ReadHalf, FrameCodec>;
+/// One connection's inputs, tagged with its drone, ending with `Closed`.
+type Inputs = Pin<Box<dyn Stream<Item = (usize, Input)>>>;
 
-/// Binds, accepts one client, warms up, serves until STOP. Returns Ok only
-/// after a clean STOP.
+/// Binds, waits for the claims, warms up, serves until the last STOP.
+/// Returns Ok only after every drone's STOP was answered.
 pub async fn serve(cfg: ServerConfig) -> Result<(), ServerError> {
     let mut session = Session::new(
         &cfg.world,
         cfg.step,
-        cfg.trajectory.as_deref(),
-        cfg.frames_dir.as_deref(),
+        SessionOutputs {
+            trajectory: cfg.trajectory.as_deref(),
+            frames_dir: cfg.frames_dir.as_deref(),
+            radio_log: cfg.radio_log.as_deref(),
+        },
     )?;
-    let trace = match &cfg.trace {
-        Some(path) => Some(Arc::new(Mutex::new(
+    let mut trace = match &cfg.trace {
+        Some(path) => Some(
             TraceWriter::create(path, TraceClock::WorldMs, cfg.trace_images).map_err(|source| {
                 ServerError::Output {
                     path: path.clone(),
                     source,
                 }
             })?,
-        ))),
+        ),
         None => None,
     };
-    let result = serve_session(&cfg, &mut session, trace.clone()).await;
+    let result = serve_session(&cfg, &mut session, trace.as_mut()).await;
     // Flush outputs on every path; the first error wins.
-    let flushed = session.flush();
-    let traced = match trace {
-        Some(t) => t
-            .lock()
-            .map_err(|_| ServerError::BadRequest("trace writer poisoned".into()))
-            .and_then(|mut t| {
-                t.flush().map_err(|source| ServerError::Output {
-                    path: cfg.trace.clone().unwrap_or_default(),
-                    source,
-                })
-            }),
+    let flushed = session.flush().map_err(ServerError::from);
+    let traced = match trace.as_mut() {
+        Some(t) => t.flush().map_err(|source| ServerError::Output {
+            path: cfg.trace.clone().unwrap_or_default(),
+            source,
+        }),
         None => Ok(()),
     };
     result.and(flushed).and(traced)
@@ -339,51 +139,403 @@ pub async fn serve(cfg: ServerConfig) -> Result<(), ServerError> {
 async fn serve_session(
     cfg: &ServerConfig,
     session: &mut Session,
-    trace: Option<Arc<Mutex<TraceWriter>>>,
+    trace: Option<&mut TraceWriter>,
 ) -> Result<(), ServerError> {
     let listener = Listener::bind(&cfg.endpoint).await?;
-    tracing::info!(endpoint = %listener.local_endpoint()?, world = %cfg.world.name, "listening");
-    let mut conn = listener.accept().await?;
-    tracing::info!("client connected");
-    // The world clock the trace records, shared with the codec's observer.
-    let now_ms = Arc::new(AtomicU64::new(0));
-    if let Some(t) = trace {
-        let now = now_ms.clone();
-        conn.codec_mut().set_observer(Box::new(move |ev| {
-            let mut t = t
-                .lock()
-                .map_err(|_| std::io::Error::other("trace writer poisoned"))?;
-            t.record(ev, now.load(Ordering::Relaxed))
-        }));
-    }
+    tracing::info!(
+        endpoint = %listener.local_endpoint()?,
+        world = %cfg.world.name,
+        drones = session.names().len(),
+        "listening"
+    );
+    let claimed = claim_all(&listener, &cfg.world, cfg.connect_timeout).await?;
     session.warm_up()?;
-    now_ms.store(session.world().time().0, Ordering::Relaxed);
-    tracing::info!(time_ms = session.world().time().0, "warm-up done, serving");
+    tracing::info!(
+        time_ms = session.world().time().0,
+        "every drone claimed, warm-up done, serving"
+    );
+    let n = claimed.len();
+    let mut wire = Wire {
+        trace,
+        trace_path: cfg.trace.clone().unwrap_or_default(),
+        names: session.names().to_vec(),
+        multi: session.is_multi(),
+        encodings: vec![ImageEncoding::Array; n],
+        outbox: Vec::new(),
+        spare: vec![Vec::new(); n],
+    };
+    let mut writers: Vec<Option<WriteHalf>> = Vec::with_capacity(n);
+    let mut inputs: SelectAll<Inputs> = SelectAll::new();
+    for (d, c) in claimed.into_iter().enumerate() {
+        session.push(d, c.first)?;
+        writers.push(Some(c.write));
+        inputs.push(tagged(d, c.read));
+    }
+    let mut open = vec![true; n];
+    let outcome = run_loop(session, &mut wire, &mut writers, &mut inputs, &mut open).await;
+    match outcome {
+        Ok(()) => Ok(()),
+        Err(e) => {
+            // Replies already traced go out first, then the ERRORs.
+            let _ = send_outbox(&mut wire, &mut writers).await;
+            let now = session.world().time();
+            let connected: Vec<usize> = (0..n).filter(|&d| writers[d].is_some()).collect();
+            for d in connected {
+                let message = match e.drone() {
+                    Some(culprit) if culprit == d => e.message(),
+                    _ => e.to_string(),
+                };
+                // Best effort: the platform may be gone.
+                let _ = wire.reply(d, Reply::error(message), now);
+            }
+            let _ = send_outbox(&mut wire, &mut writers).await;
+            for w in writers.iter_mut().filter_map(Option::take) {
+                let mut w = w;
+                let _ = w.shutdown().await;
+            }
+            drain(&mut inputs, &mut open).await;
+            Err(e.into())
+        }
+    }
+}
+
+/// Feeds the session until it finishes.
+async fn run_loop(
+    session: &mut Session,
+    wire: &mut Wire<'_>,
+    writers: &mut [Option<WriteHalf>],
+    inputs: &mut SelectAll<Inputs>,
+    open: &mut [bool],
+) -> Result<(), SessionError> {
     loop {
-        let req = match conn.next().await {
-            None => return Err(ServerError::Disconnected),
-            Some(Err(e)) => {
-                let msg = e.to_string();
-                // Best effort: the client may already be gone.
-                let _ = conn.send(&Reply::error(msg.clone())).await;
-                return Err(ServerError::BadRequest(msg));
+        let progress = session.run(wire)?;
+        send_outbox(wire, writers)
+            .await
+            .map_err(|(d, e)| SessionError::Drone {
+                drone: d,
+                name: wire.names[d].clone(),
+                message: format!("cannot send the reply: {e}"),
+            })?;
+        if progress == Progress::Finished {
+            return Ok(());
+        }
+        match inputs.next().await {
+            Some((d, input)) => {
+                match input {
+                    // Gone: nothing more can be written to it either.
+                    Input::Closed => {
+                        open[d] = false;
+                        writers[d] = None;
+                    }
+                    Input::Broken(_) => open[d] = false,
+                    Input::Frame { .. } => {}
+                }
+                session.push(d, input)?;
             }
-            Some(Ok(req)) => req,
+            None => unreachable!("every input stream ends with Closed, pushed above"),
+        }
+    }
+}
+
+/// Writes the replies in order; a STOP reply closes its connection.
+async fn send_outbox(
+    wire: &mut Wire<'_>,
+    writers: &mut [Option<WriteHalf>],
+) -> Result<(), (usize, std::io::Error)> {
+    let mut first_error = None;
+    for (d, frame, close) in std::mem::take(&mut wire.outbox) {
+        if let Some(w) = writers[d].as_mut() {
+            let r = match w.write_all(&frame).await {
+                Ok(()) if close => w.shutdown().await,
+                r => r,
+            };
+            if close {
+                writers[d] = None;
+            }
+            if let Err(e) = r {
+                writers[d] = None;
+                first_error.get_or_insert((d, e));
+            }
+        }
+        wire.spare[d] = frame;
+    }
+    match first_error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+/// Reads and drops what the platforms still send, until they have all
+/// closed or [`DRAIN`] has passed.
+async fn drain(inputs: &mut SelectAll<Inputs>, open: &mut [bool]) {
+    let until = tokio::time::Instant::now() + DRAIN;
+    while open.iter().any(|&o| o) {
+        match tokio::time::timeout_at(until, inputs.next()).await {
+            Ok(Some((d, Input::Closed | Input::Broken(_)))) => open[d] = false,
+            Ok(Some(_)) => {}
+            Ok(None) | Err(_) => return,
+        }
+    }
+}
+
+/// The trace and the sockets' side of a session's outputs.
+struct Wire<'a> {
+    trace: Option<&'a mut TraceWriter>,
+    trace_path: PathBuf,
+    names: Vec<String>,
+    multi: bool,
+    /// Per drone: the image encoding its GET_INIT_DATA negotiated.
+    encodings: Vec<ImageEncoding>,
+    /// Encoded frames to write, in order: (drone, frame, close after it).
+    outbox: Vec<(usize, Vec<u8>, bool)>,
+    /// Per drone: a frame buffer to reuse.
+    spare: Vec<Vec<u8>>,
+}
+
+impl Wire<'_> {
+    fn traced(&mut self, ev: &FrameEvent<'_>, d: usize, now: Millis) -> Result<(), SessionError> {
+        let drone = self.multi.then(|| self.names[d].as_str());
+        match self.trace.as_deref_mut() {
+            Some(t) => t
+                .record_for(ev, now.0, drone)
+                .map_err(|source| SessionError::Output {
+                    path: self.trace_path.clone(),
+                    source,
+                }),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Outputs for Wire<'_> {
+    fn request(
+        &mut self,
+        drone: usize,
+        body: &[u8],
+        valid: bool,
+        now: Millis,
+    ) -> Result<(), SessionError> {
+        let ev = FrameEvent {
+            dir: Direction::ToWorld,
+            bytes: body,
+            image: None,
+            valid,
         };
-        let outcome = session.handle(req);
-        now_ms.store(session.world().time().0, Ordering::Relaxed);
-        match outcome {
-            Ok(Outcome::Reply(r)) => conn.send(&r).await?,
-            Ok(Outcome::NoReply) => {}
-            Ok(Outcome::Stop(r)) => {
-                conn.send(&r).await?;
-                conn.close().await?;
-                return Ok(());
+        self.traced(&ev, drone, now)
+    }
+
+    fn reply(&mut self, drone: usize, reply: Reply, now: Millis) -> Result<(), SessionError> {
+        if let Reply::InitData { image_encoding, .. } = &reply {
+            self.encodings[drone] = *image_encoding;
+        }
+        let encoding = self.encodings[drone];
+        let mut frame = std::mem::take(&mut self.spare[drone]);
+        frame.clear();
+        write_frame(&mut frame, DEFAULT_MAX_FRAME, |o| {
+            encode_reply(&reply, encoding, o)
+        })
+        .map_err(|e| SessionError::Drone {
+            drone,
+            name: self.names[drone].clone(),
+            message: format!("cannot encode the {} reply: {e}", reply.command()),
+        })?;
+        let ev = FrameEvent {
+            dir: Direction::ToPlatform,
+            bytes: &frame[HEADER_LEN..],
+            image: match &reply {
+                Reply::Image(img) => Some(img),
+                _ => None,
+            },
+            valid: true,
+        };
+        self.traced(&ev, drone, now)?;
+        let close = matches!(reply, Reply::Stop { .. });
+        self.outbox.push((drone, frame, close));
+        Ok(())
+    }
+}
+
+/// A connection that claimed a drone, with its first frame.
+struct Claimed {
+    read: Frames,
+    write: WriteHalf,
+    first: Input,
+}
+
+fn split(conn: protocol::tokio_transport::ServerFramed) -> (ReadHalf, WriteHalf) {
+    // Nothing has been read through the Framed yet: no buffered bytes lost.
+    match conn.into_inner() {
+        Either::Left(u) => {
+            let (r, w) = u.into_split();
+            (Either::Left(r), Either::Left(w))
+        }
+        Either::Right(t) => {
+            let (r, w) = t.into_split();
+            (Either::Right(r), Either::Right(w))
+        }
+    }
+}
+
+/// The next input of a connection.
+async fn next_input(frames: &mut Frames) -> Input {
+    match frames.next().await {
+        Some(Ok(body)) => {
+            let request = decode_request(&body);
+            Input::Frame {
+                body: Vec::from(body),
+                request,
             }
-            Err(e) => {
-                let _ = conn.send(&Reply::error(e.to_string())).await;
+        }
+        Some(Err(e)) => Input::Broken(e),
+        None => Input::Closed,
+    }
+}
+
+/// A connection's inputs after its first, tagged with its drone; ends
+/// with `Closed` (after `Broken`, the stream has nothing more either).
+fn tagged(d: usize, frames: Frames) -> Inputs {
+    Box::pin(stream::unfold(Some(frames), move |state| async move {
+        let mut frames = state?;
+        let input = next_input(&mut frames).await;
+        let more = matches!(input, Input::Frame { .. });
+        Some(((d, input), more.then_some(frames)))
+    }))
+}
+
+/// Accepts connections until every drone is claimed (or the timeout).
+async fn claim_all(
+    listener: &Listener,
+    world: &WorldDesc,
+    timeout: Duration,
+) -> Result<Vec<Claimed>, ServerError> {
+    let n = world.drones.len();
+    let mut claims: Vec<Option<Claimed>> = (0..n).map(|_| None).collect();
+    let mut first_frames = FuturesUnordered::new();
+    let deadline = tokio::time::sleep(timeout);
+    tokio::pin!(deadline);
+    while claims.iter().any(Option::is_none) {
+        tokio::select! {
+            conn = listener.accept() => {
+                let (read, write) = split(conn?);
+                first_frames.push(async move {
+                    let mut read = FramedRead::new(read, FrameCodec::default());
+                    let first = next_input(&mut read).await;
+                    (read, write, first)
+                });
+            }
+            Some((read, write, first)) = first_frames.next(), if !first_frames.is_empty() => {
+                match claim(world, &claims, &first) {
+                    Ok(d) => {
+                        tracing::info!(drone = %world.drones[d].name, "claimed");
+                        claims[d] = Some(Claimed { read, write, first });
+                    }
+                    Err(Some(reason)) => {
+                        tracing::warn!("claim refused: {reason}");
+                        refuse(write, &reason).await;
+                    }
+                    Err(None) => tracing::warn!("a connection closed before claiming a drone"),
+                }
+            }
+            () = &mut deadline => {
+                let names = world
+                    .drones
+                    .iter()
+                    .zip(&claims)
+                    .filter(|(_, c)| c.is_none())
+                    .map(|(d, _)| d.name.clone())
+                    .collect();
+                let e = ServerError::Unclaimed { names, secs: timeout.as_secs_f64() };
+                // The platforms that did claim are waiting for their reply.
+                for c in claims.into_iter().flatten() {
+                    refuse(c.write, &e.to_string()).await;
+                }
                 return Err(e);
             }
         }
     }
+    Ok(claims
+        .into_iter()
+        .map(|c| c.expect("all claimed"))
+        .collect())
+}
+
+/// Which drone a connection's first input claims: `Err(Some(reason))` to
+/// refuse it with an ERROR, `Err(None)` to drop it silently (it closed).
+fn claim(
+    world: &WorldDesc,
+    claims: &[Option<Claimed>],
+    first: &Input,
+) -> Result<usize, Option<String>> {
+    let named = match first {
+        Input::Frame {
+            request: Ok(Request::GetInitData { drone, .. }),
+            ..
+        } => drone.as_deref(),
+        _ => None,
+    };
+    if !world.is_multi() {
+        // A thesis-era platform names no drone; whatever it sends first is
+        // served (or refused) by the session, as before.
+        return match named {
+            Some(name) if name != world.drones[0].name => Err(Some(unknown(world, name))),
+            _ => Ok(0),
+        };
+    }
+    let name = match (first, named) {
+        (_, Some(name)) => name,
+        (
+            Input::Frame {
+                request: Ok(Request::GetInitData { .. }),
+                ..
+            },
+            None,
+        ) => {
+            return Err(Some(format!(
+                "this world has {} drones ({}): GET_INIT_DATA must claim one with \"drone\"",
+                world.drones.len(),
+                list(world)
+            )))
+        }
+        (Input::Frame { request: Ok(r), .. }, None) => {
+            return Err(Some(format!(
+                "the first request must be GET_INIT_DATA with \"drone\", not {}",
+                r.command()
+            )))
+        }
+        (
+            Input::Frame {
+                request: Err(e), ..
+            },
+            None,
+        ) => return Err(Some(e.to_string())),
+        (Input::Broken(e), None) => return Err(Some(e.to_string())),
+        (Input::Closed, None) => return Err(None),
+    };
+    match world.drone_index(name) {
+        None => Err(Some(unknown(world, name))),
+        Some(d) if claims[d].is_some() => Err(Some(format!("drone {name:?} is already claimed"))),
+        Some(d) => Ok(d),
+    }
+}
+
+fn list(world: &WorldDesc) -> String {
+    let names: Vec<&str> = world.drones.iter().map(|d| d.name.as_str()).collect();
+    names.join(", ")
+}
+
+fn unknown(world: &WorldDesc, name: &str) -> String {
+    format!("unknown drone {name:?} (this world has {})", list(world))
+}
+
+/// ERROR to a refused connection, then close it (best effort).
+async fn refuse(mut write: WriteHalf, reason: &str) {
+    let mut frame = Vec::new();
+    if write_frame(&mut frame, DEFAULT_MAX_FRAME, |o| {
+        encode_reply(&Reply::error(reason), ImageEncoding::Array, o)
+    })
+    .is_ok()
+    {
+        let _ = write.write_all(&frame).await;
+    }
+    let _ = write.shutdown().await;
 }

@@ -1,5 +1,7 @@
 //! `--trajectory FILE`: one CSV row per world step (DESIGN.md §6): time,
-//! position, attitude, velocities, signed motor speeds, collisions.
+//! position, attitude, velocities, signed motor speeds, collisions. With
+//! several drones (DESIGN.md §7): one row per drone per step, in world-file
+//! order, with a `drone` column second; one drone keeps [`HEADER`] exactly.
 
 use std::fs::File;
 use std::io::BufWriter;
@@ -27,34 +29,55 @@ pub const HEADER: [&str; 16] = [
     "ground_contacts",
 ];
 
+/// The name of the column a world with several drones adds (second).
+pub const DRONE_COLUMN: &str = "drone";
+
 /// Writes the trajectory; call [`TrajectoryWriter::flush`] on every exit path
 /// (dropping it also flushes, but cannot report an error).
 pub struct TrajectoryWriter {
     out: csv::Writer<BufWriter<File>>,
+    multi: bool,
+    rec: csv::StringRecord,
 }
 
 impl TrajectoryWriter {
-    pub fn create(path: &Path) -> Result<TrajectoryWriter, csv::Error> {
+    /// `multi`: the world has several drones (rows carry the drone's name).
+    pub fn create(path: &Path, multi: bool) -> Result<TrajectoryWriter, csv::Error> {
         let file = File::create(path)?;
         let mut out = csv::Writer::from_writer(BufWriter::new(file));
-        out.write_record(HEADER)?;
-        Ok(TrajectoryWriter { out })
+        if multi {
+            let mut h = HEADER.to_vec();
+            h.insert(1, DRONE_COLUMN);
+            out.write_record(h)?;
+        } else {
+            out.write_record(HEADER)?;
+        }
+        Ok(TrajectoryWriter {
+            out,
+            multi,
+            rec: csv::StringRecord::with_capacity(256, HEADER.len() + 1),
+        })
     }
 
-    pub fn row(&mut self, s: &DroneState) -> Result<(), csv::Error> {
+    /// One row; `drone` is written only by a multi-drone writer.
+    pub fn row(&mut self, s: &DroneState, drone: &str) -> Result<(), csv::Error> {
         let [roll, pitch, yaw] = s.attitude();
         let [x, y, z] = s.position;
         let [vx, vy, vz] = s.velocity;
         let [w1, w2, w3, w4] = s.motor_speeds;
         let floats = [x, y, z, roll, pitch, yaw, vx, vy, vz, w1, w2, w3, w4];
-        let mut rec = csv::StringRecord::with_capacity(256, HEADER.len());
+        let rec = &mut self.rec;
+        rec.clear();
         rec.push_field(&s.time.0.to_string());
+        if self.multi {
+            rec.push_field(drone);
+        }
         for v in floats {
             rec.push_field(&v.to_string());
         }
         rec.push_field(&s.collisions.to_string());
         rec.push_field(&s.ground_contacts.to_string());
-        self.out.write_record(&rec)
+        self.out.write_record(&*rec)
     }
 
     pub fn flush(&mut self) -> std::io::Result<()> {
@@ -71,7 +94,7 @@ mod tests {
     fn rows_round_trip_through_csv() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("t.csv");
-        let mut w = TrajectoryWriter::create(&path).unwrap();
+        let mut w = TrajectoryWriter::create(&path, false).unwrap();
         let s = DroneState {
             time: Millis(2032),
             position: [1.0, -2.5, 0.015],
@@ -82,7 +105,7 @@ mod tests {
             collisions: 2,
             ground_contacts: 1,
         };
-        w.row(&s).unwrap();
+        w.row(&s, "cf1").unwrap();
         w.flush().unwrap();
         let mut r = csv::Reader::from_path(&path).unwrap();
         assert_eq!(r.headers().unwrap().iter().collect::<Vec<_>>(), HEADER);
@@ -92,5 +115,34 @@ mod tests {
         assert_eq!(&rec[10], "-48");
         assert_eq!(&rec[14], "2");
         assert_eq!(&rec[15], "1");
+    }
+
+    #[test]
+    fn several_drones_add_a_drone_column_second() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.csv");
+        let mut w = TrajectoryWriter::create(&path, true).unwrap();
+        let s = DroneState {
+            time: Millis(2000),
+            position: [1.0, 2.0, 3.0],
+            quaternion: [1.0, 0.0, 0.0, 0.0],
+            velocity: [0.0; 3],
+            omega_body: [0.0; 3],
+            motor_speeds: [0.0; 4],
+            collisions: 0,
+            ground_contacts: 0,
+        };
+        w.row(&s, "A").unwrap();
+        w.row(&s, "B").unwrap();
+        w.flush().unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(
+            lines[0].starts_with("time_ms,drone,x,y,z,roll"),
+            "{}",
+            lines[0]
+        );
+        assert!(lines[1].starts_with("2000,A,1,2,3,"), "{}", lines[1]);
+        assert!(lines[2].starts_with("2000,B,1,2,3,"), "{}", lines[2]);
     }
 }

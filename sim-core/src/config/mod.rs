@@ -12,7 +12,7 @@ use thiserror::Error;
 pub use platform::{
     BusConfig, BusKind, ConverterConfig, CoreConfig, EfficiencySpec, HarvesterConfig, LutConfig,
     PeripheralsConfig, PlatformConfig, SensorConfig, StateConfig, CORE_STATES,
-    DEFAULT_CRAZYFLIE_JSON, SENSOR_STATES,
+    DEFAULT_CRAZYFLIE_JSON, RADIO_SENSORS, RADIO_STATES, SENSOR_STATES,
 };
 pub use run::{DebugLevel, RunConfig, SyncMode, RUN_KEYS};
 

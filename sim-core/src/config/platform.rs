@@ -21,7 +21,9 @@
 //! blocks are accepted and ignored; any other unknown key is an error.
 //!
 //! What our file adds to MESSY's shape: the core's `states` (`running`,
-//! `sleeping`) and `frequency`, a sensor's `bus` (`vcc`, the default, or
+//! `sleeping`) and `frequency`, the optional radios `uwb` and `p2p` (states
+//! `tx`, `rx`, `idle`, `sleep`, each defaulting to its datasheet current;
+//! a platform file without them still has both radios, with those currents), a sensor's `bus` (`vcc`, the default, or
 //! `battery` for the motors, §4.5.2), the battery's `model` and `soc_low`
 //! (the BATTERY_LOW threshold, 10 %), and a converter `efficiency` of
 //! `"ldo"` (Eq. 4.1).
@@ -380,6 +382,12 @@ fn check_states(
 
 /// Sensor states the network maps [`crate::power::SensorState`] onto.
 pub const SENSOR_STATES: [&str; 3] = ["read", "write", "idle"];
+/// The radios (DESIGN.md §8): optional sensors; absent, they have the
+/// datasheets' currents (`peripherals::radio::{uwb, p2p}`).
+pub const RADIO_SENSORS: [&str; 2] = ["uwb", "p2p"];
+/// A radio's power states (currents in mA; any state left out takes the
+/// datasheet's figure).
+pub const RADIO_STATES: [&str; 4] = ["tx", "rx", "idle", "sleep"];
 /// Core states the network maps [`crate::power::CoreState`] onto.
 pub const CORE_STATES: [&str; 2] = ["running", "sleeping"];
 
@@ -442,10 +450,28 @@ impl PlatformConfig {
             }
             let required: &[&str] = if name == "camera" || name == "stm32" {
                 &SENSOR_STATES
+            } else if RADIO_SENSORS.contains(&name.as_str()) {
+                // Every state has the datasheet's figure as its default.
+                &[]
             } else {
                 &["idle"]
             };
             check_states(&s.states, required, &at)?;
+            if RADIO_SENSORS.contains(&name.as_str()) {
+                if let Some(bad) = s
+                    .states
+                    .keys()
+                    .find(|k| !RADIO_STATES.contains(&k.as_str()))
+                {
+                    return Err(format!(
+                        "{at}.states.{bad}: a radio's states are {}",
+                        RADIO_STATES.join(", ")
+                    ));
+                }
+                if s.bus != BusKind::Vcc {
+                    return Err(format!("{at}.bus: the radios hang on the VCC bus"));
+                }
+            }
             build_converter(&s.converter, &at)?;
         }
         let batteries: Vec<_> = self.peripherals.harvesters.iter().collect();
@@ -560,6 +586,25 @@ mod tests {
         assert_eq!(b.model, BatteryModel::LiPol250);
         assert_eq!((b.soc_init, b.soc_end, b.soc_low), (100.0, 0.0, 10.0));
         assert_eq!(b.converter().unwrap(), Converter::ldo());
+    }
+
+    #[test]
+    fn radios_take_datasheet_defaults_and_reject_unknown_states() {
+        let mut v: serde_json::Value = serde_json::from_str(DEFAULT_CRAZYFLIE_JSON).unwrap();
+        v["peripherals"]["sensors"]["uwb"] = serde_json::json!({
+            "register_memory": 320,
+            "states": { "rx": { "current": "50" } }
+        });
+        let p = PlatformConfig::from_json_str(&v.to_string(), "t").unwrap();
+        let c = crate::peripherals::radio::uwb::SPEC.currents(&p);
+        assert_eq!(c.rx, Amps(0.050));
+        assert_eq!(c.tx, Amps(0.031));
+        // Absent: the datasheet's currents.
+        let d = crate::peripherals::radio::p2p::SPEC.currents(&p);
+        assert_eq!(d, crate::peripherals::radio::p2p::SPEC.default_currents);
+        v["peripherals"]["sensors"]["uwb"]["states"]["read"] = serde_json::json!({"current": 1});
+        let e = PlatformConfig::from_json_str(&v.to_string(), "t").unwrap_err();
+        assert!(e.to_string().contains("uwb.states.read"), "{e}");
     }
 
     #[test]

@@ -92,7 +92,7 @@ impl fmt::Display for DebugLevel {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 12] = [
+pub const RUN_KEYS: [(&str, &str); 13] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -132,6 +132,10 @@ pub const RUN_KEYS: [(&str, &str); 12] = [
         "platform",
         "platform JSON file (default: the embedded Crazyflie)",
     ),
+    (
+        "radio_id",
+        "the radios' EUI, an unsigned 64-bit integer (0; cosim gives 1, 2, 3, ...)",
+    ),
 ];
 
 /// The run configuration. [`RunConfig::default`] is the thesis's setting of
@@ -159,6 +163,8 @@ pub struct RunConfig {
     pub models: ModelParams,
     /// Platform file; `None` is the embedded Crazyflie.
     pub platform: Option<PathBuf>,
+    /// The radios' identifier (their EUI register, docs/SWARM.md §4.3).
+    pub radio_id: u64,
 }
 
 impl Default for RunConfig {
@@ -174,6 +180,7 @@ impl Default for RunConfig {
             sync: SyncMode::Thesis,
             models: ModelParams::default(),
             platform: None,
+            radio_id: 0,
         }
     }
 }
@@ -254,6 +261,12 @@ impl RunConfig {
                 }
                 self.platform = Some(PathBuf::from(value))
             }
+            "radio_id" => {
+                self.radio_id = value
+                    .trim()
+                    .parse::<u64>()
+                    .map_err(|_| bad("expected an unsigned 64-bit integer".into()))?
+            }
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -288,6 +301,7 @@ impl RunConfig {
                 .platform
                 .as_ref()
                 .map_or_else(|| "embedded".to_string(), |p| p.display().to_string()),
+            "radio_id" => self.radio_id.to_string(),
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -360,6 +374,11 @@ impl RunConfig {
             if key == "platform" && self.platform.is_none() {
                 continue;
             }
+            // Only a swarm member has a radio identifier: a single drone's
+            // file stays as it was before the radios existed.
+            if key == "radio_id" && self.radio_id == 0 {
+                continue;
+            }
             let text = self.get(key).expect("RUN_KEYS are known keys");
             let value = match key {
                 "tolerance"
@@ -369,6 +388,11 @@ impl RunConfig {
                 "target_cycles" | "unlock_cycles" => {
                     toml::Value::Integer(text.parse().expect("an integer"))
                 }
+                // TOML integers are i64: larger identifiers stay text.
+                "radio_id" => match i64::try_from(self.radio_id) {
+                    Ok(i) => toml::Value::Integer(i),
+                    Err(_) => toml::Value::String(text),
+                },
                 _ => toml::Value::String(text),
             };
             table.insert(key.to_string(), value);

@@ -43,6 +43,10 @@ pub struct PlatformArgs {
     /// Seconds to keep retrying the connection (the world may start second).
     #[arg(long, value_name = "S", default_value_t = 30.0)]
     pub connect_timeout: f64,
+    /// The drone of a world with several drones that this platform flies
+    /// (GET_INIT_DATA then carries `"drone": NAME`, docs/SWARM.md §4).
+    #[arg(long, value_name = "NAME")]
+    pub drone: Option<String>,
     /// Image encoding asked for in GET_INIT_DATA.
     #[arg(long, value_name = "ENC", default_value = "array")]
     pub image_encoding: ImageEncoding,
@@ -87,6 +91,9 @@ pub fn run_platform(args: &PlatformArgs, run: RunConfig) -> anyhow::Result<i32> 
     let endpoint: Endpoint = socket
         .parse()
         .map_err(|e| anyhow::anyhow!("--socket {socket}: {e}"))?;
+    if args.drone.as_deref().is_some_and(|d| d.trim().is_empty()) {
+        bail!("--drone needs a drone name from the world file");
+    }
     let platform = run.load_platform()?;
     let firmware = read_firmware(firmware_path)?;
     if let Some(dir) = &args.out {
@@ -105,6 +112,7 @@ pub fn run_platform(args: &PlatformArgs, run: RunConfig) -> anyhow::Result<i32> 
         platform,
         run,
         image_encoding: args.image_encoding,
+        drone: args.drone.clone(),
         idle_skip: !args.no_idle_skip,
         mmio_latency: args.mmio_latency,
         out_dir: args.out.clone(),

@@ -15,7 +15,7 @@ mod console;
 mod summary;
 
 pub use console::Console;
-pub use summary::{BatterySummary, EnergySummary, Summary};
+pub use summary::{BatterySummary, EnergySummary, RadioSummary, RadiosSummary, Summary};
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -26,8 +26,9 @@ use thiserror::Error;
 use crate::bus::{Platform, PERIPHERAL_BASE, WINDOW_SIZE};
 use crate::config::{PlatformConfig, RunConfig};
 use crate::iss::{load_elf, Cpu, CpuConfig, ElfError, Memory, StopReason};
+use crate::peripherals::radio::{self, RadioDevice};
 use crate::peripherals::stm32::Stm32Config;
-use crate::peripherals::{Camera, DeviceError, DevicePower, Stm32, WorldLink};
+use crate::peripherals::{Camera, DeviceError, DevicePower, Stm32, WorldLink, WorldSession};
 use crate::power::{CoreState, Loads, PowerError, PowerLogger, PowerNetwork};
 use crate::sync::TimeKeeper;
 use crate::units::{Cycles, Hertz, Millis, Picos};
@@ -44,6 +45,9 @@ pub struct KernelConfig {
     pub platform: PlatformConfig,
     pub run: RunConfig,
     pub image_encoding: ImageEncoding,
+    /// The drone claimed in GET_INIT_DATA (`--drone`; `None` for a world
+    /// with one drone, whose frames then stay the thesis's).
+    pub drone: Option<String>,
     /// Exact skipping of idle polling (off only to compare).
     pub idle_skip: bool,
     /// Extra cycles per access to the peripheral window.
@@ -56,6 +60,20 @@ pub struct KernelConfig {
     pub progress: bool,
     /// Stop (as failed) after this much simulated time, if set.
     pub max_time: Option<Picos>,
+}
+
+impl KernelConfig {
+    /// Whether this platform reports its radios on their own (columns in
+    /// `power.csv`, keys in `summary.json`): a swarm member (`--drone`) or
+    /// a platform file that lists a radio. Otherwise a radio's current is
+    /// counted with the other loads, and a run that never switches a radio
+    /// on has exactly the outputs it had before the radios existed.
+    pub fn reports_radios(&self) -> bool {
+        self.drone.is_some()
+            || crate::config::RADIO_SENSORS
+                .iter()
+                .any(|n| self.platform.sensor(n).is_some())
+    }
 }
 
 /// Why a run failed.
@@ -89,7 +107,6 @@ fn stm32_config(cfg: &KernelConfig) -> Stm32Config {
         tolerance: cfg.run.tolerance,
         target_cycles: cfg.run.target_cycles,
         unlock_cycles: cfg.run.unlock_cycles,
-        image_encoding: cfg.image_encoding,
         ..Stm32Config::default()
     }
 }
@@ -144,6 +161,9 @@ struct Run<W: WorldLink> {
     power: PowerNetwork,
     console: Console,
     exit_code: Option<i32>,
+    /// The platform's time at the end of the run: the firmware's exit, or
+    /// the end of the motors' stop when the platform sent STOP for it.
+    end_time: Picos,
 }
 
 impl<W: WorldLink> Run<W> {
@@ -178,12 +198,15 @@ impl<W: WorldLink> Run<W> {
             stm32_config(cfg),
             DevicePower::new(write_delay(&cfg.platform, "stm32")),
         );
+        let radios = [radio::uwb::SPEC, radio::p2p::SPEC]
+            .map(|spec| RadioDevice::new(spec, cfg.run.radio_id, spec.currents(&cfg.platform)));
         let time = TimeKeeper::new(cfg.run.sync);
-        let platform = Platform::new(camera, stm32, world, time);
+        let session = WorldSession::new(cfg.drone.clone(), cfg.image_encoding);
+        let platform = Platform::new(camera, stm32, radios, world, session, time);
 
         let mut power = PowerNetwork::new(&cfg.platform, &cfg.run)?;
         if let Some(dir) = &cfg.out_dir {
-            power.attach_logger(PowerLogger::create(dir)?);
+            power.attach_logger(PowerLogger::create(dir, cfg.reports_radios())?);
         }
         Ok(Run {
             cpu,
@@ -192,6 +215,7 @@ impl<W: WorldLink> Run<W> {
             power,
             console,
             exit_code: None,
+            end_time: Picos::ZERO,
         })
     }
 
@@ -204,13 +228,19 @@ impl<W: WorldLink> Run<W> {
             },
             camera: self.platform.camera.power.state_at(t),
             stm32: self.platform.stm32.power.state_at(t),
+            radios: Default::default(),
         }
     }
 
     fn take_samples(&mut self, now: Picos) -> Result<(), KernelError> {
         while self.power.next_sample_time() <= now {
             let t = self.power.next_sample_time();
-            let loads = self.loads_at(t);
+            let mut loads = self.loads_at(t);
+            // A radio's TX is shorter than a sample: its mean current over
+            // the interval, not its state at the instant.
+            for (i, r) in loads.radios.iter_mut().zip(&mut self.platform.radios) {
+                *i = r.power.take_mean(t);
+            }
             let motor = self.platform.motors.state;
             let sample = self.power.sample(t, &loads, &motor)?;
             self.platform.battery_low = sample.low_battery;
@@ -255,6 +285,12 @@ impl<W: WorldLink> Run<W> {
                     )));
                 }
             }
+            // The radios' interrupt request drives mip.MEIP (the platform
+            // asks the ISS to stop whenever it changes, so the line follows
+            // at the access or event that changed it).
+            let irq = self.platform.irq_level();
+            self.platform.irq_line = irq;
+            self.cpu.set_external_irq(irq);
             let stop = self.cpu.run_until(&mut self.mem, &mut self.platform, limit);
             self.drain_device_console();
             let now = self.cpu.now();
@@ -262,8 +298,20 @@ impl<W: WorldLink> Run<W> {
                 StopReason::Limit | StopReason::Event | StopReason::DeviceRequest => {}
                 StopReason::Exit { code } => {
                     self.exit_code = Some(code);
-                    self.take_samples(now)?;
-                    return match self.default_trap(code) {
+                    let trap = self.default_trap(code);
+                    // A firmware that ends with the world session open says
+                    // STOP through the platform (docs/SWARM.md §4.1).
+                    let end = match self.platform.end_session(now) {
+                        Ok(end) => end.unwrap_or(now).max(now),
+                        Err(e) => {
+                            self.end_time = now;
+                            self.take_samples(now)?;
+                            return Err(trap.unwrap_or(KernelError::Device(e)));
+                        }
+                    };
+                    self.end_time = end;
+                    self.take_samples(end)?;
+                    return match trap {
                         Some(e) => Err(e),
                         None => Ok(()),
                     };
@@ -313,7 +361,7 @@ impl<W: WorldLink> Run<W> {
         if let Err(e) = self.power.flush() {
             error.get_or_insert(KernelError::Power(e));
         }
-        let now = self.cpu.now();
+        let now = self.cpu.now().max(self.end_time);
         let time = self.platform.time.report(now);
         let summary = Summary::build(
             cfg,

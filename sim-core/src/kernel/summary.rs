@@ -26,6 +26,33 @@ pub struct EnergySummary {
     pub stolaroff: f64,
     /// Energy drawn from the battery (selected motor model + VCC through the LDO).
     pub total: f64,
+    /// The UWB radio's energy at the VCC bus (platforms that report their
+    /// radios only, see `KernelConfig::reports_radios`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uwb: Option<f64>,
+    /// The P2P radio's energy at the VCC bus (same).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub p2p: Option<f64>,
+}
+
+/// What each radio did (platforms that report their radios only).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RadiosSummary {
+    pub uwb: RadioSummary,
+    pub p2p: RadioSummary,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RadioSummary {
+    /// Switched on (INIT) during the run.
+    pub used: bool,
+    pub frames_sent: u64,
+    pub frames_received: u64,
+    /// Frames that ended while the receiver was off.
+    pub frames_missed: u64,
+    /// Frames lost to a full receive FIFO.
+    pub rx_overruns: u64,
+    pub energy_j: f64,
 }
 
 /// The contract of DESIGN.md §6, plus a few figures that help reading it.
@@ -64,6 +91,12 @@ pub struct Summary {
     pub bytes_to_platform: u64,
     /// Contacts begun in the world (GET_STATE before STOP; null if unknown).
     pub collisions: Option<u64>,
+    /// The drone this platform flew in a world with several (`--drone`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drone: Option<String>,
+    /// The radios (platforms that report their radios only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radios: Option<RadiosSummary>,
 }
 
 impl Summary {
@@ -102,6 +135,8 @@ impl Summary {
                 dandrea: 0.0,
                 stolaroff: 0.0,
                 total: 0.0,
+                uwb: None,
+                p2p: None,
             },
             power_model: cfg.run.power_model.name().to_string(),
             sync: format!("{:?}", cfg.run.sync).to_lowercase(),
@@ -113,6 +148,8 @@ impl Summary {
             bytes_to_world: 0,
             bytes_to_platform: 0,
             collisions: None,
+            drone: cfg.drone.clone(),
+            radios: None,
         }
     }
 
@@ -132,7 +169,8 @@ impl Summary {
         let link = platform.world.stats();
         let energy = power.energy();
         let platform_time_s = time.platform_time.as_secs_f64();
-        let world_time_s = stats.stop.map(|(t, _)| t);
+        let stop = platform.session.stop_report();
+        let world_time_s = stop.map(|s| s.time_s);
         s.exit_code = match (error, exit_code) {
             (None, Some(code)) => code,
             (None, None) => 1,
@@ -140,7 +178,7 @@ impl Summary {
             (Some(_), _) => 1,
         };
         s.error = error.map(|e| e.to_string());
-        s.completed = error.is_none() && exit_code == Some(0) && stats.stop.is_some();
+        s.completed = error.is_none() && exit_code == Some(0) && stop.is_some();
         s.targets_total = stats.targets_total;
         s.targets_reached = stats.targets_reached;
         s.targets_bypassed = stats.targets_bypassed;
@@ -153,7 +191,7 @@ impl Summary {
             .map(|w| (s.world_time_estimate_s - w) / w * 100.0);
         s.sensors_offset_ms = time.sensors_offset_ms;
         s.sim_off_accum_ms = time.sim_off_accum_ms;
-        s.stop_time_ms = stats.stop.map(|(_, ms)| ms);
+        s.stop_time_ms = stop.map(|s| s.stop_time_ms);
         let core = cpu.stats();
         s.instructions = core.instructions;
         s.cycles = core.cycles;
@@ -174,14 +212,35 @@ impl Summary {
             dandrea: energy.model(PowerModelKind::DAndrea).0,
             stolaroff: energy.model(PowerModelKind::Stolaroff).0,
             total: energy.battery.0,
+            uwb: None,
+            p2p: None,
         };
+        if cfg.reports_radios() {
+            s.energy_j.uwb = Some(energy.radios[0].0);
+            s.energy_j.p2p = Some(energy.radios[1].0);
+            let r = |i: usize| {
+                let d = &platform.radios[i];
+                RadioSummary {
+                    used: d.switched_on(),
+                    frames_sent: d.stats.frames_sent,
+                    frames_received: d.stats.frames_received,
+                    frames_missed: d.stats.frames_missed,
+                    rx_overruns: d.stats.rx_overruns,
+                    energy_j: energy.radios[i].0,
+                }
+            };
+            s.radios = Some(RadiosSummary {
+                uwb: r(0),
+                p2p: r(1),
+            });
+        }
         s.timestep_ms = platform.time.timestep().0;
         s.frames = platform.camera.frames;
         s.pid_iterations = stats.pid_iterations;
         s.messages = link.messages;
         s.bytes_to_world = link.bytes_to_world;
         s.bytes_to_platform = link.bytes_to_platform;
-        s.collisions = stats.collisions;
+        s.collisions = stop.and_then(|s| s.collisions);
         s
     }
 

@@ -1,5 +1,5 @@
 //! The devices on the functional bus (thesis §4.2.1): the camera, the STM32
-//! (with the PID of §4.2.2) and the motors. Each has a functional side (its
+//! (with the PID of §4.2.2), the motors, and the radios of DESIGN.md §8. Each has a functional side (its
 //! registers and what a write does) and a power side ([`DevicePower`]: its
 //! states, each with a current, as MESSY's sensors).
 //!
@@ -10,14 +10,19 @@
 pub mod camera;
 pub mod motors;
 pub mod power_state;
+pub mod radio;
+pub mod solo_world;
 pub mod stm32;
 pub mod world_link;
+pub mod world_session;
 
 pub use camera::Camera;
 pub use motors::Motors;
 pub use power_state::DevicePower;
+pub use solo_world::SoloWorld;
 pub use stm32::Stm32;
 pub use world_link::{LinkError, LinkStats, SocketWorld, WorldLink};
+pub use world_session::WorldSession;
 
 use thiserror::Error;
 
@@ -106,6 +111,9 @@ pub enum DeviceError {
 /// What a device may use while it reacts to an access or an event.
 pub struct DeviceCtx<'a> {
     pub world: &'a mut dyn WorldLink,
+    /// The platform's one session with the world (GET_INIT_DATA once, the
+    /// drone's clock, STOP).
+    pub session: &'a mut WorldSession,
     pub time: &'a mut TimeKeeper,
     pub motors: &'a mut Motors,
     /// The battery is under its low threshold (set by the power network).

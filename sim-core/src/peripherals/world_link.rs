@@ -45,10 +45,34 @@ pub trait WorldLink {
     fn stats(&self) -> LinkStats;
 }
 
+/// A borrowed link is a link (so a caller can keep an in-process world and
+/// look at it after the run).
+impl<T: WorldLink + ?Sized> WorldLink for &mut T {
+    fn call(&mut self, request: &Request, now: Picos) -> Result<Reply, LinkError> {
+        (**self).call(request, now)
+    }
+    fn send(&mut self, request: &Request, now: Picos) -> Result<(), LinkError> {
+        (**self).send(request, now)
+    }
+    fn stats(&self) -> LinkStats {
+        (**self).stats()
+    }
+}
+
+/// **Test-only knob**: when this environment variable holds a number N, the
+/// platform sleeps N µs of wall time before every request it sends. It
+/// slows a platform down on purpose, so the end-to-end tests can check that
+/// a swarm's outputs do not depend on the processes' speeds (the lockstep,
+/// docs/SWARM.md §2). Wall time never enters a simulated result, so the knob
+/// changes nothing but the run's duration; it is not meant for users.
+pub const SLOW_LINK_ENV: &str = "SIM_CORE_TEST_SLOW_LINK_US";
+
 /// The world server at the other end of a socket, with an optional trace
 /// of every frame (`--trace`, DESIGN.md §2).
 pub struct SocketWorld {
     conn: protocol::blocking::Connection,
+    /// Test-only: wall-clock pause before each request (see [`SLOW_LINK_ENV`]).
+    slow: Option<std::time::Duration>,
     counters: std::sync::Arc<Counters>,
     trace: Option<std::sync::Arc<std::sync::Mutex<protocol::trace::TraceWriter>>>,
 }
@@ -118,8 +142,20 @@ impl SocketWorld {
             }
             Ok(())
         }));
+        let slow = match std::env::var(SLOW_LINK_ENV) {
+            Ok(v) => Some(std::time::Duration::from_micros(v.trim().parse().map_err(
+                |_| {
+                    protocol::ProtocolError::Io(std::io::Error::new(
+                        std::io::ErrorKind::InvalidInput,
+                        format!("{SLOW_LINK_ENV}={v:?} is not a number of microseconds"),
+                    ))
+                },
+            )?)),
+            Err(_) => None,
+        };
         Ok(SocketWorld {
             conn,
+            slow,
             counters,
             trace,
         })
@@ -157,6 +193,9 @@ impl Drop for SocketWorld {
 
 impl WorldLink for SocketWorld {
     fn call(&mut self, request: &Request, now: Picos) -> Result<Reply, LinkError> {
+        if let Some(d) = self.slow {
+            std::thread::sleep(d);
+        }
         self.counters
             .now_ps
             .store(now.0, std::sync::atomic::Ordering::Relaxed);
@@ -171,6 +210,9 @@ impl WorldLink for SocketWorld {
     }
 
     fn send(&mut self, request: &Request, now: Picos) -> Result<(), LinkError> {
+        if let Some(d) = self.slow {
+            std::thread::sleep(d);
+        }
         self.counters
             .now_ps
             .store(now.0, std::sync::atomic::Ordering::Relaxed);

@@ -2,6 +2,13 @@
 //! per 1 ms sample, and one file per motor model as the thesis's three log
 //! files (§4.5.3, `open_files`).
 //!
+//! `power.csv` has two more columns at the end, `i_uwb_a` and `i_p2p_a`, for
+//! a platform that reports its radios (a swarm member, `--drone`, or a
+//! platform file that lists them; see `kernel::KernelConfig::reports_radios`).
+//! Without them a radio's current is counted in `i_other_a`, so the VCC
+//! columns always add up; a run that never switches a radio on writes the
+//! same bytes as before the radios existed.
+//!
 //! Every file gets its header when it is created and is flushed by
 //! [`PowerLogger::flush`] and again when the logger is dropped — on normal
 //! exit, on an error return and while unwinding from a panic — so the files
@@ -41,6 +48,8 @@ const POWER_HEADER: [&str; 16] = [
     "low_battery",
     "power_model",
 ];
+
+const RADIO_HEADER: [&str; 2] = ["i_uwb_a", "i_p2p_a"];
 
 #[derive(Serialize)]
 struct PowerRow<'a> {
@@ -131,16 +140,50 @@ impl CsvFile {
     }
 }
 
+/// `power.csv` row with the radio columns (same columns, two more at the end).
+#[derive(Serialize)]
+struct PowerRowRadios<'a> {
+    t_ps: u64,
+    time_s: f64,
+    i_core_a: f64,
+    i_camera_a: f64,
+    i_stm32_a: f64,
+    i_other_a: f64,
+    i_vcc_a: f64,
+    ldo_efficiency: f64,
+    i_vcc_battery_a: f64,
+    i_motor_a: f64,
+    i_battery_a: f64,
+    v_oc_v: f64,
+    v_battery_v: f64,
+    soc: f64,
+    low_battery: u8,
+    power_model: &'a str,
+    i_uwb_a: f64,
+    i_p2p_a: f64,
+}
+
 /// Writers for `power.csv` and the three model files.
 pub struct PowerLogger {
     power: CsvFile,
     models: [CsvFile; 3],
+    radio_columns: bool,
 }
 
 impl PowerLogger {
-    /// Creates (truncates) the four files in `dir`, headers written.
-    pub fn create(dir: &Path) -> Result<PowerLogger, PowerError> {
-        let power = CsvFile::create(dir.join(POWER_CSV), &POWER_HEADER)?;
+    /// Creates (truncates) the four files in `dir`, headers written;
+    /// `radio_columns` adds the radios' columns to `power.csv`.
+    pub fn create(dir: &Path, radio_columns: bool) -> Result<PowerLogger, PowerError> {
+        let header: Vec<&str> = if radio_columns {
+            POWER_HEADER
+                .iter()
+                .chain(RADIO_HEADER.iter())
+                .copied()
+                .collect()
+        } else {
+            POWER_HEADER.to_vec()
+        };
+        let power = CsvFile::create(dir.join(POWER_CSV), &header)?;
         let model = |k: PowerModelKind| CsvFile::create(dir.join(model_csv_name(k)), &MODEL_HEADER);
         Ok(PowerLogger {
             power,
@@ -149,6 +192,7 @@ impl PowerLogger {
                 model(PowerModelKind::DAndrea)?,
                 model(PowerModelKind::Stolaroff)?,
             ],
+            radio_columns,
         })
     }
 
@@ -163,24 +207,58 @@ impl PowerLogger {
     /// Appends one sample to every file.
     pub fn log(&mut self, s: &PowerSample) -> Result<(), PowerError> {
         let time_s = s.t.as_secs_f64();
-        self.power.row(&PowerRow {
-            t_ps: s.t.0,
-            time_s,
-            i_core_a: s.i_core.0,
-            i_camera_a: s.i_camera.0,
-            i_stm32_a: s.i_stm32.0,
-            i_other_a: s.i_other.0,
-            i_vcc_a: s.i_vcc.0,
-            ldo_efficiency: s.ldo_efficiency,
-            i_vcc_battery_a: s.i_vcc_battery.0,
-            i_motor_a: s.i_motor.0,
-            i_battery_a: s.i_battery.0,
-            v_oc_v: s.v_oc.0,
-            v_battery_v: s.v_battery.0,
-            soc: s.soc,
-            low_battery: u8::from(s.low_battery),
-            power_model: s.selected.name(),
-        })?;
+        let [i_uwb, i_p2p] = s.i_radios;
+        // Without radio columns the radios are "other" loads. Added only
+        // when they draw something: an empty `i_other` sum is −0.0, and
+        // −0.0 + 0.0 would print differently from the radio-less platform.
+        let radios = i_uwb.0 + i_p2p.0;
+        let i_other_all = if radios != 0.0 {
+            s.i_other.0 + radios
+        } else {
+            s.i_other.0
+        };
+        if self.radio_columns {
+            self.power.row(&PowerRowRadios {
+                t_ps: s.t.0,
+                time_s,
+                i_core_a: s.i_core.0,
+                i_camera_a: s.i_camera.0,
+                i_stm32_a: s.i_stm32.0,
+                i_other_a: s.i_other.0,
+                i_vcc_a: s.i_vcc.0,
+                ldo_efficiency: s.ldo_efficiency,
+                i_vcc_battery_a: s.i_vcc_battery.0,
+                i_motor_a: s.i_motor.0,
+                i_battery_a: s.i_battery.0,
+                v_oc_v: s.v_oc.0,
+                v_battery_v: s.v_battery.0,
+                soc: s.soc,
+                low_battery: u8::from(s.low_battery),
+                power_model: s.selected.name(),
+                i_uwb_a: i_uwb.0,
+                i_p2p_a: i_p2p.0,
+            })?;
+        } else {
+            self.power.row(&PowerRow {
+                t_ps: s.t.0,
+                time_s,
+                i_core_a: s.i_core.0,
+                i_camera_a: s.i_camera.0,
+                i_stm32_a: s.i_stm32.0,
+                // Nothing separate for the radios: they are "other" loads.
+                i_other_a: i_other_all,
+                i_vcc_a: s.i_vcc.0,
+                ldo_efficiency: s.ldo_efficiency,
+                i_vcc_battery_a: s.i_vcc_battery.0,
+                i_motor_a: s.i_motor.0,
+                i_battery_a: s.i_battery.0,
+                v_oc_v: s.v_oc.0,
+                v_battery_v: s.v_battery.0,
+                soc: s.soc,
+                low_battery: u8::from(s.low_battery),
+                power_model: s.selected.name(),
+            })?;
+        }
         for (kind, file) in PowerModelKind::ALL.iter().zip(self.models.iter_mut()) {
             let out = s.models[kind.index()];
             file.row(&ModelRow {

@@ -2,8 +2,10 @@
 //!
 //! ```text
 //!  core ─┐ (converters, ideal by default)
-//!  camera ┼─ VCC bus 3.0 V ── LDO (η = Vout/Vin, clamped) ──┐
-//!  stm32 ─┘                                                  ├── battery (SOC polynomials)
+//!  camera ┤
+//!  stm32 ─┼─ VCC bus 3.0 V ── LDO (η = Vout/Vin, clamped) ──┐
+//!  uwb ───┤                                                  │
+//!  p2p ───┘                                                  ├── battery (SOC polynomials)
 //!  motors ── motor bus at the battery voltage (η = 1) ───────┘
 //! ```
 //!
@@ -126,12 +128,18 @@ impl SensorState {
 }
 
 /// The devices' power states at a sample.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Loads {
     pub core: CoreState,
     pub camera: SensorState,
     pub stm32: SensorState,
+    /// The radios' mean currents over the sample's interval (UWB, P2P; see
+    /// `peripherals::radio`); 0 for a radio never switched on.
+    pub radios: [Amps; 2],
 }
+
+/// Names of the radios on the VCC bus, in [`Loads::radios`] order.
+pub const RADIOS: [&str; 2] = ["uwb", "p2p"];
 
 /// Everything computed at one sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -148,6 +156,8 @@ pub struct PowerSample {
     pub i_stm32: Amps,
     /// Any other sensors (at their idle current), both buses, A.
     pub i_other: Amps,
+    /// The radios' currents on the VCC bus (UWB, P2P), A.
+    pub i_radios: [Amps; 2],
     /// VCC bus total at the bus voltage, A.
     pub i_vcc: Amps,
     /// LDO efficiency used at this sample (Vout/Vin clamped, Eq. 4.1).
@@ -191,6 +201,8 @@ pub struct Energy {
     pub models: [Joules; 3],
     /// The VCC bus (at its voltage).
     pub vcc: Joules,
+    /// The radios (UWB, P2P), at the VCC bus voltage.
+    pub radios: [Joules; 2],
     /// Drawn from the battery at its terminal voltage (the summary's `total`).
     pub battery: Joules,
 }
@@ -213,7 +225,9 @@ struct StateCurrents {
 /// The power network of the Crazyflie (see the module documentation).
 pub struct PowerNetwork {
     vcc_voltage: Volts,
-    /// Loads on the VCC bus: core, camera, stm32, then other VCC sensors.
+    /// Loads on the VCC bus: core, camera, stm32, other VCC sensors, then
+    /// the two radios (last, so a radio drawing nothing leaves every sum
+    /// bit for bit as without radios).
     vcc: PowerBus,
     /// Load currents in `vcc`'s order (the first three change per sample).
     vcc_load_currents: Vec<Amps>,
@@ -278,7 +292,7 @@ impl PowerNetwork {
                 .sensors
                 .keys()
                 .map(String::as_str)
-                .filter(|n| *n != "camera" && *n != "stm32"),
+                .filter(|n| *n != "camera" && *n != "stm32" && !RADIOS.contains(n)),
         );
         for name in names {
             let s = platform
@@ -303,6 +317,19 @@ impl PowerNetwork {
                 }
                 BusKind::Battery => battery_side_idle.push((idle, converter)),
             }
+        }
+        // The radios: always on the bus, drawing what the radio device says
+        // (nothing until it is switched on).
+        for name in RADIOS {
+            let (vref, converter) = match platform.sensor(name) {
+                Some(s) => (
+                    Volts(s.vref.unwrap_or(vcc_voltage.0)),
+                    s.converter().map_err(PowerError::Platform)?,
+                ),
+                None => (vcc_voltage, Converter::ideal()),
+            };
+            vcc.attach(name, vref, converter);
+            vcc_load_currents.push(Amps(0.0));
         }
         let core_state = |name: &str| {
             platform
@@ -427,6 +454,9 @@ impl PowerNetwork {
         }];
         self.vcc_load_currents[1] = self.states.camera[loads.camera.index()];
         self.vcc_load_currents[2] = self.states.stm32[loads.stm32.index()];
+        let n = self.vcc_load_currents.len();
+        self.vcc_load_currents[n - 2] = loads.radios[0];
+        self.vcc_load_currents[n - 1] = loads.radios[1];
         let i_vcc = self.vcc.draw(
             self.vcc_voltage,
             &self.vcc_load_currents,
@@ -449,8 +479,14 @@ impl PowerNetwork {
             .iter()
             .map(|(i, c)| c.input_current(*i, v_prev, v_prev).0)
             .sum();
-        let i_other =
-            Amps(self.vcc_bus_currents[3..].iter().map(|i| i.0).sum::<f64>() + i_battery_side);
+        let i_other = Amps(
+            self.vcc_bus_currents[3..n - 2]
+                .iter()
+                .map(|i| i.0)
+                .sum::<f64>()
+                + i_battery_side,
+        );
+        let i_radios = [self.vcc_bus_currents[n - 2], self.vcc_bus_currents[n - 1]];
         let i_battery = Amps(i_vcc_battery.0 + i_motor.0 + i_battery_side);
 
         self.battery.step(i_battery, dt_s);
@@ -461,6 +497,9 @@ impl PowerNetwork {
             e.0 += out.power.0 * dt_s;
         }
         self.energy.vcc.0 += self.vcc_voltage.0 * i_vcc.0 * dt_s;
+        for (e, i) in self.energy.radios.iter_mut().zip(i_radios) {
+            e.0 += self.vcc_voltage.0 * i.0 * dt_s;
+        }
         self.energy.battery.0 += v_battery.0 * i_battery.0 * dt_s;
 
         let low_battery = self.battery.is_low();
@@ -480,6 +519,7 @@ impl PowerNetwork {
             i_camera: self.vcc_bus_currents[1],
             i_stm32: self.vcc_bus_currents[2],
             i_other,
+            i_radios,
             i_vcc,
             ldo_efficiency,
             i_vcc_battery,
@@ -556,6 +596,7 @@ mod tests {
             core: CoreState::Sleeping,
             camera: SensorState::Idle,
             stm32: SensorState::Idle,
+            radios: [Amps(0.0); 2],
         };
         let s = n
             .sample(SAMPLE_PERIOD, &loads, &MotorState::default())

@@ -146,6 +146,28 @@ impl TimeKeeper {
         self.iteration_steps(d)
     }
 
+    /// One tick of the platform's own clock (docs/SWARM.md §4.1, a firmware
+    /// that never ran INIT_PID): a device delay of exactly `ts` from `from`
+    /// that the world follows with one `ADVANCE_TIME ts`. It is accounted
+    /// like [`TimeKeeper::delay`] (the platform time of the delay is covered,
+    /// so nothing goes to `sim_off_accum`), and the world advances by `ts`
+    /// itself, never by a rounded or carried amount: in the thesis mode that
+    /// is what `delay(ts)` gives anyway (`ts / ts` = 1, remainder 0); in the
+    /// bounded mode a remainder carried from before the first tick (the core
+    /// time before INIT) stays carried instead of changing the tick. Either
+    /// way the estimate stays exact and the drone's clock is warm-up + k·ts.
+    pub fn clock_tick(&mut self, ts: Millis, from: Picos) {
+        self.account_delay(ts, from);
+        self.world_sent_ms += ts.0;
+    }
+
+    /// Platform time up to which time has been accounted for: the end of
+    /// the last device delay (docs/SWARM.md §4.2: the platform time `p_d`
+    /// that corresponds to the drone's clock).
+    pub fn accounted_until(&self) -> Picos {
+        self.accounted_until
+    }
+
     /// A delay both sides already spend on their own (the 2000 ms start-up
     /// alignment of INIT_PID, the motor stop time at STOP): no advance, no
     /// offset.

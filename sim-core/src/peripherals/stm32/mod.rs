@@ -8,7 +8,7 @@
 //!
 //! | code | command | takes |
 //! |---|---|---|
-//! | 1 | INIT_PID | GET_INIT_DATA, then the start-up alignment (the world's warm-up, 2000 ms) |
+//! | 1 | INIT_PID | the world session (GET_INIT_DATA and the start-up alignment, the world's 2000 ms warm-up, unless a radio opened it already); the drone's clock is the STM32's from then on |
 //! | 2 | GET_STABLE | PID iterations of one timestep each until the drone holds 1 m |
 //! | 3 | SET_TARGET | 5 ms |
 //! | 4 | RUN_SINGLE_STEP_PID | one iteration: 7 ms (PID + motor path); status 6 if the target is reached, 9 if the battery is low |
@@ -18,11 +18,13 @@
 //! | 10 + v | ITER_ADVANCE | v ms (inference time), status 10 |
 //! | 251 | SKIP_TARGET | our extension: a target skipped for low battery is counted, at once |
 
+mod clock;
+mod flight;
 pub mod pid;
 
-use protocol::{ImageEncoding, Reply, Request};
-
-use self::pid::{ActualState, DesiredState, MotorCommands, PidController, PidGains};
+use self::flight::{Flight, Outcome};
+use self::pid::{PidController, PidGains};
+use super::world_session::SessionError;
 use super::{DeviceCtx, DeviceError, DevicePower, LinkError, TimedReg};
 use crate::units::{Millis, Picos};
 
@@ -59,8 +61,6 @@ pub struct Stm32Config {
     /// Iterations (at 32 ms, scaled by 32/ts) after which a target is
     /// given up and the next one taken ("bypassed").
     pub unlock_cycles: u32,
-    /// Image encoding asked for in GET_INIT_DATA.
-    pub image_encoding: ImageEncoding,
     /// SET_TARGET's delay (§4.2.1: 5 ms).
     pub set_target_delay: Millis,
     /// The PID and motor path of one iteration (§4.2.4: 7 ms).
@@ -78,7 +78,6 @@ impl Default for Stm32Config {
             tolerance: 0.1,
             target_cycles: 100,
             unlock_cycles: 5000,
-            image_encoding: ImageEncoding::Array,
             set_target_delay: Millis(5),
             pid_path_delay: Millis(7),
             stable_height: 1.0,
@@ -95,11 +94,6 @@ pub struct Stm32Stats {
     pub targets_bypassed: u32,
     pub targets_skipped_low_battery: u32,
     pub pid_iterations: u64,
-    /// The world's reply to STOP: its time (s) and the motors' stop time (ms).
-    pub stop: Option<(f64, u64)>,
-    /// Contacts begun in the world, from GET_STATE just before STOP (None
-    /// if the world does not implement that extension).
-    pub collisions: Option<u64>,
 }
 
 /// What the STM32 does on its own between core accesses.
@@ -114,31 +108,6 @@ enum Process {
     Landing {
         stage: u8,
     },
-}
-
-/// The thesis's `PIDController` state (Appendix C).
-#[derive(Debug, Clone)]
-struct Flight {
-    pid: PidController,
-    target: [f64; 3],
-    target_counter: u32,
-    num_iteration: u32,
-    /// The current target is already counted in the statistics (a firmware
-    /// that keeps flying to a reached target, like the hover test, sees
-    /// TARGET_REACHED again at every iteration).
-    counted: bool,
-    height_desired: f64,
-    past_time: f64,
-    past_x: f64,
-    past_y: f64,
-}
-
-/// How an iteration ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Outcome {
-    Flying,
-    Reached,
-    Bypassed,
 }
 
 pub struct Stm32 {
@@ -342,55 +311,6 @@ impl Stm32 {
         }
     }
 
-    fn init_pid(&mut self, now: Picos, ctx: &mut DeviceCtx<'_>) -> Result<(), DeviceError> {
-        let request = Request::GetInitData {
-            image_encoding: Some(self.cfg.image_encoding),
-        };
-        let reply = ctx.world.call(&request, now).map_err(world_err)?;
-        let Reply::InitData {
-            x,
-            y,
-            z,
-            time_s,
-            timestep_ms,
-            ..
-        } = reply
-        else {
-            return Err(world_err(LinkError::Unexpected {
-                request: "GET_INIT_DATA",
-                reply: reply.command(),
-            }));
-        };
-        if timestep_ms == 0 {
-            return Err(invalid("the world reported a basicTimeStep of 0 ms".into()));
-        }
-        if ctx.time.mode() == crate::sync::SyncMode::Thesis && timestep_ms < 3 {
-            return Err(invalid(format!(
-                "basicTimeStep {timestep_ms} ms is too small for the thesis's iteration scheme \
-                 (one timestep minus 1 ms rounds to no step); use sync = \"bounded\""
-            )));
-        }
-        self.timestep = Millis(timestep_ms);
-        ctx.time.set_timestep(self.timestep);
-        let f = &mut self.flight;
-        f.pid.reset();
-        f.past_time = time_s;
-        f.past_x = x;
-        f.past_y = y;
-        f.height_desired = z;
-        f.target = [x, y, z];
-        self.initialised = true;
-        // The world ran its warm-up (2000 ms, Appendix E) before serving us:
-        // the platform spends the same time so both clocks agree (§4.2.1).
-        let align = Millis((time_s * 1000.0).round().max(0.0) as u64);
-        ctx.time.aligned(align, now, false);
-        let done = now + align.to_picos();
-        self.power.busy_reading(done);
-        self.complete(done, INIT_PID);
-        tracing::info!(target: "cosim::stm32", timestep_ms, x, y, z, "PID initialised");
-        Ok(())
-    }
-
     fn new_target(&mut self, target: [f64; 3]) {
         let f = &mut self.flight;
         f.target = target;
@@ -407,51 +327,6 @@ impl Stm32 {
     fn complete(&mut self, at: Picos, code: u8) {
         self.status.set_at(at, code);
         self.power.busy_reading(at);
-    }
-
-    /// Sends a pending iteration delay (an ITER_ADVANCE not followed by a
-    /// PID step) to the world before another kind of operation starts.
-    fn flush_iteration(&mut self, now: Picos, ctx: &mut DeviceCtx<'_>) -> Result<(), DeviceError> {
-        let pending = ctx.time.take_iteration();
-        if pending.0 > 0 {
-            let steps = ctx.time.iteration_steps(pending);
-            self.send_advance(steps, now, ctx)?;
-        }
-        Ok(())
-    }
-
-    fn advance_world(
-        &mut self,
-        d: Millis,
-        now: Picos,
-        ctx: &mut DeviceCtx<'_>,
-    ) -> Result<(), DeviceError> {
-        let steps = ctx.time.delay(d, now);
-        self.send_advance(steps, now, ctx)
-    }
-
-    fn send_advance(
-        &mut self,
-        steps: u64,
-        now: Picos,
-        ctx: &mut DeviceCtx<'_>,
-    ) -> Result<(), DeviceError> {
-        if steps > 0 {
-            let time = steps * self.timestep.0;
-            ctx.world
-                .send(&Request::AdvanceTime { time }, now)
-                .map_err(world_err)?;
-        }
-        Ok(())
-    }
-
-    fn drive(
-        commands: MotorCommands,
-        now: Picos,
-        iter: Millis,
-        ctx: &mut DeviceCtx<'_>,
-    ) -> Result<(), DeviceError> {
-        super::motors::drive_from_ctx(ctx, commands, iter, now).map_err(world_err)
     }
 
     /// The kernel calls this when [`Stm32::next_event`] is due.
@@ -500,205 +375,12 @@ impl Stm32 {
         self.next_iteration = None;
         self.complete(at, code);
     }
+}
 
-    /// End of the landing: STOP, the motors' stop time, then GO_DOWN done.
-    fn stop_world(&mut self, at: Picos, ctx: &mut DeviceCtx<'_>) -> Result<(), DeviceError> {
-        // GET_STATE is our extension: a world that answers ERROR to it
-        // (e.g. one written for the thesis's protocol only) is fine.
-        match ctx.world.call(&Request::GetState, at) {
-            Ok(Reply::State(state)) => self.stats.collisions = Some(state.collisions),
-            Ok(_) | Err(LinkError::Remote { .. }) => {}
-            Err(e) => return Err(world_err(e)),
-        }
-        let reply = ctx.world.call(&Request::Stop, at).map_err(world_err)?;
-        let Reply::Stop {
-            time_s,
-            stop_time_ms,
-        } = reply
-        else {
-            return Err(world_err(LinkError::Unexpected {
-                request: "STOP",
-                reply: reply.command(),
-            }));
-        };
-        ctx.motors.stopped();
-        self.stats.stop = Some((time_s, stop_time_ms));
-        ctx.time.aligned(Millis(stop_time_ms), at, true);
-        self.complete(at + Millis(stop_time_ms).to_picos(), GO_DOWN);
-        tracing::info!(target: "cosim::stm32", time_s, stop_time_ms, "world stopped");
-        Ok(())
-    }
-
-    fn print_simul_time(&mut self, now: Picos, ctx: &mut DeviceCtx<'_>) {
-        let r = ctx.time.report(now);
-        let mut text = format!(
-            "\n[STM32] Platform time: {:.3} ms\n[STM32] Sensors offset: {:.3} ms, core overshoot (sim_off_accum): {:.6} ms\n[STM32] Estimated world time: {:.3} ms\n",
-            r.platform_time.0 as f64 / Picos::PER_MS as f64,
-            r.sensors_offset_ms,
-            r.sim_off_accum_ms,
-            r.world_time_estimate_ms
-        );
-        if let Some((time_s, _)) = self.stats.stop {
-            let real = time_s * 1000.0;
-            let err = (r.world_time_estimate_ms - real) / real * 100.0;
-            text.push_str(&format!(
-                "[STM32] Real world time (STOP): {real:.3} ms, error: {err:.4} %\n"
-            ));
-        }
-        (ctx.console)(&text);
-    }
-
-    /// One PID iteration (Appendix C): sensors, body velocities, the
-    /// straight-path coefficients (Listing 4.2), tolerance and target
-    /// counting (Listing 4.3), the Bitcraze controller, the motors.
-    fn pid_iteration(
-        &mut self,
-        now: Picos,
-        ctx: &mut DeviceCtx<'_>,
-        integrate_height: bool,
-    ) -> Result<(Outcome, MotorCommands), DeviceError> {
-        let reply = ctx
-            .world
-            .call(&Request::GetSensors, now)
-            .map_err(world_err)?;
-        let Reply::Sensors(s) = reply else {
-            return Err(world_err(LinkError::Unexpected {
-                request: "GET_SENSORS",
-                reply: reply.command(),
-            }));
-        };
-        self.stats.pid_iterations += 1;
-        let ts_s = self.timestep.0 as f64 / 1000.0;
-        let cfg = &self.cfg;
-        let f = &mut self.flight;
-        let mut dt = s.time_s - f.past_time;
-        // The first iteration after INIT_PID sees the same world time as
-        // GET_INIT_DATA (the platform's alignment does not move the world);
-        // the C code would divide by zero there. Use one timestep instead.
-        if dt <= 0.0 {
-            dt = ts_s;
-        }
-        let (vx, vy) = pid::body_velocity(s.x - f.past_x, s.y - f.past_y, dt, s.yaw);
-        let actual = ActualState {
-            roll: s.roll,
-            pitch: s.pitch,
-            yaw_rate: s.yaw_rate,
-            altitude: s.z,
-            vx,
-            vy,
-        };
-
-        // Listing 4.2: the straight path.
-        let x_diff = s.x - f.target[0];
-        let y_diff = s.y - f.target[1];
-        let z_diff = s.z - f.target[2];
-        let (x_abs, y_abs, z_abs) = (x_diff.abs(), y_diff.abs(), z_diff.abs());
-        let max_abs = if x_abs > y_abs {
-            if x_abs > z_abs {
-                x_abs
-            } else {
-                z_abs
-            }
-        } else if y_abs > z_abs {
-            y_abs
-        } else {
-            z_abs
-        };
-        // 0/0 only when the drone is exactly on the target, where no
-        // coefficient is used (every diff is within tolerance).
-        let coeff = |a: f64| if max_abs > 0.0 { a / max_abs } else { 0.0 };
-        let (x_coeff, y_coeff, z_coeff) = (coeff(x_abs), coeff(y_abs), coeff(z_abs));
-
-        // Listing 4.3: tolerance and target counting.
-        let tol = cfg.tolerance;
-        let mut sideways_desired = 0.0;
-        let mut forward_desired = 0.0;
-        let mut height_diff_desired = 0.0;
-        let mut outside = 0;
-        if x_diff > tol {
-            sideways_desired = x_coeff * 0.5;
-            outside += 1;
-        }
-        if x_diff < -tol {
-            sideways_desired = -x_coeff * 0.5;
-            outside += 1;
-        }
-        if y_diff > tol {
-            forward_desired = -y_coeff * 0.5;
-            outside += 1;
-        }
-        if y_diff < -tol {
-            forward_desired = y_coeff * 0.5;
-            outside += 1;
-        }
-        if z_diff > tol {
-            height_diff_desired = -z_coeff * 0.2;
-            outside += 1;
-        }
-        if z_diff < -tol {
-            height_diff_desired = z_coeff * 0.2;
-            outside += 1;
-        }
-        let mut outcome = Outcome::Flying;
-        if outside == 0 {
-            f.target_counter += 1;
-            if f.target_counter >= cfg.target_cycles {
-                outcome = Outcome::Reached;
-                f.num_iteration = 0;
-            }
-        }
-        f.num_iteration += 1;
-        let unlock = (u64::from(cfg.unlock_cycles) * 32 / self.timestep.0.max(1)) as u32;
-        if f.num_iteration >= unlock {
-            if outcome == Outcome::Flying {
-                outcome = Outcome::Bypassed;
-            }
-            f.num_iteration = 0;
-        }
-
-        if integrate_height {
-            f.height_desired += height_diff_desired * dt;
-        }
-        let mut desired = DesiredState {
-            yaw_rate: 0.0,
-            vy: sideways_desired,
-            vx: forward_desired,
-            altitude: f.height_desired,
-            ..DesiredState::default()
-        };
-        let commands = f.pid.step(&actual, &mut desired, dt);
-        if commands.as_array().iter().any(|m| !m.is_finite()) {
-            return Err(invalid(format!(
-                "the controller produced non-finite motor commands {commands:?} from {s:?}"
-            )));
-        }
-        f.past_time = s.time_s;
-        f.past_x = s.x;
-        f.past_y = s.y;
-
-        // Targets set by the firmware are counted (GET_STABLE and landing are
-        // the STM32's own).
-        let already = self.flight.counted;
-        if outcome != Outcome::Flying {
-            self.flight.counted = true;
-        }
-        let counts = matches!(self.process, Process::Idle | Process::Continuous) && !already;
-        match outcome {
-            Outcome::Reached if counts => self.stats.targets_reached += 1,
-            Outcome::Bypassed => {
-                if counts {
-                    self.stats.targets_bypassed += 1;
-                }
-                let msg = format!(
-                    "Warning: target position {:?} could not be reached! Bypassing to the next one...\n",
-                    self.flight.target
-                );
-                tracing::warn!(target: "cosim::stm32", "{}", msg.trim_end());
-                (ctx.console)(&msg);
-            }
-            _ => {}
-        }
-        Ok((outcome, commands))
+fn session_err(e: SessionError) -> DeviceError {
+    match e {
+        SessionError::World(error) => world_err(error),
+        SessionError::Invalid(message) => invalid(message),
     }
 }
 

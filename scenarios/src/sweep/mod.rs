@@ -2,6 +2,13 @@
 //! parallel (each run its own pair of processes and socket), a table of the
 //! summary figures (markdown and CSV) and overlay plots. A run that fails is
 //! a row marked failed with its error; the other rows are kept.
+//!
+//! Beyond one machine (DESIGN.md §11): [`plan`] numbers the runs and cuts
+//! them into shards `K/N`; every run leaves a record (`sweep-run.json`) in
+//! its directory; [`merge`] rebuilds the table and plots from shard outputs.
+
+pub mod merge;
+pub mod plan;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -14,6 +21,8 @@ use crate::plot::{self, Series};
 use crate::report::{self, PowerRow, SummaryExt};
 use crate::scenario::{Scenario, ScenarioError};
 use crate::{run_scenario, RunOutcome};
+pub use merge::merge;
+pub use plan::{Plan, PlannedRun, RunRecord, Shard, SweepId, RUN_RECORD};
 
 /// File names of a sweep's outputs.
 pub mod files {
@@ -28,20 +37,25 @@ pub mod files {
 pub enum SweepError {
     #[error("--param {0:?}: expected KEY=V1,V2,...")]
     BadParam(String),
-    #[error("run {label}: {source}")]
-    Scenario {
-        label: String,
-        #[source]
-        source: ScenarioError,
-    },
+    // The scenario error is in the message, not chained as a source: the
+    // launcher prints the chain, and the line would say it twice.
+    #[error("run {label}: {error}")]
+    Scenario { label: String, error: ScenarioError },
     #[error("no parameters: give --param KEY=V1,V2,... (or a [sweep] table in the scenario)")]
     NoParams,
+    #[error("--shard {0:?}: expected K/N with 1 <= K <= N (run numbers ≡ K mod N)")]
+    BadShard(String),
     #[error("{0}")]
     Output(String),
+    /// A merge refused: missing, duplicate or foreign runs, a corrupt record
+    /// or summary (one line that names the run and the file).
+    #[error("merge refused: {0}")]
+    Merge(String),
 }
 
 /// One swept parameter.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Param {
     pub key: String,
     pub values: Vec<String>,
@@ -136,27 +150,25 @@ pub fn run_sweep(
     jobs: usize,
     opts: &LaunchOptions,
 ) -> Result<Vec<SweepRow>, SweepError> {
-    if params.is_empty() {
-        return Err(SweepError::NoParams);
-    }
-    // Every combination is built (and so checked) before anything runs: a
-    // typo in the last value must not surface after an hour of runs.
-    let mut planned = Vec::new();
-    for (i, combo) in product(params).into_iter().enumerate() {
-        let mut s = base.clone();
-        for (k, v) in &combo {
-            s.set(&format!("{k}={v}"))
-                .map_err(|source| SweepError::Scenario {
-                    label: format!("{}", i + 1),
-                    source,
-                })?;
-        }
-        s.check_files().map_err(|source| SweepError::Scenario {
-            label: format!("{}", i + 1),
-            source,
-        })?;
-        planned.push((i, combo, s));
-    }
+    let plan = Plan::new(base, params)?;
+    run_planned(&plan, None, bins, out, jobs, opts)
+}
+
+/// Runs the runs of `shard` (all without one) `jobs` at a time into
+/// `out/run-NNN_key=value...`, each leaving its [`RunRecord`]. The whole
+/// sweep writes the table and the plots; a shard writes only its run
+/// directories, so that shards may share `out` (a shared filesystem) and
+/// `cosim sweep --merge` makes the table.
+pub fn run_planned(
+    plan: &Plan,
+    shard: Option<Shard>,
+    bins: &Binaries,
+    out: &Path,
+    jobs: usize,
+    opts: &LaunchOptions,
+) -> Result<Vec<SweepRow>, SweepError> {
+    let planned = plan.select(shard);
+    let record_shard = shard.unwrap_or(Shard { k: 1, n: 1 });
     std::fs::create_dir_all(out)
         .map_err(|e| SweepError::Output(format!("cannot create {}: {e}", out.display())))?;
     let bar = ProgressBar::new(planned.len() as u64);
@@ -175,16 +187,16 @@ pub fn run_sweep(
         for _ in 0..jobs.clamp(1, planned.len().max(1)) {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
-                let Some((index, combo, scenario)) = planned.get(i) else {
+                let Some(run) = planned.get(i) else {
                     break;
                 };
-                let dir = out.join(dir_name(*index, combo));
+                let dir = out.join(run.dir_name());
                 // A panic in one run (a bug in the report code, say) is that
                 // run's failure, not the sweep's.
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    run_scenario(scenario, bins, &dir, &run_opts, true)
+                    run_scenario(&run.scenario, bins, &dir, &run_opts, true)
                 }));
-                let (outcome, error) = match result {
+                let (outcome, mut error) = match result {
                     Ok(Ok(o)) => {
                         let e = o.error();
                         (Some(o), e)
@@ -192,9 +204,25 @@ pub fn run_sweep(
                     Ok(Err(e)) => (None, Some(e.to_string())),
                     Err(_) => (None, Some("the run panicked (see the log above)".into())),
                 };
+                let record = RunRecord::new(
+                    &plan.id,
+                    run,
+                    record_shard,
+                    &dir,
+                    outcome.as_ref(),
+                    error.as_deref(),
+                );
+                if let Err(e) = record.write(&dir) {
+                    // Without its record the merge would report the run
+                    // missing; say why here, in the row.
+                    error = Some(match error {
+                        Some(prev) => format!("{prev}; {e}"),
+                        None => e.to_string(),
+                    });
+                }
                 let row = SweepRow {
-                    index: *index,
-                    assignments: combo.clone(),
+                    index: run.index,
+                    assignments: run.assignments.clone(),
                     dir,
                     outcome,
                     error,
@@ -214,12 +242,29 @@ pub fn run_sweep(
     bar.finish();
     let mut rows = rows.into_inner().unwrap_or_else(|e| e.into_inner());
     rows.sort_by_key(|r| r.index);
-    write_tables(params, &rows, out)?;
-    if let Err(e) = write_plots(params, &rows, out) {
-        tracing::warn!("sweep plots: {e}");
+    if shard.is_none() {
+        write_outputs(&plan.id.params, &rows, out)?;
     }
     Ok(rows)
 }
+
+/// The table (`sweep.csv`, `sweep.md`) and the plots of a whole sweep.
+pub(crate) fn write_outputs(
+    params: &[Param],
+    rows: &[SweepRow],
+    out: &Path,
+) -> Result<(), SweepError> {
+    write_tables(params, rows, out)?;
+    if let Err(e) = write_plots(params, rows, out) {
+        tracing::warn!("sweep plots: {e}");
+    }
+    Ok(())
+}
+
+/// The columns that depend on the machine and its load, not on the
+/// simulation: the only ones in which a merged sweep may differ from a
+/// one-machine sweep (with `dir`, which names the output directory).
+pub const WALL_CLOCK_COLUMNS: [&str; 2] = ["wall_time_s", "realtime_factor"];
 
 const COLUMNS: [&str; 18] = [
     "status",
@@ -281,22 +326,59 @@ fn row_values(row: &SweepRow) -> Vec<String> {
     }
 }
 
-fn write_tables(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), SweepError> {
-    let oerr = |e: &dyn std::fmt::Display| SweepError::Output(e.to_string());
+/// The sweep table: header and one row of cells per run.
+pub fn table(params: &[Param], rows: &[SweepRow]) -> (Vec<String>, Vec<Vec<String>>) {
     let mut header: Vec<String> = vec!["run".into()];
     header.extend(params.iter().map(|p| p.key.clone()));
+    // A scenario with several drones: one row per drone (its own figures,
+    // the run's status and wall time), a `drone` column after the parameters.
+    let swarm = rows
+        .iter()
+        .any(|r| r.outcome.as_ref().is_some_and(|o| !o.drones.is_empty()));
+    if swarm {
+        header.push("drone".into());
+    }
     header.extend(COLUMNS.iter().map(|c| c.to_string()));
     header.push("dir".into());
-    let table: Vec<Vec<String>> = rows
-        .iter()
-        .map(|r| {
-            let mut v = vec![(r.index + 1).to_string()];
-            v.extend(r.assignments.iter().map(|(_, val)| val.clone()));
+    let mut table: Vec<Vec<String>> = Vec::new();
+    for r in rows {
+        let mut head = vec![(r.index + 1).to_string()];
+        head.extend(r.assignments.iter().map(|(_, val)| val.clone()));
+        let per = r
+            .outcome
+            .as_ref()
+            .map(RunOutcome::per_drone)
+            .unwrap_or_default();
+        if per.is_empty() {
+            let mut v = head.clone();
+            if swarm {
+                v.push(String::new());
+            }
             v.extend(row_values(r));
             v.push(r.dir.display().to_string());
-            v
-        })
-        .collect();
+            table.push(v);
+        }
+        for (drone, o) in per {
+            let d = SweepRow {
+                index: r.index,
+                assignments: Vec::new(),
+                dir: r.dir.join(&drone),
+                outcome: Some(o),
+                error: r.error.clone(),
+            };
+            let mut v = head.clone();
+            v.push(drone);
+            v.extend(row_values(&d));
+            v.push(d.dir.display().to_string());
+            table.push(v);
+        }
+    }
+    (header, table)
+}
+
+fn write_tables(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), SweepError> {
+    let oerr = |e: &dyn std::fmt::Display| SweepError::Output(e.to_string());
+    let (header, table) = table(params, rows);
     let mut w = csv::Writer::from_path(out.join(files::CSV)).map_err(|e| oerr(&e))?;
     w.write_record(&header).map_err(|e| oerr(&e))?;
     for r in &table {
@@ -324,17 +406,31 @@ fn write_plots(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), Sw
     // SOC over time, one line per run (Figs. 5.6, 5.11, 5.17).
     let mut soc = Vec::new();
     for r in rows {
-        let power: Vec<PowerRow> =
-            match report::read_csv(&r.dir.join(sim_core::power::log::POWER_CSV)) {
-                Ok(p) => p,
-                Err(_) => continue,
-            };
-        let pts: Vec<(f64, f64)> = power.iter().map(|p| (p.time_s, p.soc * 100.0)).collect();
-        let failed = if r.error.is_some() { " (failed)" } else { "" };
-        soc.push(Series {
-            label: format!("{}{failed}", r.label()),
-            points: plot::decimate(&pts, 1500),
+        // A run with several drones: a line per drone.
+        let drones = r.outcome.as_ref().map_or(Vec::new(), |o| {
+            o.drones
+                .iter()
+                .map(|d| (format!(" {}", d.drone), d.dir.clone()))
+                .collect()
         });
+        let dirs = if drones.is_empty() {
+            vec![(String::new(), r.dir.clone())]
+        } else {
+            drones
+        };
+        for (drone, dir) in dirs {
+            let power: Vec<PowerRow> =
+                match report::read_csv(&dir.join(sim_core::power::log::POWER_CSV)) {
+                    Ok(p) => p,
+                    Err(_) => continue,
+                };
+            let pts: Vec<(f64, f64)> = power.iter().map(|p| (p.time_s, p.soc * 100.0)).collect();
+            let failed = if r.error.is_some() { " (failed)" } else { "" };
+            soc.push(Series {
+                label: format!("{}{drone}{failed}", r.label()),
+                points: plot::decimate(&pts, 1500),
+            });
+        }
     }
     if !soc.is_empty() {
         plot::overlay(

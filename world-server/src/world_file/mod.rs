@@ -1,31 +1,63 @@
-//! World files (TOML, `scenarios/worlds/*.toml`): start pose, ground, sky,
-//! gates and boxes (DESIGN.md §5).
+//! World files (TOML, `scenarios/worlds/*.toml`): the drones (a start pose,
+//! or `[[drone]]` tables), ground, sky, gates and boxes (DESIGN.md §5, §7).
 //!
 //! A malformed file is reported with the file name, the line and column and
-//! the field (`gate[3].inner`), never with a panic.
+//! the field (`gate[3].inner`, `drone[2].carried[3]`), never with a panic.
+
+mod drone;
 
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
+use toml::Spanned;
 
-/// A world as read from a file.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+use crate::radio::RadioConfig;
+
+pub use drone::{CarriedPath, DroneDesc, DEFAULT_DRONE_NAME, MAX_CLOCK_PPM, MAX_NAME_LEN};
+
+/// A world as read from a file, checked.
+#[derive(Debug, Clone, PartialEq)]
 pub struct WorldDesc {
     /// Free-form name, shown in logs.
-    #[serde(default)]
     pub name: String,
+    /// The first drone's start pose: `[start]`, or the first `[[drone]]`.
+    /// (Kept for the tools that draw one start; the drones are in `drones`.)
     pub start: Start,
-    #[serde(default)]
+    /// Every drone in file order (the canonical order of the lockstep,
+    /// docs/SWARM.md §2); one drone `"cf1"` at `[start]` when the file has no
+    /// `[[drone]]` table. Never empty.
+    pub drones: Vec<DroneDesc>,
     pub ground: Ground,
-    #[serde(default)]
     pub sky: Sky,
-    #[serde(default)]
     pub physics: PhysicsOptions,
-    #[serde(default, rename = "gate")]
     pub gates: Vec<Gate>,
-    #[serde(default, rename = "box")]
     pub boxes: Vec<BoxDesc>,
+    /// `[radio]`: the radio channel's parameters (DESIGN.md §8), checked.
+    pub radio: RadioConfig,
+}
+
+/// A world file as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawWorld {
+    #[serde(default)]
+    name: String,
+    #[serde(default)]
+    start: Option<Spanned<Start>>,
+    #[serde(default, rename = "drone")]
+    drones: Vec<Spanned<drone::RawDrone>>,
+    #[serde(default)]
+    ground: Ground,
+    #[serde(default)]
+    sky: Sky,
+    #[serde(default)]
+    physics: PhysicsOptions,
+    #[serde(default, rename = "gate")]
+    gates: Vec<Gate>,
+    #[serde(default, rename = "box")]
+    boxes: Vec<BoxDesc>,
+    #[serde(default)]
+    radio: Option<Spanned<RadioConfig>>,
 }
 
 /// Start pose of the drone.
@@ -211,20 +243,78 @@ impl WorldDesc {
 
     /// Parses world-file text; `path` is only used in error messages.
     pub fn parse(text: &str, path: &Path) -> Result<WorldDesc, WorldFileError> {
-        match toml::from_str::<WorldDesc>(text) {
-            Ok(desc) => Ok(desc),
-            Err(e) => {
-                let offset = e.span().map(|s| s.start).unwrap_or(0);
-                let (line, column) = line_column(text, offset);
-                Err(WorldFileError::Invalid {
-                    path: path.to_path_buf(),
-                    line,
-                    column,
-                    field: field_at(text, offset),
-                    message: e.message().trim().to_string(),
-                })
+        let invalid = |offset: usize, field: String, message: String| {
+            let (line, column) = line_column(text, offset);
+            WorldFileError::Invalid {
+                path: path.to_path_buf(),
+                line,
+                column,
+                field,
+                message,
             }
-        }
+        };
+        let raw = toml::from_str::<RawWorld>(text).map_err(|e| {
+            let offset = e.span().map(|s| s.start).unwrap_or(0);
+            invalid(
+                offset,
+                field_at(text, offset),
+                e.message().trim().to_string(),
+            )
+        })?;
+        let has_drones = !raw.drones.is_empty();
+        let drones = drone::resolve(raw.drones).map_err(|(at, f, m)| invalid(at, f, m))?;
+        let (start, drones) = match (raw.start, has_drones) {
+            (Some(s), false) => {
+                let s = s.into_inner();
+                (s.clone(), vec![DroneDesc::single(s)])
+            }
+            (None, true) => (drones[0].start.clone(), drones),
+            (Some(s), true) => {
+                return Err(invalid(
+                    s.span().start,
+                    "start".into(),
+                    "give either [start] (one drone) or [[drone]] tables, not both".into(),
+                ))
+            }
+            (None, false) => {
+                return Err(invalid(
+                    0,
+                    "(file)".into(),
+                    "missing [start] (the one drone's start pose) or [[drone]] tables".into(),
+                ))
+            }
+        };
+        let radio = match raw.radio {
+            Some(r) => {
+                let at = r.span().start;
+                let r = r.into_inner();
+                r.validate().map_err(|m| invalid(at, "radio".into(), m))?;
+                r
+            }
+            None => RadioConfig::default(),
+        };
+        Ok(WorldDesc {
+            name: raw.name,
+            radio,
+            start,
+            drones,
+            ground: raw.ground,
+            sky: raw.sky,
+            physics: raw.physics,
+            gates: raw.gates,
+            boxes: raw.boxes,
+        })
+    }
+
+    /// True when the world has more than one drone (the multi-drone rules
+    /// of DESIGN.md §7 apply: claims by name, `drone` fields in outputs).
+    pub fn is_multi(&self) -> bool {
+        self.drones.len() > 1
+    }
+
+    /// The index of the drone called `name`.
+    pub fn drone_index(&self, name: &str) -> Option<usize> {
+        self.drones.iter().position(|d| d.name == name)
     }
 }
 
@@ -363,5 +453,133 @@ grey = 60
     fn a_missing_file_is_an_io_error() {
         let e = WorldDesc::load(Path::new("/nonexistent/world.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/world.toml"));
+    }
+
+    const TWO: &str = r#"
+name = "two"
+
+[[drone]]
+name = "A"
+position = [0.0, 0.0, 0.015]
+yaw = 1.5
+clock_ppm = 20.0
+radios = ["uwb"]
+
+[[drone]]
+name = "B"
+clock_ppm = -20.0
+carried = [[0.0, 1.0, 0.0, 0.5], [12.0, 1.0, 0.0, 0.5],
+           [14.0, 0.5, 0.25, 0.5]]
+"#;
+
+    #[test]
+    fn drone_tables_parse_with_defaults() {
+        let w = WorldDesc::parse(TWO, Path::new("two.toml")).unwrap();
+        assert!(w.is_multi());
+        assert_eq!(w.drones.len(), 2);
+        let (a, b) = (&w.drones[0], &w.drones[1]);
+        assert_eq!(a.name, "A");
+        assert_eq!(a.start.yaw, Finite(1.5));
+        assert_eq!(a.clock_ppm, 20.0);
+        assert_eq!(a.radios, vec![protocol::Radio::Uwb]);
+        assert!(!a.is_carried());
+        assert_eq!(b.radios, protocol::Radio::ALL.to_vec());
+        assert_eq!(b.start.position, Point3([1.0, 0.0, 0.5]));
+        assert_eq!(b.start.yaw, Finite(0.0));
+        assert_eq!(b.carried.as_ref().unwrap().at(13.0), [0.75, 0.125, 0.5]);
+        // `start` is the first drone's pose; indices follow the file.
+        assert_eq!(w.start, a.start);
+        assert_eq!(w.drone_index("B"), Some(1));
+        assert_eq!(w.drone_index("C"), None);
+    }
+
+    #[test]
+    fn without_drone_tables_there_is_one_drone_cf1_at_start() {
+        let w = WorldDesc::parse(GOOD, Path::new("good.toml")).unwrap();
+        assert!(!w.is_multi());
+        assert_eq!(w.drones.len(), 1);
+        let d = &w.drones[0];
+        assert_eq!(d.name, "cf1");
+        assert_eq!(d.start, w.start);
+        assert_eq!(d.clock_ppm, 0.0);
+        assert!(d.carried.is_none());
+        assert_eq!(d.radios, protocol::Radio::ALL.to_vec());
+    }
+
+    #[test]
+    fn drone_errors_name_file_line_and_field() {
+        let e = error_of(&TWO.replace("name = \"B\"", "name = \"A\""));
+        assert!(e.starts_with("w.toml:12:8: drone[2].name:"), "{e}");
+        assert!(e.contains("already used by drone[1]"), "{e}");
+        let e = error_of(&TWO.replace("[14.0,", "[12.0,"));
+        assert!(e.starts_with("w.toml:15:12: drone[2].carried[3]:"), "{e}");
+        assert!(e.contains("times must increase"), "{e}");
+        let e = error_of(&TWO.replace(
+            "carried = [[0.0, 1.0, 0.0, 0.5], ",
+            "carried = [[0.0, 1.0],",
+        ));
+        assert!(e.starts_with("w.toml:14:"), "{e}");
+        let e = error_of(&TWO.replace("position = [0.0, 0.0, 0.015]\n", ""));
+        assert!(e.starts_with("w.toml:4:1: drone[1]:"), "{e}");
+        assert!(e.contains("missing field `position`"), "{e}");
+        let e = error_of(&TWO.replace("radios = [\"uwb\"]", "radios = [\"uwb\", \"uwb\"]"));
+        assert!(e.contains("drone[1].radios") && e.contains("twice"), "{e}");
+        let e = error_of(&TWO.replace("radios = [\"uwb\"]", "radios = [\"wifi\"]"));
+        assert!(e.contains("drone[1].radios") && e.contains("wifi"), "{e}");
+        let e = error_of(&TWO.replace("clock_ppm = 20.0", "clock_ppm = 2e4"));
+        assert!(e.starts_with("w.toml:8:13: drone[1].clock_ppm:"), "{e}");
+        let e = error_of(&TWO.replace("name = \"A\"", "name = \"a/b\""));
+        assert!(
+            e.contains("drone[1].name") && e.contains("output directories"),
+            "{e}"
+        );
+        let e = error_of(&TWO.replace("yaw = 1.5", "yaw = 1.5\nspeed = 3"));
+        assert!(
+            e.contains("unknown field `speed`") && e.contains("drone[1].speed"),
+            "{e}"
+        );
+        // A carried drone may repeat its path's start, not contradict it.
+        let ok = TWO.replace(
+            "clock_ppm = -20.0",
+            "clock_ppm = -20.0\nposition = [1.0, 0.0, 0.5]",
+        );
+        assert!(WorldDesc::parse(&ok, Path::new("w.toml")).is_ok());
+        let e = error_of(&TWO.replace(
+            "clock_ppm = -20.0",
+            "clock_ppm = -20.0\nposition = [1.0, 0.0, 0.015]",
+        ));
+        assert!(
+            e.contains("drone[2].position") && e.contains("carried path"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn the_radio_table_is_read_and_checked() {
+        let w = WorldDesc::parse(TWO, Path::new("w.toml")).unwrap();
+        assert_eq!(w.radio, RadioConfig::default());
+        let text = format!("{TWO}\n[radio]\nseed = 7\nuwb_noise_m = 0.0\n");
+        let w = WorldDesc::parse(&text, Path::new("w.toml")).unwrap();
+        assert_eq!((w.radio.seed, w.radio.uwb_noise_m), (7, 0.0));
+        assert_eq!(
+            w.radio.uwb_max_range_m,
+            RadioConfig::default().uwb_max_range_m
+        );
+        let e = error_of(&format!("{TWO}\n[radio]\nuwb_loss = 2.0\n"));
+        assert!(e.starts_with("w.toml:17:") && e.contains("uwb_loss"), "{e}");
+        let e = error_of(&format!("{TWO}\n[radio]\nuwb_nosie_m = 2.0\n"));
+        assert!(
+            e.contains("radio.uwb_nosie_m") && e.contains("unknown field"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn start_and_drones_exclude_each_other() {
+        let e = error_of(&format!("{TWO}\n[start]\nposition = [0.0, 0.0, 0.015]\n"));
+        assert!(e.starts_with("w.toml:17:"), "{e}");
+        assert!(e.contains("either [start]") && e.contains("start"), "{e}");
+        let e = error_of("name = \"nothing\"\n");
+        assert!(e.contains("missing [start]"), "{e}");
     }
 }

@@ -1,0 +1,240 @@
+//! The top view of a run with several drones: every drone's path in its own
+//! colour (names in the legend), where each started, the gates and boxes of
+//! the world, and the radio links: a line between two drones that received
+//! frames from each other, thicker and darker the more frames (from the
+//! world's radio log).
+
+use std::path::Path;
+
+use plotters::prelude::*;
+use world_server::WorldDesc;
+
+use crate::plot::{err, fonts, rect, span, PlotError, FONT, PALETTE};
+
+/// One drone's path seen from above.
+#[derive(Debug, Clone)]
+pub struct DronePath {
+    pub name: String,
+    /// (x, y) per world step.
+    pub points: Vec<(f64, f64)>,
+    /// Where it started (x, y).
+    pub start: (f64, f64),
+    pub targets: Vec<[f64; 3]>,
+}
+
+impl DronePath {
+    /// Where the links of this drone are drawn: the mean of its path (its
+    /// start if it has none). For a drone that stays put it is its place.
+    pub fn anchor(&self) -> (f64, f64) {
+        if self.points.is_empty() {
+            return self.start;
+        }
+        let n = self.points.len() as f64;
+        let (sx, sy) = self
+            .points
+            .iter()
+            .fold((0.0, 0.0), |(a, b), p| (a + p.0, b + p.1));
+        (sx / n, sy / n)
+    }
+}
+
+/// Frames received between drones `a` and `b` (indices), both directions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Link {
+    pub a: usize,
+    pub b: usize,
+    pub frames: u64,
+}
+
+/// At most about `max` points of a path, evenly spaced, the last kept (a
+/// path is not a signal: its extremes need no special care).
+pub fn thin(points: &[(f64, f64)], max: usize) -> Vec<(f64, f64)> {
+    if points.len() <= max || max < 2 {
+        return points.to_vec();
+    }
+    let step = points.len().div_ceil(max - 1);
+    let mut out: Vec<(f64, f64)> = points.iter().step_by(step).copied().collect();
+    if out.last() != points.last() {
+        out.extend(points.last());
+    }
+    out
+}
+
+/// The colour of the i-th drone (the same in every plot of the run).
+pub fn drone_color(i: usize) -> RGBColor {
+    PALETTE[i % PALETTE.len()]
+}
+
+/// Draws the top view into `path`.
+pub fn swarm_top_view(
+    path: &Path,
+    title: &str,
+    drones: &[DronePath],
+    links: &[Link],
+    world: Option<&WorldDesc>,
+) -> Result<(), PlotError> {
+    fonts();
+    let mut xs: Vec<f64> = Vec::new();
+    let mut ys: Vec<f64> = Vec::new();
+    for d in drones {
+        xs.extend(d.points.iter().map(|p| p.0));
+        ys.extend(d.points.iter().map(|p| p.1));
+        xs.push(d.start.0);
+        ys.push(d.start.1);
+        for t in &d.targets {
+            xs.push(t[0]);
+            ys.push(t[1]);
+        }
+    }
+    if let Some(w) = world {
+        for g in &w.gates {
+            xs.push(g.centre.0[0]);
+            ys.push(g.centre.0[1]);
+        }
+    }
+    let (x0, x1) = span(xs.into_iter(), 0.15);
+    let (y0, y1) = span(ys.into_iter(), 0.15);
+    // Equal scale on both axes, and at least a metre across (drones that
+    // stay put would otherwise fill the plot with a millimetre).
+    let side = (x1 - x0).max(y1 - y0).max(1.0);
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let (x0, x1, y0, y1) = (
+        cx - side / 2.0,
+        cx + side / 2.0,
+        cy - side / 2.0,
+        cy + side / 2.0,
+    );
+    let root = BitMapBackend::new(path, (900, 900)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(path, e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, (FONT, 20))
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 15))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| err(path, e))?;
+    if let Some(w) = world {
+        let gate_color = RGBColor(200, 160, 0);
+        for g in &w.gates {
+            let outer = g.inner.0 + 2.0 * g.bar.0;
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    rect(g.centre.0, g.bar.0.max(0.05), outer, g.yaw.0),
+                    gate_color.filled(),
+                )))
+                .map_err(|e| err(path, e))?;
+        }
+        for b in &w.boxes {
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    rect(b.centre.0, b.size[0].0, b.size[1].0, b.yaw.0),
+                    RGBColor(200, 200, 200).filled(),
+                )))
+                .map_err(|e| err(path, e))?;
+        }
+    }
+    // Links under the paths, so a path stays visible across them.
+    let most = links.iter().map(|l| l.frames).max().unwrap_or(0).max(1);
+    for (k, l) in links.iter().filter(|l| l.frames > 0).enumerate() {
+        let (Some(a), Some(b)) = (drones.get(l.a), drones.get(l.b)) else {
+            continue;
+        };
+        let share = l.frames as f64 / most as f64;
+        let width = 1 + (5.0 * share).round() as u32;
+        let style = BLACK.mix(0.25 + 0.5 * share).stroke_width(width);
+        let (pa, pb) = (a.anchor(), b.anchor());
+        let drawn = chart
+            .draw_series(std::iter::once(PathElement::new([pa, pb], style)))
+            .map_err(|e| err(path, e))?;
+        if k == 0 {
+            drawn
+                .label("radio link (width: frames received)")
+                .legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.5).stroke_width(3))
+                });
+        }
+        let mid = ((pa.0 + pb.0) / 2.0, (pa.1 + pb.1) / 2.0);
+        // Above the line, so the line does not cross the text.
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at(mid)
+                    + Text::new(
+                        format!("{} frames", l.frames),
+                        (-30, -22),
+                        (FONT, 14).into_font().color(&BLACK.mix(0.8)),
+                    ),
+            ))
+            .map_err(|e| err(path, e))?;
+    }
+    for (i, d) in drones.iter().enumerate() {
+        let color = drone_color(i);
+        chart
+            .draw_series(LineSeries::new(
+                d.points.iter().copied(),
+                color.stroke_width(2),
+            ))
+            .map_err(|e| err(path, e))?
+            .label(d.name.clone())
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color.stroke_width(3)));
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at(d.start)
+                    + Circle::new((0, 0), 6, color.filled())
+                    + Text::new(d.name.clone(), (8, 6), (FONT, 15).into_font().color(&color)),
+            ))
+            .map_err(|e| err(path, e))?;
+        chart
+            .draw_series(d.targets.iter().map(|t| {
+                EmptyElement::at((t[0], t[1])) + Cross::new((0, 0), 6, color.stroke_width(2))
+            }))
+            .map_err(|e| err(path, e))?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT, 14))
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(|e| err(path, e))?;
+    root.present().map_err(|e| err(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_swarm_top_view_is_a_png_and_anchors_are_means() {
+        let d = |name: &str, x: f64| DronePath {
+            name: name.into(),
+            points: vec![(x, 0.0), (x + 0.2, 0.4)],
+            start: (x, 0.0),
+            targets: vec![[x, 1.0, 1.0]],
+        };
+        let drones = [d("A", 0.0), d("B", 1.5)];
+        assert_eq!(drones[1].anchor(), (1.6, 0.2));
+        let long: Vec<(f64, f64)> = (0..1001).map(|i| (i as f64, 0.0)).collect();
+        let t = thin(&long, 100);
+        assert!(t.len() <= 101 && t[0] == long[0] && t.last() == long.last());
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("top.png");
+        let links = [Link {
+            a: 0,
+            b: 1,
+            frames: 12,
+        }];
+        swarm_top_view(&p, "t", &drones, &links, None).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+    }
+}
