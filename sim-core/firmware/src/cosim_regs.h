@@ -24,9 +24,67 @@
 #define STM32_TARGET_POS_Y_OFFSET 102412
 #define STM32_TARGET_POS_Z_OFFSET 102420
 
-/* Bytes 102428 (STM32 + 26) to 0x1A000 are reserved for future STM32
- * registers: any access faults. */
+/* STM32 extension (not in the thesis; issues 12 and 13, DESIGN.md §9-§10):
+ * the state estimate, the six ranges and the optical flow the STM32 read at
+ * its last sensor update, and MotionCommander-like commands (cflib's
+ * motion_commander: take-off, land, body-frame velocity set-point, speed
+ * limit) plus a heading target for the race's position controller. Offsets
+ * are from the window's base; f64 little-endian, SI units (m, m/s, rad,
+ * rad/s; yaw counter-clockwise from the world's +x axis).
+ *
+ * Extension commands go to their own 32-bit register because every CTRL
+ * value from 10 to 250 is ITER_ADVANCE + ms. EXT_STAT shows the command's
+ * code when it completes (0 while none has), or EXT_ERROR. */
+#define STM32_EXT_CTRL_OFFSET 102432 /* u32 W  extension command */
+#define STM32_EXT_STAT_OFFSET 102436 /* u32 R  code of the last completed one */
+/* State estimate (R), refreshed at every sensor read of the STM32 (each PID
+ * iteration, INIT_PID, TAKEOFF/LAND steps). Position from GPS or from flow
+ * dead reckoning, as the run setting stm32.position_source says. */
+#define STM32_EST_X_OFFSET 102440
+#define STM32_EST_Y_OFFSET 102448
+#define STM32_EST_Z_OFFSET 102456
+#define STM32_EST_YAW_OFFSET 102464
+#define STM32_EST_VX_OFFSET 102472 /* world frame */
+#define STM32_EST_VY_OFFSET 102480
+#define STM32_EST_VZ_OFFSET 102488
+/* Ranges (R, m) of the Multi-ranger (front/back/left/right) and the Flow
+ * deck (down) plus up, body frame; a negative value means "nothing within
+ * the sensor's max range" (or no such sensor in the world). */
+#define STM32_RANGE_FRONT_OFFSET 102496
+#define STM32_RANGE_BACK_OFFSET 102504
+#define STM32_RANGE_LEFT_OFFSET 102512
+#define STM32_RANGE_RIGHT_OFFSET 102520
+#define STM32_RANGE_UP_OFFSET 102528
+#define STM32_RANGE_DOWN_OFFSET 102536
+/* Optical-flow velocity (R, m/s, body frame), 0 when the world sends none. */
+#define STM32_FLOW_VX_OFFSET 102544
+#define STM32_FLOW_VY_OFFSET 102552
+/* Command arguments (RW), read when an extension command starts. */
+#define STM32_CMD_VX_OFFSET 102560          /* m/s, body frame */
+#define STM32_CMD_VY_OFFSET 102568          /* m/s, body frame */
+#define STM32_CMD_HEIGHT_OFFSET 102576      /* m */
+#define STM32_CMD_YAW_RATE_OFFSET 102584    /* rad/s, CCW */
+#define STM32_CMD_YAW_OFFSET 102592         /* rad, heading target */
+#define STM32_CMD_SPEED_LIMIT_OFFSET 102600 /* m/s */
+#define STM32_EXT_END 102608
+
+/* Bytes STM32_EXT_END to 0x1A000 are reserved for future STM32 registers:
+ * any access faults (as do 102428-102431). */
 #define STM32_RESERVED_END 0x1A000
+
+/* Extension commands (STM32_EXT_CTRL) and EXT_STAT codes. */
+#define EXT_SET_HEADING 1     /* race mode: hold CMD_YAW; the position controller
+                               * rotates the world-frame error by the current
+                               * yaw (at +90 deg exactly Appendix C's mapping) */
+#define EXT_SET_VELOCITY 2    /* velocity mode: CMD_VX/VY (body), CMD_HEIGHT,
+                               * CMD_YAW_RATE, clamped to the speed limit; the
+                               * set-point holds until the next command, each
+                               * RUN_SINGLE_STEP_PID / ITER_ADVANCE flies it */
+#define EXT_SET_SPEED_LIMIT 3 /* from CMD_SPEED_LIMIT (default 0.2 m/s, cflib) */
+#define EXT_TAKEOFF 4         /* climb to CMD_HEIGHT above the start, then hover */
+#define EXT_LAND 5            /* descend, stop the motors, STOP the drone */
+#define EXT_POSITION_MODE 6   /* back to the race's SET_TARGET position targets */
+#define EXT_ERROR 0xFFFFFFFFu /* unknown command or bad argument (NaN, ...) */
 
 /* Radios (DESIGN.md §8, docs/SWARM.md §4.3): the same register file at two
  * fixed offsets; add a radio's base to each RADIO_*_OFFSET. */
