@@ -167,7 +167,8 @@ pub(crate) fn apply_run_table(
     base: &Path,
     what: &str,
 ) -> Result<(), String> {
-    for (key, value) in table {
+    let table: toml::Table = table.clone().into_iter().collect();
+    for (key, value) in &sim_core::config::flatten_run_table(&table) {
         let text = value_text(value).map_err(|m| format!("{what}.{key}: {m}"))?;
         let text = if key == "platform" {
             base.join(&text).display().to_string()
