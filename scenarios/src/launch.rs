@@ -606,6 +606,12 @@ pub fn sim_core_command(
     if let Some(t) = scenario.max_time_s {
         cmd.arg("--max-time").arg(t.to_string());
     }
+    // summary.json's gates_total (DESIGN.md §10): the world file's gates.
+    if let Ok(w) = world_server::world_file::WorldDesc::load(&scenario.world) {
+        if !w.gates.is_empty() {
+            cmd.arg("--gates-total").arg(w.gates.len().to_string());
+        }
+    }
     if opts.traces {
         cmd.arg("--trace").arg(out.join(files::PLATFORM_TRACE));
         if opts.trace_images {

@@ -10,6 +10,7 @@
 //! - [`swarm`]: scenarios with several drones (`[[platform]]` tables).
 
 pub mod launch;
+pub mod perturb;
 pub mod plot;
 pub mod report;
 pub mod scenario;

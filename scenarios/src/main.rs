@@ -64,6 +64,10 @@ struct RunArgs {
     /// Overrides a scenario or run key (repeatable), e.g. `--set battery=ufx250`.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Runs the scenario in another world file (the same as `--set
+    /// world=FILE`), e.g. a perturbed course of `cosim perturb`.
+    #[arg(long, value_name = "FILE")]
+    world: Option<PathBuf>,
     /// No world.trace / platform.trace.
     #[arg(long)]
     no_trace: bool,
@@ -105,6 +109,24 @@ enum Cmd {
         /// sim-core is started, connecting to tcp:HOST:PORT (or unix:PATH).
         #[arg(long, value_name = "ENDPOINT", conflicts_with = "world_cmd")]
         world_endpoint: Option<protocol::Endpoint>,
+    },
+    /// Writes a world file whose gates are displaced (seeded) from the
+    /// course's nominal positions: sideways in each gate's plane and
+    /// vertically (`cosim world perturb ...` is the same command).
+    Perturb {
+        /// The world file to start from (default: the thesis course).
+        #[arg(long, value_name = "FILE")]
+        from: Option<PathBuf>,
+        /// Seed of the draw (ChaCha8).
+        #[arg(long, value_name = "S")]
+        seed: u64,
+        /// Largest sideways offset in m (sideways offsets are drawn in
+        /// [M/2, M], vertical ones in [-M/2, M/2]).
+        #[arg(long, value_name = "M")]
+        max_offset: f64,
+        /// Where to write the new world file.
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
     },
     /// Serves the world of a scenario on an endpoint, for one platform run
     /// elsewhere with `cosim run SCENARIO --world-endpoint ...`; exits after
@@ -250,6 +272,45 @@ enum TraceCmd {
     },
 }
 
+impl RunArgs {
+    /// The `--set` assignments, `--world` last.
+    fn sets(&self) -> Vec<String> {
+        let mut sets = self.set.clone();
+        if let Some(w) = &self.world {
+            sets.push(format!("world={}", w.display()));
+        }
+        sets
+    }
+}
+
+fn cmd_perturb(
+    from: Option<PathBuf>,
+    seed: u64,
+    max_offset: f64,
+    out: &Path,
+) -> anyhow::Result<ExitCode> {
+    let from = match from {
+        Some(p) => p,
+        None => scenarios::scenario::find_repo_file("scenarios/worlds/thesis-course.toml")
+            .context("cannot find scenarios/worlds/thesis-course.toml: pass --from FILE")?,
+    };
+    let text = std::fs::read_to_string(&from)
+        .with_context(|| format!("cannot read {}", from.display()))?;
+    let (world, offsets) =
+        scenarios::perturb::perturb(&text, &from.display().to_string(), seed, max_offset)
+            .with_context(|| format!("{}", from.display()))?;
+    // The result must be a world the server accepts.
+    world_server::world_file::WorldDesc::parse(&world, out)
+        .map_err(|e| anyhow::anyhow!("the perturbed world is not valid: {e}"))?;
+    std::fs::write(out, world).with_context(|| format!("cannot write {}", out.display()))?;
+    println!(
+        "cosim: {} gates moved (seed {seed}, max offset {max_offset} m) -> {}",
+        offsets.len(),
+        out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 fn load_scenario(arg: Option<&str>, sets: &[String]) -> anyhow::Result<Scenario> {
     let path = resolve_scenario(arg)?;
     let mut s = Scenario::load(&path)?;
@@ -287,7 +348,7 @@ fn cmd_run(
     world_endpoint: Option<protocol::Endpoint>,
     bins: BinArgs,
 ) -> anyhow::Result<ExitCode> {
-    let s = load_scenario(scenario.as_deref(), &run.set)?;
+    let s = load_scenario(scenario.as_deref(), &run.sets())?;
     let out = out.unwrap_or_else(|| Path::new("out").join(&s.name));
     let bins = bins.locate()?;
     eprintln!("cosim: {} — {} -> {}", s.name, s.description, out.display());
@@ -395,7 +456,7 @@ fn cmd_sweep(a: SweepArgs, bins: BinArgs) -> anyhow::Result<ExitCode> {
     let scenario = a
         .scenario
         .context("a scenario is needed (or --merge DIR...)")?;
-    let s = load_scenario(Some(&scenario), &a.run.set)?;
+    let s = load_scenario(Some(&scenario), &a.run.sets())?;
     let params: Vec<Param> = if a.param.is_empty() {
         s.sweep
             .iter()
@@ -663,7 +724,13 @@ fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    let cli = Cli::parse();
+    // `cosim world perturb ...` is `cosim perturb ...` (`cosim world
+    // SCENARIO` serves a world; a scenario named "perturb" cannot exist).
+    let mut args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    if args.len() > 2 && args[1] == "world" && args[2] == "perturb" {
+        args.remove(1);
+    }
+    let cli = Cli::parse_from(args);
     let bins = cli.bins;
     let result = match cli.command {
         Cmd::Run {
@@ -674,6 +741,12 @@ fn main() -> ExitCode {
             quiet,
             world_endpoint,
         } => cmd_run(scenario, out, run, no_plots, quiet, world_endpoint, bins),
+        Cmd::Perturb {
+            from,
+            seed,
+            max_offset,
+            out,
+        } => cmd_perturb(from, seed, max_offset, &out),
         Cmd::World {
             scenario,
             listen,

@@ -219,6 +219,12 @@ pub fn summary_text(
         "   targets        {}/{} reached, {} bypassed (UNLOCK_CYCLES), {} skipped (low battery)\n",
         s.targets_reached, s.targets_total, s.targets_bypassed, s.targets_skipped_low_battery
     );
+    if let Some(total) = s.gates_total {
+        t += &format!(
+            "   gates          {}/{total} passed (the world's count at STOP, DESIGN.md §10)\n",
+            s.gates_passed.map_or("?".into(), |g| g.to_string())
+        );
+    }
     t += &format!(
         "   time           platform {:.3} s | world {} | world estimate {:.3} s | offset error {}\n",
         s.platform_time_s,

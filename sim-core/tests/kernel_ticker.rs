@@ -36,6 +36,7 @@ fn config(out: &std::path::Path, drone: Option<&str>) -> KernelConfig {
         echo_console: false,
         progress: false,
         max_time: Some(Picos::from_ms(60_000)),
+        gates_total: None,
     }
 }
 

@@ -66,6 +66,8 @@ pub struct DroneState {
     pub collisions: u64,
     /// Contacts begun with the ground (take-offs and landings are not collisions).
     pub ground_contacts: u64,
+    /// Distinct gates passed (crate::gates), set by the physics world.
+    pub gates_passed: u64,
 }
 
 impl DroneState {

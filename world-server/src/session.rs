@@ -355,7 +355,10 @@ impl Session {
             Reply::Stop {
                 time_s: now.as_secs_f64(),
                 stop_time_ms: stop.0,
-                gates_passed: None,
+                // Only a world with gates counts them (DESIGN.md §10): a
+                // world without keeps the thesis's STOP reply.
+                gates_passed: (self.world.gates_total() > 0)
+                    .then(|| self.world.state(d).gates_passed),
             },
             now,
         )

@@ -10,7 +10,7 @@ use std::path::Path;
 use crate::sensors::DroneState;
 
 /// Column names, in row order.
-pub const HEADER: [&str; 16] = [
+pub const HEADER: [&str; 17] = [
     "time_ms",
     "x",
     "y",
@@ -27,6 +27,7 @@ pub const HEADER: [&str; 16] = [
     "w4",
     "collisions",
     "ground_contacts",
+    "gates_passed",
 ];
 
 /// The name of the column a world with several drones adds (second).
@@ -77,6 +78,7 @@ impl TrajectoryWriter {
         }
         rec.push_field(&s.collisions.to_string());
         rec.push_field(&s.ground_contacts.to_string());
+        rec.push_field(&s.gates_passed.to_string());
         self.out.write_record(&*rec)
     }
 
@@ -104,6 +106,7 @@ mod tests {
             motor_speeds: [-48.0, 48.0, -48.0, 48.0],
             collisions: 2,
             ground_contacts: 1,
+            gates_passed: 3,
         };
         w.row(&s, "cf1").unwrap();
         w.flush().unwrap();
@@ -115,6 +118,7 @@ mod tests {
         assert_eq!(&rec[10], "-48");
         assert_eq!(&rec[14], "2");
         assert_eq!(&rec[15], "1");
+        assert_eq!(&rec[16], "3");
     }
 
     #[test]
@@ -131,6 +135,7 @@ mod tests {
             motor_speeds: [0.0; 4],
             collisions: 0,
             ground_contacts: 0,
+            gates_passed: 0,
         };
         w.row(&s, "A").unwrap();
         w.row(&s, "B").unwrap();

@@ -59,6 +59,10 @@ pub struct PlatformArgs {
     /// Gives up (as failed) after this many simulated seconds.
     #[arg(long, value_name = "S")]
     pub max_time: Option<f64>,
+    /// The number of gates in the world file, written to summary.json as
+    /// `gates_total` (the world's STOP reply carries the gates passed).
+    #[arg(long, value_name = "N")]
+    pub gates_total: Option<u64>,
     /// Does not echo the firmware's console on stdout (console.log still has it).
     #[arg(long)]
     pub quiet: bool,
@@ -121,6 +125,7 @@ pub fn run_platform(args: &PlatformArgs, run: RunConfig) -> anyhow::Result<i32> 
         max_time: args
             .max_time
             .map(|s| Picos((s.max(0.0) * Picos::PER_S as f64) as u64)),
+        gates_total: args.gates_total,
     };
     let outcome = simulate(&firmware, &cfg, world);
     let s = &outcome.summary;

@@ -60,6 +60,9 @@ pub struct KernelConfig {
     pub progress: bool,
     /// Stop (as failed) after this much simulated time, if set.
     pub max_time: Option<Picos>,
+    /// The number of gates in the world file, for `summary.json`
+    /// (`--gates-total`; the world's STOP reply carries only the gates passed).
+    pub gates_total: Option<u64>,
 }
 
 impl KernelConfig {

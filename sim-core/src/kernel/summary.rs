@@ -97,6 +97,13 @@ pub struct Summary {
     /// The radios (platforms that report their radios only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radios: Option<RadiosSummary>,
+    /// Distinct gates the drone's centre passed through (the world's STOP
+    /// reply, DESIGN.md §10; absent when the world has no gates).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gates_passed: Option<u64>,
+    /// Gates in the world file (`--gates-total`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gates_total: Option<u64>,
 }
 
 impl Summary {
@@ -150,6 +157,8 @@ impl Summary {
             collisions: None,
             drone: cfg.drone.clone(),
             radios: None,
+            gates_passed: None,
+            gates_total: cfg.gates_total,
         }
     }
 
@@ -241,6 +250,7 @@ impl Summary {
         s.bytes_to_world = link.bytes_to_world;
         s.bytes_to_platform = link.bytes_to_platform;
         s.collisions = stop.and_then(|s| s.collisions);
+        s.gates_passed = stop.and_then(|s| s.gates_passed);
         s
     }
 

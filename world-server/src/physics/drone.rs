@@ -183,6 +183,7 @@ impl DroneBody {
             motor_speeds: self.motors.speeds(),
             collisions: self.collisions,
             ground_contacts: self.ground_contacts,
+            gates_passed: 0,
         }
     }
 

@@ -14,6 +14,7 @@ use rapier3d::glamx::{DQuat, DVec3};
 use rapier3d::prelude::*;
 
 use crate::crazyflie::{self, MotorCommandError, MotorCommands, Motors, GRAVITY};
+use crate::gates::{openings, GateTracker};
 use crate::scene::{scene_boxes, ObjectId, SceneBox};
 use crate::sensors::{DroneState, SensorReadings};
 use crate::time::Millis;
@@ -64,6 +65,8 @@ pub struct World {
     time: Millis,
     cfg: StepConfig,
     boxes: Vec<SceneBox>,
+    /// Gates passed by each drone (DESIGN.md §10).
+    gates: GateTracker,
 }
 
 impl World {
@@ -102,12 +105,14 @@ impl World {
             phys.insert_collider(collider, None);
         }
 
-        let drones = desc
+        let drones: Vec<DroneBody> = desc
             .drones
             .iter()
             .enumerate()
             .map(|(i, d)| DroneBody::insert(&mut phys, i, d, &desc.physics))
             .collect();
+        let starts: Vec<DVec3> = drones.iter().map(|d| d.position(&phys)).collect();
+        let gates = GateTracker::new(openings(desc), &starts);
         // Make scene queries (range sensors) valid before the first step.
         phys.detect_collisions(&(), &());
 
@@ -117,6 +122,7 @@ impl World {
             time: Millis::ZERO,
             cfg,
             boxes,
+            gates,
         })
     }
 
@@ -256,8 +262,9 @@ impl World {
                 d.prepare_substep(&mut self.phys, h, t_end_s);
             }
             self.phys.step();
-            for d in &mut self.drones {
+            for (i, d) in self.drones.iter_mut().enumerate() {
                 d.update_contacts(&self.phys, self.time);
+                self.gates.moved(i, d.position(&self.phys));
             }
         }
         self.time += ms;
@@ -269,6 +276,7 @@ impl World {
         body.set_position(Pose::from_parts(position, rotation), true);
         body.set_linvel(DVec3::ZERO, true);
         body.set_angvel(DVec3::ZERO, true);
+        self.gates.placed(d, position);
     }
 
     /// Sets drone `d`'s velocities (tests).
@@ -301,7 +309,14 @@ impl World {
 
     /// Ground truth of drone `d`.
     pub fn state(&self, d: usize) -> DroneState {
-        self.drones[d].state(&self.phys, self.time)
+        let mut s = self.drones[d].state(&self.phys, self.time);
+        s.gates_passed = self.gates.passed(d);
+        s
+    }
+
+    /// Number of gates in the world.
+    pub fn gates_total(&self) -> u64 {
+        self.gates.total()
     }
 
     /// GPS, InertialUnit, Gyro and the four DistanceSensors of drone `d`.
