@@ -68,7 +68,13 @@
 #define STM32_CMD_YAW_RATE_OFFSET 102584    /* rad/s, CCW */
 #define STM32_CMD_YAW_OFFSET 102592         /* rad, heading target */
 #define STM32_CMD_SPEED_LIMIT_OFFSET 102600 /* m/s */
-#define STM32_EXT_END 102608
+/* Attitude (R, rad, InertialUnit roll and pitch at the same sensor read as
+ * the estimate): added for issue 13, whose vision firmware levels the
+ * camera's body-frame gate position before rotating it by the yaw
+ * (docs/VISION.md, "What the flight integration needs" 3). */
+#define STM32_EST_ROLL_OFFSET 102608
+#define STM32_EST_PITCH_OFFSET 102616
+#define STM32_EXT_END 102624
 
 /* Bytes STM32_EXT_END to 0x1A000 are reserved for future STM32 registers:
  * any access faults (as do 102428-102431). */

@@ -154,8 +154,12 @@ int main(void)
     stm32_control = 0;
     stm32_status = 0;
 #elif defined(SHORT_TEST)
-    /* A short flight for tests: one target a metre away, then land. */
-    set_target(-2.6, 1.0, 1.0);
+    /* A short flight for tests: one target a metre away (SHORT_Y), then
+     * land. */
+#ifndef SHORT_Y
+#define SHORT_Y 1.0
+#endif
+    set_target(-2.6, SHORT_Y, 1.0);
 #elif defined(CORNERS_TEST)
 #if CORNERS_TEST > 0
     printf("[GVoC] Reaching the first target corner\n");

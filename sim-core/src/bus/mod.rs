@@ -35,7 +35,7 @@ use crate::units::Picos;
 pub const PERIPHERAL_BASE: u32 = 0x2000_0000;
 /// Offset of the STM32 in the window: right after the camera.
 pub const STM32_OFFSET: u32 = camera::REGISTER_MEMORY;
-/// End of the bytes reserved for the STM32's register file (0x19002 + 206
+/// End of the bytes reserved for the STM32's register file (0x19002 + 222
 /// used today: the thesis's 26 and the extension, stm32/motion.rs).
 pub const STM32_RESERVED_END: u32 = 0x1A000;
 /// Offset of the UWB radio (DW1000).
@@ -384,7 +384,7 @@ mod tests {
         // extension (cosim_regs.h, 102428-102431) and everything after it.
         assert!((102_428..102_432).all(|o| route(o).is_none()));
         assert_eq!(route(102_432), Some(Target::Stm32(stm32::motion::EXT_CTRL)));
-        assert_eq!(route(102_607), Some(Target::Stm32(205)));
-        assert!((102_608..0x1A000).all(|o| route(o).is_none()));
+        assert_eq!(route(102_623), Some(Target::Stm32(221)));
+        assert!((102_624..0x1A000).all(|o| route(o).is_none()));
     }
 }

@@ -5,6 +5,10 @@
 //! `motion_commander`) plus a heading target for the race's position
 //! controller.
 //!
+//! Beyond the map agreed with issue 12, EST_ROLL and EST_PITCH (+206, +214)
+//! give the InertialUnit's roll and pitch of the same sensor read: the
+//! vision firmware levels the camera's view of a gate with them.
+//!
 //! Commands are written as one 32-bit word to EXT_CTRL (the command starts
 //! when its last byte is written); EXT_STAT is 0 from then until the command
 //! completes, then shows its code, or `EXT_ERROR`:
@@ -62,8 +66,12 @@ pub const CMD_HEIGHT: u32 = 174;
 pub const CMD_YAW_RATE: u32 = 182;
 pub const CMD_YAW: u32 = 190;
 pub const CMD_SPEED_LIMIT: u32 = 198;
+/// Roll and pitch (rad) of the last sensor read (added after the agreed map
+/// for the vision firmware, which levels the camera's view).
+pub const EST_ROLL: u32 = 206;
+pub const EST_PITCH: u32 = 214;
 /// End of the extension (and of the STM32's register file).
-pub const EXT_END: u32 = 206;
+pub const EXT_END: u32 = 222;
 /// The bytes between the race's registers and EXT_CTRL fault.
 pub const GAP: std::ops::Range<u32> = 26..EXT_CTRL;
 
@@ -76,6 +84,8 @@ pub const EXT_LAND: u32 = 5;
 pub const EXT_POSITION_MODE: u32 = 6;
 pub const EXT_ERROR: u32 = 0xFFFF_FFFF;
 
+/// Listing 4.3's largest horizontal demand per axis (m/s).
+const RACE_AXIS_SPEED: f64 = 0.5;
 /// Default speed limit (m/s): cflib's MotionCommander default velocity.
 pub const DEFAULT_SPEED_LIMIT: f64 = 0.2;
 /// Heading loop gain (1/s): yaw-rate demand per radian of heading error.
@@ -142,7 +152,9 @@ pub(super) struct Motion {
     stat: TimedReg<u32>,
     /// EST_X .. FLOW_VY as f64 values, in register order.
     est: [f64; 15],
-    args: [u8; (EXT_END - CMD_VX) as usize],
+    args: [u8; (EST_ROLL - CMD_VX) as usize],
+    /// Roll, pitch.
+    attitude: [f64; 2],
     pub(super) mode: Mode,
     heading: Option<f64>,
     speed_limit: f64,
@@ -162,7 +174,8 @@ impl Motion {
             ctrl: [0; 4],
             stat: TimedReg::default(),
             est: [0.0; 15],
-            args: [0; (EXT_END - CMD_VX) as usize],
+            args: [0; (EST_ROLL - CMD_VX) as usize],
+            attitude: [0.0; 2],
             mode: Mode::Position,
             heading: None,
             speed_limit: DEFAULT_SPEED_LIMIT,
@@ -183,7 +196,11 @@ impl Motion {
                 let i = (offset - EST_X) as usize;
                 self.est[i / 8].to_le_bytes()[i % 8]
             }
-            _ => self.args[(offset - CMD_VX) as usize],
+            CMD_VX..EST_ROLL => self.args[(offset - CMD_VX) as usize],
+            _ => {
+                let i = (offset - EST_ROLL) as usize;
+                self.attitude[i / 8].to_le_bytes()[i % 8]
+            }
         }
     }
 
@@ -192,7 +209,7 @@ impl Motion {
         let next = next.unwrap_or(Picos::MAX);
         match offset {
             EXT_STAT..EST_X => self.stat.stable_until(now).min(next),
-            EST_X..CMD_VX => next,
+            EST_X..CMD_VX | EST_ROLL..EXT_END => next,
             _ => Picos::MAX,
         }
     }
@@ -231,7 +248,17 @@ impl Motion {
         let (vx_w, vy_w) = (-sideways, forward);
         let (s, c) = yaw.sin_cos();
         let yaw_rate = (K_HEADING * wrap_angle(heading - yaw)).clamp(-MAX_YAW_RATE, MAX_YAW_RATE);
-        (vx_w * c + vy_w * s, -vx_w * s + vy_w * c, yaw_rate)
+        let (vx, vy) = (vx_w * c + vy_w * s, -vx_w * s + vy_w * c);
+        // Listing 4.3 demands at most 0.5 m/s per body axis; a rotated
+        // diagonal demand would exceed it (0.71 m/s at 45°): scale it back,
+        // direction kept, so the velocity loop sees what the race tuned it for.
+        let m = vx.abs().max(vy.abs());
+        let k = if m > RACE_AXIS_SPEED {
+            RACE_AXIS_SPEED / m
+        } else {
+            1.0
+        };
+        (vx * k, vy * k, yaw_rate)
     }
 
     /// A sensor read: the estimate, ranges and flow; in flow mode the
@@ -269,6 +296,7 @@ impl Motion {
             [self.est[4], self.est[5], self.est[6]]
         };
         self.last = Some((s.time_s, pos));
+        self.attitude = [s.roll, s.pitch];
         let range = |mm: f64| {
             if mm.is_finite() && mm >= 0.0 && mm < self.range_max_mm {
                 mm / 1000.0
@@ -358,13 +386,14 @@ impl Stm32 {
                 }
                 Ok(())
             }
-            // EXT_STAT, the estimate, ranges and flow are read-only: a write
-            // is ignored, as a write to a read-only register of the STM32.
-            EXT_STAT..CMD_VX => Ok(()),
-            _ => {
+            CMD_VX..EST_ROLL => {
                 self.motion.args[(offset - CMD_VX) as usize] = value;
                 Ok(())
             }
+            // EXT_STAT, the estimate, ranges, flow and attitude are
+            // read-only: a write is ignored, as a write to a read-only
+            // register of the STM32.
+            _ => Ok(()),
         }
     }
 

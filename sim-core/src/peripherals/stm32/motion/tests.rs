@@ -180,7 +180,10 @@ fn the_register_file_has_a_faulting_gap_before_the_extension() {
     assert!(!is_register(EXT_END));
     // The firmware's offsets (cosim_regs.h) minus the STM32's base 102402.
     assert_eq!((EXT_CTRL, EST_X, RANGE_FRONT, FLOW_VX), (30, 38, 94, 142));
-    assert_eq!((CMD_VX, CMD_SPEED_LIMIT, EXT_END), (158, 198, 206));
+    assert_eq!(
+        (CMD_VX, CMD_SPEED_LIMIT, EST_PITCH, EXT_END),
+        (158, 198, 214, 222)
+    );
 }
 
 #[test]
