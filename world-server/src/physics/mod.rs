@@ -17,7 +17,7 @@ use crate::crazyflie::{self, MotorCommandError, MotorCommands, Motors, GRAVITY};
 use crate::scene::{scene_boxes, ObjectId, SceneBox};
 use crate::sensors::{DroneState, SensorReadings};
 use crate::time::Millis;
-use crate::world_file::{CarriedPath, WorldDesc};
+use crate::world_file::{CarriedPath, SensorConfig, WorldDesc};
 
 use drone::DroneBody;
 
@@ -64,6 +64,8 @@ pub struct World {
     time: Millis,
     cfg: StepConfig,
     boxes: Vec<SceneBox>,
+    /// The world file's `[sensors]`.
+    sensor_cfg: SensorConfig,
 }
 
 impl World {
@@ -117,6 +119,7 @@ impl World {
             time: Millis::ZERO,
             cfg,
             boxes,
+            sensor_cfg: desc.sensors.clone(),
         })
     }
 
@@ -304,8 +307,9 @@ impl World {
         self.drones[d].state(&self.phys, self.time)
     }
 
-    /// GPS, InertialUnit, Gyro and the four DistanceSensors of drone `d`.
+    /// GPS, InertialUnit, Gyro and the four DistanceSensors of drone `d`
+    /// (and what the world's `[sensors]` adds).
     pub fn sensors(&self, d: usize) -> SensorReadings {
-        self.drones[d].sensors(&self.phys, self.time)
+        self.drones[d].sensors(&self.phys, self.time, &self.sensor_cfg, d)
     }
 }
