@@ -157,6 +157,7 @@ pub(crate) fn value_text(v: &toml::Value) -> Result<String, String> {
 
 pub(crate) fn is_run_key(key: &str) -> bool {
     RUN_KEYS.iter().any(|(k, _)| *k == key)
+        || key.starts_with(sim_core::config::FIRMWARE_KEY_PREFIX)
 }
 
 /// Applies a `run` table of the file (`what` names it in errors); a
@@ -168,6 +169,17 @@ pub(crate) fn apply_run_table(
     what: &str,
 ) -> Result<(), String> {
     for (key, value) in table {
+        // `[run.firmware]`: the firmware parameters (`firmware.NAME`).
+        if let toml::Value::Table(t) = value {
+            if format!("{key}.") == sim_core::config::FIRMWARE_KEY_PREFIX {
+                for (name, v) in t {
+                    let text = value_text(v).map_err(|m| format!("{what}.{key}.{name}: {m}"))?;
+                    run.set(&format!("{key}.{name}"), &text)
+                        .map_err(|e| format!("{what}.{key}.{name}: {e}"))?;
+                }
+                continue;
+            }
+        }
         let text = value_text(value).map_err(|m| format!("{what}.{key}: {m}"))?;
         let text = if key == "platform" {
             base.join(&text).display().to_string()
