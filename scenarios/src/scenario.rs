@@ -168,18 +168,8 @@ pub(crate) fn apply_run_table(
     base: &Path,
     what: &str,
 ) -> Result<(), String> {
-    for (key, value) in table {
-        // `[run.firmware]`: the firmware parameters (`firmware.NAME`).
-        if let toml::Value::Table(t) = value {
-            if format!("{key}.") == sim_core::config::FIRMWARE_KEY_PREFIX {
-                for (name, v) in t {
-                    let text = value_text(v).map_err(|m| format!("{what}.{key}.{name}: {m}"))?;
-                    run.set(&format!("{key}.{name}"), &text)
-                        .map_err(|e| format!("{what}.{key}.{name}: {e}"))?;
-                }
-                continue;
-            }
-        }
+    let table: toml::Table = table.clone().into_iter().collect();
+    for (key, value) in &sim_core::config::flatten_run_table(&table) {
         let text = value_text(value).map_err(|m| format!("{what}.{key}: {m}"))?;
         let text = if key == "platform" {
             base.join(&text).display().to_string()

@@ -33,8 +33,10 @@
  * rad/s; yaw counter-clockwise from the world's +x axis).
  *
  * Extension commands go to their own 32-bit register because every CTRL
- * value from 10 to 250 is ITER_ADVANCE + ms. EXT_STAT shows the command's
- * code when it completes (0 while none has), or EXT_ERROR. */
+ * value from 10 to 250 is ITER_ADVANCE + ms; write it as one 32-bit word
+ * (the command starts when its last byte is written). EXT_STAT is 0 from
+ * the command's write until it completes, then shows its code, or
+ * EXT_ERROR. */
 #define STM32_EXT_CTRL_OFFSET 102432 /* u32 W  extension command */
 #define STM32_EXT_STAT_OFFSET 102436 /* u32 R  code of the last completed one */
 /* State estimate (R), refreshed at every sensor read of the STM32 (each PID

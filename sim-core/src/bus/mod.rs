@@ -35,8 +35,8 @@ use crate::units::Picos;
 pub const PERIPHERAL_BASE: u32 = 0x2000_0000;
 /// Offset of the STM32 in the window: right after the camera.
 pub const STM32_OFFSET: u32 = camera::REGISTER_MEMORY;
-/// End of the bytes reserved for the STM32's register file (0x19002 + 26
-/// used today).
+/// End of the bytes reserved for the STM32's register file (0x19002 + 206
+/// used today: the thesis's 26 and the extension, stm32/motion.rs).
 pub const STM32_RESERVED_END: u32 = 0x1A000;
 /// Offset of the UWB radio (DW1000).
 pub const UWB_OFFSET: u32 = 0x1A000;
@@ -63,6 +63,9 @@ fn route(offset: u32) -> Option<Target> {
     if offset < STM32_OFFSET {
         Some(Target::Camera(offset))
     } else if offset < stm32_end {
+        if !stm32::is_register(offset - STM32_OFFSET) {
+            return None;
+        }
         Some(Target::Stm32(offset - STM32_OFFSET))
     } else if in_radio(UWB_OFFSET) {
         Some(Target::Radio(UWB, offset - UWB_OFFSET))
@@ -377,7 +380,11 @@ mod tests {
         assert_eq!(route(0x1A220), Some(Target::Radio(P2P, radio::EUI)));
         assert_eq!(route(WINDOW_SIZE - 1), Some(Target::Radio(P2P, 0x13F)));
         assert_eq!(route(WINDOW_SIZE), None);
-        // Every byte reserved for the STM32 faults.
-        assert!((102_428..0x1A000).all(|o| route(o).is_none()));
+        // Every byte reserved for the STM32 faults: the gap before its
+        // extension (cosim_regs.h, 102428-102431) and everything after it.
+        assert!((102_428..102_432).all(|o| route(o).is_none()));
+        assert_eq!(route(102_432), Some(Target::Stm32(stm32::motion::EXT_CTRL)));
+        assert_eq!(route(102_607), Some(Target::Stm32(205)));
+        assert!((102_608..0x1A000).all(|o| route(o).is_none()));
     }
 }

@@ -16,6 +16,24 @@ use crate::power::models::{ModelParams, PowerModelKind};
 pub use crate::sync::SyncMode;
 
 use super::ConfigError;
+use crate::peripherals::stm32::PositionSource;
+
+/// A table's keys with its sub-tables' keys as `table.key`
+/// (`stm32.position_source = "flow"` in TOML is a table `stm32`).
+pub fn flatten_run_table(table: &toml::Table) -> Vec<(String, toml::Value)> {
+    let mut out = Vec::new();
+    for (key, value) in table {
+        match value {
+            toml::Value::Table(sub) => {
+                for (k, v) in flatten_run_table(sub) {
+                    out.push((format!("{key}.{k}"), v));
+                }
+            }
+            v => out.push((key.clone(), v.clone())),
+        }
+    }
+    out
+}
 
 /// The thesis's debug levels (§4.2.4), mapped onto `tracing` levels:
 /// NONE → WARN (only the program's own output and problems), LOW → INFO
@@ -93,7 +111,7 @@ impl fmt::Display for DebugLevel {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 13] = [
+pub const RUN_KEYS: [(&str, &str); 15] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -137,6 +155,14 @@ pub const RUN_KEYS: [(&str, &str); 13] = [
         "radio_id",
         "the radios' EUI, an unsigned 64-bit integer (0; cosim gives 1, 2, 3, ...)",
     ),
+    (
+        "stm32.position_source",
+        "the STM32's position estimate: gps (thesis) | flow (dead reckoning on FLOW_VX/VY)",
+    ),
+    (
+        "stm32.range_max_m",
+        "range sensors' max range in m (2); a reading at or beyond it is 'nothing in range'",
+    ),
 ];
 
 /// The run configuration. [`RunConfig::default`] is the thesis's setting of
@@ -171,6 +197,10 @@ pub struct RunConfig {
     /// firmware's global `NAME` (found by its ELF symbol), so one ELF runs
     /// with the settings of a scenario or a sweep (docs/EXPLORE.md).
     pub firmware_params: BTreeMap<String, i32>,
+    /// Where the STM32's position estimate comes from.
+    pub position_source: PositionSource,
+    /// The range sensors' max range (m).
+    pub range_max_m: f64,
 }
 
 /// The prefix of the firmware-parameter keys (`firmware.NAME`).
@@ -200,6 +230,8 @@ impl Default for RunConfig {
             platform: None,
             radio_id: 0,
             firmware_params: BTreeMap::new(),
+            position_source: PositionSource::Gps,
+            range_max_m: 2.0,
         }
     }
 }
@@ -299,6 +331,8 @@ impl RunConfig {
                     .parse::<u64>()
                     .map_err(|_| bad("expected an unsigned 64-bit integer".into()))?
             }
+            "stm32.position_source" => self.position_source = value.parse().map_err(bad)?,
+            "stm32.range_max_m" => self.range_max_m = parse_positive(value).map_err(bad)?,
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -340,6 +374,8 @@ impl RunConfig {
                 .as_ref()
                 .map_or_else(|| "embedded".to_string(), |p| p.display().to_string()),
             "radio_id" => self.radio_id.to_string(),
+            "stm32.position_source" => self.position_source.to_string(),
+            "stm32.range_max_m" => self.range_max_m.to_string(),
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -370,18 +406,7 @@ impl RunConfig {
             message: e.to_string().trim_end().to_string(),
         })?;
         let mut cfg = RunConfig::default();
-        // `[firmware]` (or dotted `firmware.NAME` keys): the firmware parameters.
-        let mut flat: Vec<(String, &toml::Value)> = Vec::new();
-        for (key, value) in &table {
-            match value {
-                toml::Value::Table(t) if format!("{key}.") == FIRMWARE_KEY_PREFIX => {
-                    flat.extend(t.iter().map(|(k, v)| (format!("{key}.{k}"), v)))
-                }
-                v => flat.push((key.clone(), v)),
-            }
-        }
-        for (key, value) in &flat {
-            let key = key.as_str();
+        for (key, value) in &flatten_run_table(&table) {
             let text = match value {
                 toml::Value::String(s) => s.clone(),
                 toml::Value::Integer(i) => i.to_string(),
@@ -428,12 +453,20 @@ impl RunConfig {
             if key == "radio_id" && self.radio_id == 0 {
                 continue;
             }
+            // Likewise the STM32 extension's settings at their defaults.
+            let default = RunConfig::default();
+            if (key == "stm32.position_source" && self.position_source == default.position_source)
+                || (key == "stm32.range_max_m" && self.range_max_m == default.range_max_m)
+            {
+                continue;
+            }
             let text = self.get(key).expect("RUN_KEYS are known keys");
             let value = match key {
                 "tolerance"
                 | "dandrea_efficiency"
                 | "stolaroff_efficiency"
-                | "stolaroff_factor" => toml::Value::Float(text.parse().expect("a number")),
+                | "stolaroff_factor"
+                | "stm32.range_max_m" => toml::Value::Float(text.parse().expect("a number")),
                 "target_cycles" | "unlock_cycles" => {
                     toml::Value::Integer(text.parse().expect("an integer"))
                 }

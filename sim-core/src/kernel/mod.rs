@@ -110,6 +110,8 @@ fn stm32_config(cfg: &KernelConfig) -> Stm32Config {
         tolerance: cfg.run.tolerance,
         target_cycles: cfg.run.target_cycles,
         unlock_cycles: cfg.run.unlock_cycles,
+        position_source: cfg.run.position_source,
+        range_max_mm: cfg.run.range_max_m * 1000.0,
         ..Stm32Config::default()
     }
 }

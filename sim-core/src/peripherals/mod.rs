@@ -29,18 +29,19 @@ use thiserror::Error;
 use crate::sync::TimeKeeper;
 use crate::units::Picos;
 
-/// A one-byte status register whose next value becomes visible at a given
-/// simulated time (a device's "operation completed" flag, §4.2.1: the code
-/// shows when the operation completes, not before).
+/// A status register (one byte unless said otherwise) whose next value
+/// becomes visible at a given simulated time (a device's "operation
+/// completed" flag, §4.2.1: the code shows when the operation completes, not
+/// before).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct TimedReg {
-    value: u8,
-    pending: Option<(Picos, u8)>,
+pub struct TimedReg<T = u8> {
+    value: T,
+    pending: Option<(Picos, T)>,
 }
 
-impl TimedReg {
+impl<T: Copy> TimedReg<T> {
     /// The value a read at `now` returns.
-    pub fn get(&self, now: Picos) -> u8 {
+    pub fn get(&self, now: Picos) -> T {
         match self.pending {
             Some((t, v)) if now >= t => v,
             _ => self.value,
@@ -48,13 +49,13 @@ impl TimedReg {
     }
 
     /// Makes `value` visible from time `at` on.
-    pub fn set_at(&mut self, at: Picos, value: u8) {
+    pub fn set_at(&mut self, at: Picos, value: T) {
         self.settle(at);
         self.pending = Some((at, value));
     }
 
     /// A write by the core at `now` (the firmware clears status registers).
-    pub fn write(&mut self, now: Picos, value: u8) {
+    pub fn write(&mut self, now: Picos, value: T) {
         self.settle(now);
         match self.pending {
             // A completion still to come keeps its time; the core's write

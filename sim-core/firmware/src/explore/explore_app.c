@@ -29,7 +29,8 @@
 /* Run parameters (the platform may patch them; volatile so the compiler
  * reads what is in memory). Area bounds are relative to the take-off
  * estimate, so a room can be explored without knowing where it is. */
-volatile int32_t explore_param_mode = EXPLORE_MODE_FRONTIER;
+/* In .data, not .bss (zeroed at start): the platform patches the load image. */
+__attribute__((section(".data"))) volatile int32_t explore_param_mode = EXPLORE_MODE_FRONTIER;
 volatile int32_t explore_param_cell_mm = 50;    /* §5.2: 5 cm */
 volatile int32_t explore_param_fov_cdeg = 400;  /* §5.2: 4.0° */
 volatile int32_t explore_param_height_mm = 300; /* cflib's default height */
@@ -41,7 +42,8 @@ volatile int32_t explore_param_x_max_mm = 4000;
 volatile int32_t explore_param_y_min_mm = -4000;
 volatile int32_t explore_param_y_max_mm = 4000;
 volatile int32_t explore_param_time_budget_ms = 300000;
-/* The seed logs poses and ranges every 100 ms (§4.2.1.A). */
+/* The seed logs poses and ranges every 100 ms (§4.2.1.A): here three PID
+ * iterations of 32 ms, 96 ms. */
 volatile int32_t explore_param_period_ms = 100;
 /* The core's clock (Hz), for the firmware's time: platform time in lockstep
  * with the world's (ITER_ADVANCE moves both). GAP8 fabric controller. */
@@ -59,35 +61,62 @@ volatile int32_t explore_param_max_steps = 20000;
 #define stm32_control REG8(STM32_CTRL_REG_OFFSET)
 #define stm32_status REG8(STM32_STAT_REG_OFFSET)
 
-/* An extension command: write its code, wait until EXT_STAT shows it (or
- * EXT_ERROR), clear. Returns 0 on success. */
+/* Listing 4.6. */
+static void perform(uint8_t op)
+{
+    stm32_control = op;
+    while (stm32_status != op)
+        ;
+    stm32_status = 0;
+    stm32_control = 0;
+}
+
+/* An extension command: EXT_STAT is 0 from the write until it completes,
+ * then shows the code, or EXT_ERROR. Returns 0 on success. */
 static int ext_perform(uint32_t cmd)
 {
-    ext_ctrl = cmd;
     uint32_t st;
-    while ((st = ext_stat) != cmd && st != EXT_ERROR)
+    ext_ctrl = cmd;
+    while ((st = ext_stat) == 0)
         ;
-    ext_ctrl = 0;
-    if (st == EXT_ERROR) {
-        printf("EXPLORE error the STM32 refused extension command %lu\n", (unsigned long)cmd);
+    if (st != cmd) {
+        printf("EXPLORE error the STM32 refused extension command %lu (status %lu)\n",
+               (unsigned long)cmd, (unsigned long)st);
         return -1;
     }
     return 0;
 }
 
-/* ITER_ADVANCE: both simulations advance `ms` (at most 240) milliseconds,
- * the STM32 flying the current set-point. */
+static int low_battery = 0;
+
+/* One PID iteration of the STM32 flying the current set-point: the
+ * simulations advance ITER_MS - PID_MS, then RUN_SINGLE_STEP_PID (the
+ * STM32's PID takes PID_MS, the world steps once at a 32 ms basicTimeStep;
+ * as motion_test.c). */
+#define ITER_MS 32
+#define PID_MS 7
+static void iteration(void)
+{
+    uint8_t st;
+    stm32_control = (uint8_t)(ITER_ADVANCE + ITER_MS - PID_MS);
+    while (stm32_status != ITER_ADVANCE)
+        ;
+    stm32_status = 0;
+    stm32_control = RUN_SINGLE_STEP_PID;
+    while ((st = stm32_status) == 0)
+        ;
+    stm32_status = 0;
+    stm32_control = 0;
+    if (st == BATTERY_LOW)
+        low_battery = 1;
+}
+
+/* One control period: whole PID iterations (96 ms for the seed's 100 ms at
+ * a 32 ms basicTimeStep). */
 static void advance(uint32_t ms)
 {
-    while (ms > 0) {
-        uint32_t step = ms > 240 ? 240 : ms;
-        stm32_control = (uint8_t)(ITER_ADVANCE + step);
-        while (stm32_status != ITER_ADVANCE)
-            ;
-        stm32_status = 0;
-        stm32_control = 0;
-        ms -= step;
-    }
+    for (uint32_t t = 0; t + ITER_MS / 2 < ms || t == 0; t += ITER_MS)
+        iteration();
 }
 
 static int32_t mm(double m) { return (int32_t)lround(m * 1000.0); }
@@ -138,6 +167,7 @@ int main(void)
 {
     uint16_t max_mm = (uint16_t)explore_param_max_range_mm;
     uint32_t period = (uint32_t)explore_param_period_ms;
+    perform(INIT_PID);
     explore_input in;
     read_input(&in, max_mm);
 
@@ -183,6 +213,10 @@ int main(void)
             printf("EXPLORE error no end after %ld steps: landing\n", (long)step);
             out.cmd = EXPLORE_CMD_LAND;
         }
+        if (low_battery && out.cmd != EXPLORE_CMD_DONE) {
+            printf("EXPLORE low battery: landing\n");
+            out.cmd = EXPLORE_CMD_LAND;
+        }
         switch (out.cmd) {
         case EXPLORE_CMD_TAKEOFF:
             if (!took_off) {
@@ -211,9 +245,9 @@ int main(void)
                 explore_map_export(&len); /* header and CRC, for map.cfog */
                 read_input(&in, max_mm);
                 print_end(in.t_ms);
-                /* EXT_LAND descends, stops the motors and STOPs the drone:
-                 * the run ends there. */
-                ext_perform(EXT_LAND);
+                /* EXT_LAND descends, stops the motors and STOPs the drone. */
+                if (ext_perform(EXT_LAND) != 0)
+                    return 3;
             }
             return 0;
         case EXPLORE_CMD_NONE:

@@ -6,7 +6,7 @@
 use protocol::Request;
 
 use super::pid::MotorCommands;
-use super::{invalid, session_err, world_err, Stm32, GO_DOWN, INIT_PID};
+use super::{invalid, session_err, world_err, Stm32, INIT_PID};
 use crate::peripherals::{DeviceCtx, DeviceError};
 use crate::units::{Millis, Picos};
 
@@ -46,6 +46,7 @@ impl Stm32 {
         f.past_y = init.y;
         f.height_desired = init.z;
         f.target = [init.x, init.y, init.z];
+        self.motion.init(f.past_time, [init.x, init.y, init.z]);
         self.initialised = true;
         // Done when the start-up alignment is (at once if it is over).
         let done = now.max(ctx.session.ready_at());
@@ -111,19 +112,19 @@ impl Stm32 {
         crate::peripherals::motors::drive_from_ctx(ctx, commands, iter, now).map_err(world_err)
     }
 
-    /// End of the landing: STOP, the motors' stop time, then GO_DOWN done.
+    /// End of a landing: STOP and the motors' stop time; returns when the
+    /// landing command completes.
     pub(super) fn stop_world(
         &mut self,
         at: Picos,
         ctx: &mut DeviceCtx<'_>,
-    ) -> Result<(), DeviceError> {
+    ) -> Result<Picos, DeviceError> {
         let end = ctx
             .session
             .stop(at, ctx.world, ctx.time)
             .map_err(session_err)?;
         ctx.motors.stopped();
-        self.complete(end, GO_DOWN);
-        Ok(())
+        Ok(end)
     }
 
     pub(super) fn print_simul_time(&mut self, now: Picos, ctx: &mut DeviceCtx<'_>) {

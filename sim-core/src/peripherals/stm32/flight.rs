@@ -2,11 +2,11 @@
 //! sensors, body velocities, the straight-path coefficients (Listing 4.2),
 //! tolerance and target counting (Listing 4.3), the Bitcraze controller.
 
-use protocol::{Reply, Request};
+use protocol::Sensors;
 
 use super::pid::{self, ActualState, DesiredState, MotorCommands, PidController};
-use super::{invalid, world_err, Process, Stm32};
-use crate::peripherals::{DeviceCtx, DeviceError, LinkError};
+use super::{invalid, Process, Stm32};
+use crate::peripherals::{DeviceCtx, DeviceError};
 use crate::units::Picos;
 
 /// The thesis's `PIDController` state (Appendix C).
@@ -35,35 +35,16 @@ pub(super) enum Outcome {
 }
 
 impl Stm32 {
-    /// One PID iteration (Appendix C): sensors, body velocities, the
-    /// straight-path coefficients (Listing 4.2), tolerance and target
-    /// counting (Listing 4.3), the Bitcraze controller, the motors.
-    pub(super) fn pid_iteration(
-        &mut self,
-        now: Picos,
-        ctx: &mut DeviceCtx<'_>,
-        integrate_height: bool,
-    ) -> Result<(Outcome, MotorCommands), DeviceError> {
-        let reply = ctx
-            .world
-            .call(&Request::GetSensors, now)
-            .map_err(world_err)?;
-        let Reply::Sensors(s) = reply else {
-            return Err(world_err(LinkError::Unexpected {
-                request: "GET_SENSORS",
-                reply: reply.command(),
-            }));
-        };
-        self.stats.pid_iterations += 1;
-        let ts_s = self.timestep.0 as f64 / 1000.0;
-        let cfg = &self.cfg;
-        let f = &mut self.flight;
+    /// The time since the last iteration and what the drone measures
+    /// (Appendix C lines 5–13: body velocities from two GPS fixes).
+    pub(super) fn measured(&self, s: &Sensors) -> (f64, ActualState) {
+        let f = &self.flight;
         let mut dt = s.time_s - f.past_time;
         // The first iteration after INIT_PID sees the same world time as
         // GET_INIT_DATA (the platform's alignment does not move the world);
         // the C code would divide by zero there. Use one timestep instead.
         if dt <= 0.0 {
-            dt = ts_s;
+            dt = self.timestep.0 as f64 / 1000.0;
         }
         let (vx, vy) = pid::body_velocity(s.x - f.past_x, s.y - f.past_y, dt, s.yaw);
         let actual = ActualState {
@@ -74,6 +55,45 @@ impl Stm32 {
             vx,
             vy,
         };
+        (dt, actual)
+    }
+
+    /// The Bitcraze controller's step, checked, and the fix kept for the
+    /// next iteration's velocities.
+    pub(super) fn control(
+        &mut self,
+        s: &Sensors,
+        actual: &ActualState,
+        desired: &mut DesiredState,
+        dt: f64,
+    ) -> Result<MotorCommands, DeviceError> {
+        let f = &mut self.flight;
+        let commands = f.pid.step(actual, desired, dt);
+        if commands.as_array().iter().any(|m| !m.is_finite()) {
+            return Err(invalid(format!(
+                "the controller produced non-finite motor commands {commands:?} from {s:?}"
+            )));
+        }
+        f.past_time = s.time_s;
+        f.past_x = s.x;
+        f.past_y = s.y;
+        Ok(commands)
+    }
+
+    /// One PID iteration (Appendix C): sensors, body velocities, the
+    /// straight-path coefficients (Listing 4.2), tolerance and target
+    /// counting (Listing 4.3), the Bitcraze controller, the motors.
+    pub(super) fn pid_iteration(
+        &mut self,
+        now: Picos,
+        ctx: &mut DeviceCtx<'_>,
+        integrate_height: bool,
+    ) -> Result<(Outcome, MotorCommands), DeviceError> {
+        let s = self.read_sensors(now, ctx)?;
+        self.stats.pid_iterations += 1;
+        let (dt, actual) = self.measured(&s);
+        let cfg = &self.cfg;
+        let f = &mut self.flight;
 
         // Listing 4.2: the straight path.
         let x_diff = s.x - f.target[0];
@@ -146,22 +166,18 @@ impl Stm32 {
         if integrate_height {
             f.height_desired += height_diff_desired * dt;
         }
+        // Appendix C's mapping, or rotated by the yaw toward a heading
+        // target (motion.rs; unchanged without EXT_SET_HEADING).
+        let (vx_desired, vy_desired, yaw_rate) =
+            self.motion.steer(forward_desired, sideways_desired, s.yaw);
         let mut desired = DesiredState {
-            yaw_rate: 0.0,
-            vy: sideways_desired,
-            vx: forward_desired,
+            yaw_rate,
+            vy: vy_desired,
+            vx: vx_desired,
             altitude: f.height_desired,
             ..DesiredState::default()
         };
-        let commands = f.pid.step(&actual, &mut desired, dt);
-        if commands.as_array().iter().any(|m| !m.is_finite()) {
-            return Err(invalid(format!(
-                "the controller produced non-finite motor commands {commands:?} from {s:?}"
-            )));
-        }
-        f.past_time = s.time_s;
-        f.past_x = s.x;
-        f.past_y = s.y;
+        let commands = self.control(&s, &actual, &mut desired, dt)?;
 
         // Targets set by the firmware are counted (GET_STABLE and landing are
         // the STM32's own).

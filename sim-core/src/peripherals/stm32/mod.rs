@@ -17,12 +17,18 @@
 //! | 8 | PRINT_SIMUL_TIME | prints the time bookkeeping, at once |
 //! | 10 + v | ITER_ADVANCE | v ms (inference time), status 10 |
 //! | 251 | SKIP_TARGET | our extension: a target skipped for low battery is counted, at once |
+//!
+//! The extension registers (state estimate, ranges, flow, MotionCommander-like
+//! commands, a heading target) and their commands are in [`motion`].
 
 mod clock;
 mod flight;
+pub mod motion;
 pub mod pid;
 
 use self::flight::{Flight, Outcome};
+pub use self::motion::PositionSource;
+use self::motion::{Mode, Motion};
 use self::pid::{PidController, PidGains};
 use super::world_session::SessionError;
 use super::{DeviceCtx, DeviceError, DevicePower, LinkError, TimedReg};
@@ -34,7 +40,14 @@ pub const STATUS: u32 = 1;
 pub const TARGET_X: u32 = 2;
 pub const TARGET_Y: u32 = 10;
 pub const TARGET_Z: u32 = 18;
-pub const REGISTER_MEMORY: u32 = 26;
+/// The race's registers end at 26; the extension ([`motion`]) starts at 30
+/// and ends the register file.
+pub const REGISTER_MEMORY: u32 = motion::EXT_END;
+
+/// Whether `offset` is one of the STM32's registers (bytes 26..30 fault).
+pub fn is_register(offset: u32) -> bool {
+    offset < REGISTER_MEMORY && !motion::GAP.contains(&offset)
+}
 
 /// Commands and status codes (Table 4.3).
 pub const INIT_PID: u8 = 1;
@@ -69,6 +82,12 @@ pub struct Stm32Config {
     pub stable_height: f64,
     /// First landing stage: height above ground (m) before the final 0 m.
     pub landing_height: f64,
+    /// Where the estimate's x, y come from (run key `stm32.position_source`).
+    pub position_source: PositionSource,
+    /// A range reading (mm) at or beyond this is "nothing within range"
+    /// (run key `stm32.range_max_m`; the Webots DistanceSensor's lookup table
+    /// saturates at 2000 mm, DESIGN.md §5).
+    pub range_max_mm: f64,
 }
 
 impl Default for Stm32Config {
@@ -82,6 +101,8 @@ impl Default for Stm32Config {
             pid_path_delay: Millis(7),
             stable_height: 1.0,
             landing_height: 0.2,
+            position_source: PositionSource::Gps,
+            range_max_mm: 2000.0,
         }
     }
 }
@@ -108,6 +129,10 @@ enum Process {
     Landing {
         stage: u8,
     },
+    /// EXT_TAKEOFF: climb to the take-off height.
+    TakingOff,
+    /// EXT_LAND: descend to the ground, then STOP.
+    ExtLanding,
 }
 
 pub struct Stm32 {
@@ -120,6 +145,7 @@ pub struct Stm32 {
     initialised: bool,
     process: Process,
     next_iteration: Option<Picos>,
+    motion: Motion,
     pub power: DevicePower,
     pub stats: Stm32Stats,
 }
@@ -127,6 +153,7 @@ pub struct Stm32 {
 impl Stm32 {
     pub fn new(cfg: Stm32Config, power: DevicePower) -> Self {
         let pid = PidController::new(cfg.gains);
+        let motion = Motion::new(cfg.position_source, cfg.range_max_mm);
         Stm32 {
             cfg,
             control: 0,
@@ -147,6 +174,7 @@ impl Stm32 {
             initialised: false,
             process: Process::Idle,
             next_iteration: None,
+            motion,
             power,
             stats: Stm32Stats::default(),
         }
@@ -165,6 +193,7 @@ impl Stm32 {
         match offset {
             CTRL => self.control,
             STATUS => self.status.get(now),
+            o if o >= motion::EXT_CTRL => self.motion.read(o, now),
             _ => self.target_regs[(offset - TARGET_X) as usize],
         }
     }
@@ -176,6 +205,7 @@ impl Stm32 {
                 .status
                 .stable_until(now)
                 .min(self.next_iteration.unwrap_or(Picos::MAX)),
+            o if o >= motion::EXT_CTRL => self.motion.stable_until(o, now, self.next_iteration),
             _ => Picos::MAX,
         }
     }
@@ -202,6 +232,7 @@ impl Stm32 {
                 self.status.write(now, value);
                 Ok(())
             }
+            o if o >= motion::EXT_CTRL => self.write_ext(o, value, now, ctx),
             _ => {
                 self.target_regs[(offset - TARGET_X) as usize] = value;
                 Ok(())
@@ -256,7 +287,10 @@ impl Stm32 {
                 Ok(())
             }
             RUN_SINGLE_STEP_PID => {
-                let (outcome, commands) = self.pid_iteration(now, ctx, true)?;
+                let (outcome, commands) = match self.motion.mode {
+                    Mode::Position => self.pid_iteration(now, ctx, true)?,
+                    Mode::Velocity(_) => self.velocity_iteration(now, ctx)?,
+                };
                 ctx.time.add_to_iteration(self.cfg.pid_path_delay, now);
                 let iter = ctx.time.take_iteration();
                 let done = now + self.cfg.pid_path_delay.to_picos();
@@ -272,6 +306,13 @@ impl Stm32 {
                 Ok(())
             }
             RUN_PID => {
+                if self.motion.mode != Mode::Position {
+                    return Err(invalid(
+                        "RUN_PID in velocity mode (it runs until a position target is reached): \
+                         use RUN_SINGLE_STEP_PID, or EXT_POSITION_MODE first"
+                            .into(),
+                    ));
+                }
                 self.flush_iteration(now, ctx)?;
                 self.start_process(Process::Continuous, now);
                 Ok(())
@@ -339,7 +380,10 @@ impl Stm32 {
         // (§4.2.4: iter_delay = timestep at the beginning and the end).
         let ts = self.timestep;
         let integrate_height = self.process != Process::Stabilising;
-        let (outcome, commands) = self.pid_iteration(now, ctx, integrate_height)?;
+        let (outcome, commands) = match self.process {
+            Process::TakingOff | Process::ExtLanding => self.velocity_iteration(now, ctx)?,
+            _ => self.pid_iteration(now, ctx, integrate_height)?,
+        };
         ctx.time.add_to_iteration(ts, now);
         let iter = ctx.time.take_iteration();
         Self::drive(commands, now, iter, ctx)?;
@@ -363,7 +407,18 @@ impl Stm32 {
             Process::Landing { .. } => {
                 self.next_iteration = None;
                 self.process = Process::Idle;
-                self.stop_world(end, ctx)?;
+                let done = self.stop_world(end, ctx)?;
+                self.complete(done, GO_DOWN);
+            }
+            Process::TakingOff => {
+                self.finish_ext(end, motion::EXT_TAKEOFF);
+            }
+            Process::ExtLanding => {
+                self.next_iteration = None;
+                self.process = Process::Idle;
+                let done = self.stop_world(end, ctx)?;
+                self.power.busy_reading(done);
+                self.motion.complete(done, motion::EXT_LAND);
             }
             Process::Idle => unreachable!("an idle STM32 has no iteration scheduled"),
         }
@@ -374,6 +429,13 @@ impl Stm32 {
         self.process = Process::Idle;
         self.next_iteration = None;
         self.complete(at, code);
+    }
+
+    fn finish_ext(&mut self, at: Picos, code: u32) {
+        self.process = Process::Idle;
+        self.next_iteration = None;
+        self.power.busy_reading(at);
+        self.motion.complete(at, code);
     }
 }
 

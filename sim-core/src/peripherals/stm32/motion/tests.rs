@@ -1,0 +1,268 @@
+use std::f64::consts::FRAC_PI_2;
+
+use protocol::Sensors;
+
+use super::super::{is_register, Stm32, Stm32Config, CTRL, INIT_PID};
+use super::*;
+use crate::peripherals::{DeviceCtx, DevicePower, Motors, SoloWorld, WorldSession};
+use crate::sync::{SyncMode, TimeKeeper};
+use crate::units::Millis;
+
+/// Writes `bytes` at `offset` one by one, as the bus does.
+fn write_bytes(stm32: &mut Stm32, offset: u32, bytes: &[u8], now: Picos, ctx: &mut DeviceCtx<'_>) {
+    for (i, b) in bytes.iter().enumerate() {
+        stm32.write(offset + i as u32, *b, now, ctx).unwrap();
+    }
+}
+
+fn stat(stm32: &Stm32, now: Picos) -> u32 {
+    u32::from_le_bytes(std::array::from_fn(|i| {
+        stm32.read(EXT_STAT + i as u32, now)
+    }))
+}
+
+#[test]
+fn commands_complete_with_their_code_and_bad_ones_with_ext_error() {
+    let mut world = SoloWorld::new([-2.6, 0.0, 0.015], Millis(32));
+    let mut session = WorldSession::new(None, protocol::ImageEncoding::Array);
+    let mut time = TimeKeeper::new(SyncMode::Thesis);
+    let mut motors = Motors::default();
+    let mut printed = String::new();
+    let mut sink = |s: &str| printed.push_str(s);
+    let mut ctx = DeviceCtx {
+        world: &mut world,
+        session: &mut session,
+        time: &mut time,
+        motors: &mut motors,
+        battery_low: false,
+        console: &mut sink,
+    };
+    let mut stm32 = Stm32::new(Stm32Config::default(), DevicePower::new(Picos::ZERO));
+    let t = Picos::from_ms(1);
+    // Before INIT_PID: refused.
+    write_bytes(
+        &mut stm32,
+        EXT_CTRL,
+        &EXT_SET_HEADING.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    assert_eq!(stat(&stm32, t), EXT_ERROR);
+
+    stm32.write(CTRL, INIT_PID, t, &mut ctx).unwrap();
+    let t = Picos::from_ms(2001);
+    // The estimate starts at the world's start position.
+    let est_x = f64::from_le_bytes(std::array::from_fn(|i| stm32.read(EST_X + i as u32, t)));
+    assert_eq!(est_x, -2.6);
+
+    // A command fires at its last byte only.
+    write_bytes(&mut stm32, EXT_CTRL, &[99, 0, 0], t, &mut ctx);
+    assert_eq!(stat(&stm32, t), EXT_ERROR, "still the earlier refusal");
+    write_bytes(&mut stm32, CMD_YAW, &0.5f64.to_le_bytes(), t, &mut ctx);
+    write_bytes(
+        &mut stm32,
+        EXT_CTRL,
+        &EXT_SET_HEADING.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    assert_eq!(stat(&stm32, t), EXT_SET_HEADING);
+    assert_eq!(stm32.motion.heading, Some(0.5));
+
+    // Unknown command, non-finite and non-positive arguments: EXT_ERROR.
+    write_bytes(&mut stm32, EXT_CTRL, &99u32.to_le_bytes(), t, &mut ctx);
+    assert_eq!(stat(&stm32, t), EXT_ERROR);
+    write_bytes(
+        &mut stm32,
+        CMD_SPEED_LIMIT,
+        &f64::NAN.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    write_bytes(
+        &mut stm32,
+        EXT_CTRL,
+        &EXT_SET_SPEED_LIMIT.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    assert_eq!(stat(&stm32, t), EXT_ERROR);
+    write_bytes(
+        &mut stm32,
+        CMD_SPEED_LIMIT,
+        &0.0f64.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    write_bytes(
+        &mut stm32,
+        EXT_CTRL,
+        &EXT_SET_SPEED_LIMIT.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    assert_eq!(stat(&stm32, t), EXT_ERROR);
+    write_bytes(
+        &mut stm32,
+        CMD_SPEED_LIMIT,
+        &0.5f64.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    write_bytes(
+        &mut stm32,
+        EXT_CTRL,
+        &EXT_SET_SPEED_LIMIT.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    assert_eq!(stat(&stm32, t), EXT_SET_SPEED_LIMIT);
+
+    // Velocity set-point: clamped to the speed limit, direction kept.
+    write_bytes(&mut stm32, CMD_VX, &3.0f64.to_le_bytes(), t, &mut ctx);
+    write_bytes(&mut stm32, CMD_VY, &4.0f64.to_le_bytes(), t, &mut ctx);
+    write_bytes(&mut stm32, CMD_HEIGHT, &1.0f64.to_le_bytes(), t, &mut ctx);
+    write_bytes(&mut stm32, CMD_YAW_RATE, &0.0f64.to_le_bytes(), t, &mut ctx);
+    write_bytes(
+        &mut stm32,
+        EXT_CTRL,
+        &EXT_SET_VELOCITY.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    assert_eq!(stat(&stm32, t), EXT_SET_VELOCITY);
+    let Mode::Velocity(sp) = stm32.motion.mode else {
+        panic!("velocity mode expected")
+    };
+    assert!(
+        (sp.vx - 0.3).abs() < 1e-12 && (sp.vy - 0.4).abs() < 1e-12,
+        "{sp:?}"
+    );
+    // A height below the ground is refused and keeps the set-point.
+    write_bytes(
+        &mut stm32,
+        CMD_HEIGHT,
+        &(-1.0f64).to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    write_bytes(
+        &mut stm32,
+        EXT_CTRL,
+        &EXT_SET_VELOCITY.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    assert_eq!(stat(&stm32, t), EXT_ERROR);
+    assert_eq!(stm32.motion.mode, Mode::Velocity(sp));
+    // RUN_PID would never end in velocity mode: a device error.
+    assert!(stm32
+        .write(CTRL, super::super::RUN_PID, t, &mut ctx)
+        .is_err());
+    write_bytes(
+        &mut stm32,
+        EXT_CTRL,
+        &EXT_POSITION_MODE.to_le_bytes(),
+        t,
+        &mut ctx,
+    );
+    assert_eq!(stat(&stm32, t), EXT_POSITION_MODE);
+    assert_eq!(stm32.motion.mode, Mode::Position);
+    assert_eq!(stm32.target(), [-2.6, 0.0, 0.015]);
+    assert_eq!(printed.matches("refused").count(), 5, "{printed}");
+}
+
+#[test]
+fn the_register_file_has_a_faulting_gap_before_the_extension() {
+    assert!(is_register(25));
+    assert!((26..30).all(|o| !is_register(o)));
+    assert!(is_register(EXT_CTRL) && is_register(EXT_END - 1));
+    assert!(!is_register(EXT_END));
+    // The firmware's offsets (cosim_regs.h) minus the STM32's base 102402.
+    assert_eq!((EXT_CTRL, EST_X, RANGE_FRONT, FLOW_VX), (30, 38, 94, 142));
+    assert_eq!((CMD_VX, CMD_SPEED_LIMIT, EXT_END), (158, 198, 206));
+}
+
+#[test]
+fn without_a_heading_the_race_controller_is_appendix_c_bit_for_bit() {
+    let m = Motion::new(PositionSource::Gps, 2000.0);
+    for yaw in [FRAC_PI_2, 1.5, 0.0, -3.0] {
+        assert_eq!(m.steer(0.25, -0.5, yaw), (0.25, -0.5, 0.0));
+    }
+}
+
+#[test]
+fn with_a_heading_the_world_demand_is_rotated_by_the_yaw() {
+    let mut m = Motion::new(PositionSource::Gps, 2000.0);
+    // At yaw +π/2 with the heading held: Appendix C's mapping.
+    m.heading = Some(FRAC_PI_2);
+    let (vx, vy, r) = m.steer(0.25, -0.5, FRAC_PI_2);
+    assert!((vx - 0.25).abs() < 1e-15 && (vy + 0.5).abs() < 1e-15 && r == 0.0);
+    // Facing +x (yaw 0): a target ahead in +x (x error < 0 → Appendix C's
+    // sideways −0.5) is straight ahead in the body frame.
+    m.heading = Some(0.0);
+    let (vx, vy, r) = m.steer(0.0, -0.5, 0.0);
+    assert!((vx - 0.5).abs() < 1e-15 && vy.abs() < 1e-15 && r == 0.0);
+    // Facing +y, heading 0: turn clockwise at the clamped rate.
+    assert_eq!(m.steer(0.0, 0.0, FRAC_PI_2).2, -MAX_YAW_RATE);
+    // A small error: proportional, across the ±π seam.
+    m.heading = Some(3.1);
+    let r = m.steer(0.0, 0.0, -3.1).2;
+    let expected = K_HEADING * (2.0 * std::f64::consts::PI - 6.2);
+    assert!((r + expected).abs() < 1e-12, "{r} vs {}", -expected);
+}
+
+#[test]
+fn ranges_in_metres_negative_out_of_range_and_flow_dead_reckoning() {
+    let mut m = Motion::new(PositionSource::Flow, 2000.0);
+    m.init(2.0, [1.0, 2.0, 0.015]);
+    let mut s = Sensors {
+        time_s: 2.5,
+        x: 9.0,
+        y: 9.0,
+        z: 1.0,
+        yaw: FRAC_PI_2,
+        range_front: 1234.0,
+        range_back: 2000.0,
+        range_left: 0.0,
+        range_right: f64::NAN,
+        range_up: None,
+        range_down: Some(500.0),
+        flow_vx: Some(0.4),
+        flow_vy: Some(0.0),
+        ..Sensors::default()
+    };
+    m.update(&mut s).unwrap();
+    // Facing +y, 0.4 m/s forward for 0.5 s: +0.2 m in world y.
+    assert!(
+        (s.x - 1.0).abs() < 1e-12 && (s.y - 2.2).abs() < 1e-12,
+        "{s:?}"
+    );
+    assert_eq!(m.position()[..2], [s.x, s.y]);
+    assert!((m.est[5] - 0.4).abs() < 1e-12, "world vy {}", m.est[5]);
+    assert_eq!(m.est[7..13], [1.234, -1.0, 0.0, -1.0, -1.0, 0.5]);
+    assert_eq!(m.est[13..15], [0.4, 0.0]);
+    // Without flow in flow mode: a clear error.
+    s.flow_vx = None;
+    assert!(m.update(&mut s).unwrap_err().contains("FLOW_VX"));
+    // GPS mode: positions as the world says.
+    let mut g = Motion::new(PositionSource::Gps, 2000.0);
+    g.init(2.0, [1.0, 2.0, 0.015]);
+    let mut s2 = Sensors {
+        time_s: 2.5,
+        x: 1.5,
+        y: 2.0,
+        z: 0.015,
+        ..Sensors::default()
+    };
+    g.update(&mut s2).unwrap();
+    assert_eq!((s2.x, g.est[4], g.est[13]), (1.5, 1.0, 0.0));
+}
+
+#[test]
+fn angles_wrap_into_minus_pi_to_pi() {
+    use std::f64::consts::PI;
+    assert!((wrap_angle(3.0 * PI / 2.0) + PI / 2.0).abs() < 1e-12);
+    assert!((wrap_angle(-3.0 * PI / 2.0) - PI / 2.0).abs() < 1e-12);
+    assert_eq!(wrap_angle(0.5), 0.5);
+}
