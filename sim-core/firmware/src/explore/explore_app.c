@@ -206,6 +206,13 @@ int main(void)
     for (int32_t step = 0;; step++) {
         read_input(&in, max_mm);
         explore_step(&in, &out);
+        /* Keep the exported image current (about once a second, ~0.5 M
+         * cycles at 10 000 cells), so a run cut short by the scenario's
+         * max_time_s or a flat battery still leaves its map. */
+        if (step % 10 == 0) {
+            uint32_t len;
+            explore_map_export(&len);
+        }
         if (out.new_goal)
             printf("EXPLORE goal t_ms=%lu x_mm=%ld y_mm=%ld\n", (unsigned long)in.t_ms,
                    (long)out.goal_x_mm, (long)out.goal_y_mm);
