@@ -8,9 +8,11 @@
 //! - [`tracetool`]: `cosim trace show` and `cosim trace-check`.
 //! - [`plot`]: the PNG figures.
 //! - [`swarm`]: scenarios with several drones (`[[platform]]` tables).
+//! - [`mapping`]: the map of an exploration run scored against the world.
 
 pub mod launch;
 pub mod perturb;
+pub mod mapping;
 pub mod plot;
 pub mod report;
 pub mod scenario;
@@ -41,6 +43,8 @@ pub struct RunOutcome {
     /// table order (then `summary` is None: the top-level `summary.json` is
     /// the swarm's, see [`swarm::report::SwarmSummary`]). Empty otherwise.
     pub drones: Vec<DroneOutcome>,
+    /// An exploration run's map, scored (the `map` object of summary.json).
+    pub map: Option<mapping::MapSummary>,
 }
 
 /// One platform of a run with several drones.
@@ -127,6 +131,7 @@ impl RunOutcome {
                         report_error: self.report_error.clone(),
                         text: d.text.clone(),
                         drones: Vec::new(),
+                        map: None,
                     },
                 )
             })
@@ -168,8 +173,32 @@ pub fn run_scenario(
             Err(e) => report_error = Some(e.to_string()),
         }
     }
+    let map = match mapping::process(
+        &scenario.world,
+        out,
+        summary.as_ref().map(|s| s.cycles),
+        draw,
+    ) {
+        Ok(m) => m,
+        Err(e) => {
+            report_error = Some(e.to_string());
+            None
+        }
+    };
+    if map.is_some() && draw {
+        plots.push(out.join(mapping::files::MAP_PNG));
+    }
     let text = match &summary {
-        Some(s) => report::summary_text(scenario, s, &status, soc_init, out, &plots),
+        Some(s) => {
+            let mut t = report::summary_text(scenario, s, &status, soc_init, out, &plots);
+            if let Some(m) = &map {
+                t.push_str(&mapping::summary_line(m));
+            }
+            if let Some(e) = &report_error {
+                t.push_str(&format!("   report error   {e}\n"));
+            }
+            t
+        }
         None => format!(
             "== {} — FAILED: {}\n   outputs        {} (see {})\n",
             scenario.name,
@@ -193,5 +222,6 @@ pub fn run_scenario(
         report_error,
         text,
         drones: Vec::new(),
+        map,
     })
 }

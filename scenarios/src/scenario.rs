@@ -157,6 +157,7 @@ pub(crate) fn value_text(v: &toml::Value) -> Result<String, String> {
 
 pub(crate) fn is_run_key(key: &str) -> bool {
     RUN_KEYS.iter().any(|(k, _)| *k == key)
+        || key.starts_with(sim_core::config::FIRMWARE_KEY_PREFIX)
 }
 
 /// Applies a `run` table of the file (`what` names it in errors); a

@@ -14,6 +14,7 @@ pub mod bus;
 pub mod config;
 pub mod iss;
 pub mod kernel;
+pub mod map_image;
 pub mod peripherals;
 pub mod power;
 pub mod sync;

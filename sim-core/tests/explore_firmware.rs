@@ -14,6 +14,7 @@ use std::sync::OnceLock;
 
 use object::{Object, ObjectSection, ObjectSymbol};
 use sim_core::iss::{CpuConfig, NoDevices, StopReason};
+use sim_core::map_image::{MapError, MapImage};
 use sim_core::units::Picos;
 
 /// What one run of the self-test leaves behind.
@@ -67,135 +68,6 @@ fn selftest() -> &'static SelfTest {
             instret: cpu.instret(),
         }
     })
-}
-
-// ---------------------------------------------------------------------------
-// The CFOG map image (docs/EXPLORE.md): a 32-byte little-endian header, then
-// width x height int8 log-odds, row-major from the cell at the origin, x
-// fastest.
-
-/// A map read from a CFOG image.
-#[derive(Debug, Clone, PartialEq)]
-struct MapImage {
-    width: usize,
-    height: usize,
-    cell_mm: i32,
-    fov_cdeg: u16,
-    origin_x_mm: i32,
-    origin_y_mm: i32,
-    /// Log-odds units per nat.
-    lo_per_nat: u8,
-    l_min: i8,
-    l_max: i8,
-    cells: Vec<i8>,
-}
-
-#[derive(Debug, thiserror::Error, PartialEq)]
-enum MapError {
-    #[error("map image: {len} bytes, shorter than its {need}-byte {what}")]
-    Truncated {
-        len: usize,
-        need: usize,
-        what: &'static str,
-    },
-    #[error("map image: magic {0:?} is not \"CFOG\"")]
-    Magic([u8; 4]),
-    #[error("map image: version {0} (this reader knows 1)")]
-    Version(u16),
-    #[error("map image: header length {0} (version 1 has 32)")]
-    HeaderLength(u16),
-    #[error("map image: {0} units per nat (must be > 0)")]
-    Scale(u8),
-    #[error("map image: CRC-32 of the cells is {computed:#010x}, the header says {stored:#010x}")]
-    Crc { stored: u32, computed: u32 },
-}
-
-/// CRC-32 (IEEE 802.3, reflected), as the firmware's og_crc32.
-fn crc32(data: &[u8]) -> u32 {
-    let mut crc = 0xffff_ffffu32;
-    for &b in data {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = (crc >> 1) ^ (0xedb8_8320 & (crc & 1).wrapping_neg());
-        }
-    }
-    !crc
-}
-
-impl MapImage {
-    const HEADER: usize = 32;
-
-    fn parse(b: &[u8]) -> Result<MapImage, MapError> {
-        if b.len() < Self::HEADER {
-            return Err(MapError::Truncated {
-                len: b.len(),
-                need: Self::HEADER,
-                what: "header",
-            });
-        }
-        let u16_at = |o: usize| u16::from_le_bytes([b[o], b[o + 1]]);
-        let i32_at = |o: usize| i32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
-        let magic = [b[0], b[1], b[2], b[3]];
-        if &magic != b"CFOG" {
-            return Err(MapError::Magic(magic));
-        }
-        if u16_at(4) != 1 {
-            return Err(MapError::Version(u16_at(4)));
-        }
-        if u16_at(6) as usize != Self::HEADER {
-            return Err(MapError::HeaderLength(u16_at(6)));
-        }
-        let (width, height) = (u16_at(8) as usize, u16_at(10) as usize);
-        let need = Self::HEADER + width * height;
-        if b.len() < need {
-            return Err(MapError::Truncated {
-                len: b.len(),
-                need,
-                what: "header and cells",
-            });
-        }
-        if b[24] == 0 {
-            return Err(MapError::Scale(b[24]));
-        }
-        let cells = &b[Self::HEADER..need];
-        let (stored, computed) = (i32_at(28) as u32, crc32(cells));
-        if stored != computed {
-            return Err(MapError::Crc { stored, computed });
-        }
-        Ok(MapImage {
-            width,
-            height,
-            cell_mm: u16_at(12) as i32,
-            fov_cdeg: u16_at(14),
-            origin_x_mm: i32_at(16),
-            origin_y_mm: i32_at(20),
-            lo_per_nat: b[24],
-            l_min: b[25] as i8,
-            l_max: b[26] as i8,
-            cells: cells.iter().map(|&c| c as i8).collect(),
-        })
-    }
-
-    fn log_odds(&self, ix: usize, iy: usize) -> i8 {
-        self.cells[iy * self.width + ix]
-    }
-
-    /// The occupancy probability of a cell (DESIGN.md §9's `p_occupied`),
-    /// or None if it was never observed (log-odds exactly 0, the prior).
-    fn p_occupied(&self, ix: usize, iy: usize) -> Option<f64> {
-        match self.log_odds(ix, iy) {
-            0 => None,
-            l => Some(1.0 / (1.0 + (-(l as f64) / self.lo_per_nat as f64).exp())),
-        }
-    }
-
-    /// The cell holding a point (mm).
-    fn cell_of(&self, x_mm: i32, y_mm: i32) -> (usize, usize) {
-        (
-            ((x_mm - self.origin_x_mm) / self.cell_mm) as usize,
-            ((y_mm - self.origin_y_mm) / self.cell_mm) as usize,
-        )
-    }
 }
 
 // ---------------------------------------------------------------------------

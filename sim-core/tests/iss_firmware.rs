@@ -5,6 +5,7 @@
 mod iss_util;
 
 use iss_util::run_firmware;
+use sim_core::map_image::crc32;
 
 #[test]
 fn hello_prints_and_exits_zero() {
@@ -42,17 +43,6 @@ impl Lcg {
         self.0 = self.0.wrapping_mul(1664525).wrapping_add(1013904223);
         self.0
     }
-}
-
-fn crc32(data: &[u8]) -> u32 {
-    let mut crc = 0xffff_ffffu32;
-    for &b in data {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = (crc >> 1) ^ (0xedb8_8320 & (crc & 1).wrapping_neg());
-        }
-    }
-    !crc
 }
 
 fn sort_kernel(r: &mut Lcg) -> u32 {

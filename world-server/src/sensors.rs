@@ -1,5 +1,7 @@
 //! The Crazyflie's sensors as Webots defines them (DESIGN.md §5): GPS,
-//! InertialUnit, Gyro and the four DistanceSensors of the multiranger deck.
+//! InertialUnit, Gyro and the four DistanceSensors of the multiranger deck;
+//! and, when the world file's `[sensors]` asks (DESIGN.md §9), the up and
+//! down rangers and the Flow deck's optical-flow velocity.
 
 use rapier3d::glamx::{DQuat, DVec3};
 
@@ -26,6 +28,20 @@ pub fn range_to_mm(distance_m: Option<f64>) -> f64 {
     }
 }
 
+/// A reading in metres to millimetres for a ranger of range `max_m`: linear,
+/// saturating at the maximum beyond it (and for no hit at all). With
+/// `max_m` = 2 this is exactly [`range_to_mm`].
+pub fn range_to_mm_within(distance_m: Option<f64>, max_m: f64) -> f64 {
+    match distance_m {
+        Some(d) if d < max_m => d.max(0.0) * 1000.0,
+        _ => max_m * 1000.0,
+    }
+}
+
+/// Body-frame directions of the up and down rangers (Multi-ranger's up,
+/// Flow deck's down), in that order.
+pub const UP_DOWN_DIRECTIONS: [DVec3; 2] = [DVec3::new(0.0, 0.0, 1.0), DVec3::new(0.0, 0.0, -1.0)];
+
 /// Body-frame directions of the four DistanceSensors, in wire order:
 /// front (+x), left (+y), back (−x), right (−y).
 pub const RANGE_DIRECTIONS: [DVec3; 4] = [
@@ -45,8 +61,13 @@ pub struct SensorReadings {
     pub attitude: [f64; 3],
     /// Gyro: angular velocity in body axes (rad/s).
     pub gyro: [f64; 3],
-    /// Front, left, back, right (mm, 0–2000).
+    /// Front, left, back, right (mm, 0 to the world's maximum: 2000 for
+    /// the race).
     pub ranges_mm: [f64; 4],
+    /// Up and down (mm), when the world's `[sensors]` has `up_down`.
+    pub up_down_mm: Option<[f64; 2]>,
+    /// Optical-flow velocity, body frame (m/s), when `[sensors]` has `flow`.
+    pub flow: Option<[f64; 2]>,
 }
 
 /// Ground truth (`GET_STATE`, trajectory rows, GET_DATA_2/3).
@@ -114,6 +135,24 @@ mod tests {
             * DQuat::from_rotation_y(0.4)
             * DQuat::from_rotation_x(-0.7);
         assert!(close(inertial_unit_angles(q), [-0.7, 0.4, 1.0]));
+    }
+
+    #[test]
+    fn range_within_a_max_matches_the_lookup_table_at_2_m() {
+        for d in [
+            None,
+            Some(-0.1),
+            Some(0.0),
+            Some(0.7),
+            Some(1.999),
+            Some(2.0),
+            Some(3.0),
+        ] {
+            assert_eq!(range_to_mm_within(d, 2.0), range_to_mm(d));
+        }
+        assert_eq!(range_to_mm_within(Some(3.5), 4.0), 3500.0);
+        assert_eq!(range_to_mm_within(Some(4.5), 4.0), 4000.0);
+        assert_eq!(range_to_mm_within(None, 4.0), 4000.0);
     }
 
     #[test]

@@ -509,7 +509,10 @@ impl Session {
             range_left,
             range_back,
             range_right,
-            ..Sensors::default()
+            range_up: s.up_down_mm.map(|r| r[0]),
+            range_down: s.up_down_mm.map(|r| r[1]),
+            flow_vx: s.flow.map(|f| f[0]),
+            flow_vy: s.flow.map(|f| f[1]),
         }
     }
 

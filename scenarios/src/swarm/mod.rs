@@ -267,6 +267,7 @@ pub fn run_swarm(
         report_error,
         text,
         drones,
+        map: None,
     })
 }
 

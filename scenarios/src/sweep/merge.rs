@@ -319,6 +319,7 @@ fn row(found: Found, out: &Path) -> SweepRow {
             report_error: o.report_error,
             text: String::new(),
             drones: crate::swarm::read_drones(&dir),
+            map: crate::mapping::read_from_summary(&dir),
         }
     });
     SweepRow {

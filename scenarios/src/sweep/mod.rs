@@ -326,6 +326,37 @@ fn row_values(row: &SweepRow) -> Vec<String> {
     }
 }
 
+/// Columns added when a run of the sweep mapped a room (DESIGN.md §9).
+const MAP_COLUMNS: [&str; 9] = [
+    "map_cell_m",
+    "map_fov_deg",
+    "map_cells",
+    "map_coverage_pct",
+    "map_accuracy_pct",
+    "map_free_coverage_pct",
+    "map_goals",
+    "map_exploration_time_s",
+    "map_cycles_pct",
+];
+
+fn map_values(row: &SweepRow) -> Vec<String> {
+    let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.2}"));
+    match row.outcome.as_ref().and_then(|o| o.map.as_ref()) {
+        Some(m) => vec![
+            format!("{}", m.cell_m),
+            format!("{}", m.fov_deg),
+            m.cells.to_string(),
+            format!("{:.2}", m.coverage_pct),
+            format!("{:.2}", m.accuracy_pct),
+            format!("{:.2}", m.free_coverage_pct),
+            m.goals.to_string(),
+            opt(m.exploration_time_s),
+            opt(m.map_cycles_pct),
+        ],
+        None => vec![String::new(); MAP_COLUMNS.len()],
+    }
+}
+
 /// The sweep table: header and one row of cells per run.
 pub fn table(params: &[Param], rows: &[SweepRow]) -> (Vec<String>, Vec<Vec<String>>) {
     let mut header: Vec<String> = vec!["run".into()];
@@ -339,6 +370,12 @@ pub fn table(params: &[Param], rows: &[SweepRow]) -> (Vec<String>, Vec<Vec<Strin
         header.push("drone".into());
     }
     header.extend(COLUMNS.iter().map(|c| c.to_string()));
+    let mapped = rows
+        .iter()
+        .any(|r| r.outcome.as_ref().is_some_and(|o| o.map.is_some()));
+    if mapped {
+        header.extend(MAP_COLUMNS.iter().map(|c| c.to_string()));
+    }
     header.push("dir".into());
     let mut table: Vec<Vec<String>> = Vec::new();
     for r in rows {
@@ -355,6 +392,9 @@ pub fn table(params: &[Param], rows: &[SweepRow]) -> (Vec<String>, Vec<Vec<Strin
                 v.push(String::new());
             }
             v.extend(row_values(r));
+            if mapped {
+                v.extend(map_values(r));
+            }
             v.push(r.dir.display().to_string());
             table.push(v);
         }

@@ -14,7 +14,7 @@ pub use platform::{
     PeripheralsConfig, PlatformConfig, SensorConfig, StateConfig, CORE_STATES,
     DEFAULT_CRAZYFLIE_JSON, RADIO_SENSORS, RADIO_STATES, SENSOR_STATES,
 };
-pub use run::{flatten_run_table, DebugLevel, RunConfig, SyncMode, RUN_KEYS};
+pub use run::{flatten_run_table, DebugLevel, RunConfig, SyncMode, FIRMWARE_KEY_PREFIX, RUN_KEYS};
 
 /// A configuration that cannot be used.
 #[derive(Debug, Error)]

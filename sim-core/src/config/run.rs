@@ -6,6 +6,7 @@
 //! Both paths go through [`RunConfig::set`], so a TOML file and a command
 //! line accept exactly the same names and values with the same messages.
 
+use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
@@ -191,10 +192,27 @@ pub struct RunConfig {
     pub platform: Option<PathBuf>,
     /// The radios' identifier (their EUI register, docs/SWARM.md §4.3).
     pub radio_id: u64,
+    /// Firmware parameters (`firmware.NAME = value`): before the core
+    /// starts, the kernel writes each value as a 32-bit integer into the
+    /// firmware's global `NAME` (found by its ELF symbol), so one ELF runs
+    /// with the settings of a scenario or a sweep (docs/EXPLORE.md).
+    pub firmware_params: BTreeMap<String, i32>,
     /// Where the STM32's position estimate comes from.
     pub position_source: PositionSource,
     /// The range sensors' max range (m).
     pub range_max_m: f64,
+}
+
+/// The prefix of the firmware-parameter keys (`firmware.NAME`).
+pub const FIRMWARE_KEY_PREFIX: &str = "firmware.";
+
+/// A C identifier, as an ELF symbol of a global must be.
+fn is_c_identifier(s: &str) -> bool {
+    let mut chars = s.chars();
+    chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
 impl Default for RunConfig {
@@ -211,6 +229,7 @@ impl Default for RunConfig {
             models: ModelParams::default(),
             platform: None,
             radio_id: 0,
+            firmware_params: BTreeMap::new(),
             position_source: PositionSource::Gps,
             range_max_m: 2.0,
         }
@@ -263,6 +282,19 @@ impl RunConfig {
             value: value.to_string(),
             reason,
         };
+        if let Some(name) = key.strip_prefix(FIRMWARE_KEY_PREFIX) {
+            if !is_c_identifier(name) {
+                return Err(bad(format!(
+                    "{name:?} is not a C identifier (a firmware global)"
+                )));
+            }
+            let v = value
+                .trim()
+                .parse::<i32>()
+                .map_err(|_| bad("expected a 32-bit signed integer".into()))?;
+            self.firmware_params.insert(name.to_string(), v);
+            return Ok(());
+        }
         match key {
             "power_model" => self.power_model = parse(value).map_err(bad)?,
             "battery" => {
@@ -313,6 +345,12 @@ impl RunConfig {
 
     /// The text form of one key, as `set` accepts it.
     pub fn get(&self, key: &str) -> Result<String, ConfigError> {
+        if let Some(v) = key
+            .strip_prefix(FIRMWARE_KEY_PREFIX)
+            .and_then(|name| self.firmware_params.get(name))
+        {
+            return Ok(v.to_string());
+        }
         Ok(match key {
             "power_model" => self.power_model.to_string(),
             "battery" => self
@@ -441,6 +479,17 @@ impl RunConfig {
             };
             table.insert(key.to_string(), value);
         }
+        if !self.firmware_params.is_empty() {
+            let params = self
+                .firmware_params
+                .iter()
+                .map(|(k, v)| (k.clone(), toml::Value::Integer(*v as i64)))
+                .collect();
+            table.insert(
+                FIRMWARE_KEY_PREFIX.trim_end_matches('.').to_string(),
+                toml::Value::Table(params),
+            );
+        }
         toml::to_string(&table).expect("a flat table serializes")
     }
 
@@ -478,5 +527,25 @@ mod tests {
         assert_eq!(DebugLevel::None.tracing_level(), tracing::Level::WARN);
         assert!(DebugLevel::High.logs_every_frame());
         assert!(!DebugLevel::Med.logs_every_frame());
+    }
+
+    #[test]
+    fn firmware_parameters_are_set_checked_and_round_trip() {
+        let mut c = RunConfig::default();
+        c.set("firmware.explore_param_cell_mm", "80").unwrap();
+        c.set("firmware.explore_param_x_min_mm", "-1000").unwrap();
+        assert_eq!(c.get("firmware.explore_param_cell_mm").unwrap(), "80");
+        assert_eq!(c.firmware_params.len(), 2);
+        let back = RunConfig::from_toml_str(&c.to_toml(), "t").unwrap();
+        assert_eq!(back, c);
+        // Written as a table in a file, or dotted.
+        let t = RunConfig::from_toml_str("[firmware]\nexplore_param_cell_mm = 20\n", "t").unwrap();
+        assert_eq!(t.firmware_params["explore_param_cell_mm"], 20);
+        let e = c.set("firmware.2bad", "1").unwrap_err().to_string();
+        assert!(e.contains("not a C identifier"), "{e}");
+        let e = c.set("firmware.x", "1.5").unwrap_err().to_string();
+        assert!(e.contains("32-bit signed integer"), "{e}");
+        let e = c.set("firmware.x", "3000000000").unwrap_err().to_string();
+        assert!(e.contains("32-bit signed integer"), "{e}");
     }
 }

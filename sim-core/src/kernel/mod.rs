@@ -12,9 +12,12 @@
 
 pub mod cli;
 mod console;
+mod firmware_params;
+mod map_dump;
 mod summary;
 
 pub use console::Console;
+pub use map_dump::MAP_FILE;
 pub use summary::{BatterySummary, EnergySummary, RadioSummary, RadiosSummary, Summary};
 
 use std::path::{Path, PathBuf};
@@ -169,17 +172,21 @@ struct Run<W: WorldLink> {
     /// The platform's time at the end of the run: the firmware's exit, or
     /// the end of the motors' stop when the platform sent STOP for it.
     end_time: Picos,
+    /// The firmware's map image, copied to `map.cfog` at the end.
+    map: Option<map_dump::MapSymbols>,
 }
 
 impl<W: WorldLink> Run<W> {
     fn new(firmware: &[u8], cfg: &KernelConfig, world: W) -> Result<Self, KernelError> {
         let elf = load_elf(firmware)?;
+        let map = map_dump::MapSymbols::find(&elf);
         let mut mem = Memory::new();
         mem.add_ram(L2_BASE, L2_SIZE)
             .map_err(|e| KernelError::Memory(e.to_string()))?;
         mem.add_mmio_window(PERIPHERAL_BASE, WINDOW_SIZE)
             .map_err(|e| KernelError::Memory(e.to_string()))?;
         elf.load_into(&mut mem)?;
+        firmware_params::apply(&elf, &mut mem, &cfg.run.firmware_params)?;
 
         let mut cpu = Cpu::new(CpuConfig {
             clock: Hertz(cfg.platform.core.frequency),
@@ -221,6 +228,7 @@ impl<W: WorldLink> Run<W> {
             console,
             exit_code: None,
             end_time: Picos::ZERO,
+            map,
         })
     }
 
@@ -365,6 +373,11 @@ impl<W: WorldLink> Run<W> {
         }
         if let Err(e) = self.power.flush() {
             error.get_or_insert(KernelError::Power(e));
+        }
+        if let (Some(map), Some(dir)) = (&self.map, &cfg.out_dir) {
+            if let Err(e) = map.dump(&self.mem, dir) {
+                error.get_or_insert(e);
+            }
         }
         let now = self.cpu.now().max(self.end_time);
         let time = self.platform.time.report(now);

@@ -9,12 +9,14 @@ use rapier3d::prelude::*;
 use crate::crazyflie::{
     self, Motors, BODY_HEIGHT_M, BODY_RADIUS_M, MASS_KG, PROPELLER_POSITIONS, RANGE_SENSOR_POSITION,
 };
+use crate::radio::draw::sensor_normal;
 use crate::scene::ObjectId;
 use crate::sensors::{
-    inertial_unit_angles, range_to_mm, DroneState, SensorReadings, RANGE_DIRECTIONS,
+    inertial_unit_angles, range_to_mm, range_to_mm_within, DroneState, SensorReadings,
+    RANGE_DIRECTIONS, UP_DOWN_DIRECTIONS,
 };
 use crate::time::Millis;
-use crate::world_file::{CarriedPath, DroneDesc, PhysicsOptions};
+use crate::world_file::{CarriedPath, DroneDesc, PhysicsOptions, SensorConfig};
 
 use super::{FRICTION, RESTITUTION};
 
@@ -188,21 +190,60 @@ impl DroneBody {
     }
 
     /// GPS, InertialUnit, Gyro and the four DistanceSensors (which see
-    /// everything but this drone: other drones included).
-    pub(super) fn sensors(&self, phys: &PhysicsWorld, time: Millis) -> SensorReadings {
+    /// everything but this drone: other drones included); the up and down
+    /// rangers and the optical flow when the world's `[sensors]` asks.
+    /// `index` is the drone's (it keys the noise).
+    pub(super) fn sensors(
+        &self,
+        phys: &PhysicsWorld,
+        time: Millis,
+        cfg: &SensorConfig,
+        index: usize,
+    ) -> SensorReadings {
         let body = &phys.bodies[self.body];
         let rot = *body.rotation();
         let pos = body.translation();
         let origin = pos + rot * DVec3::from_array(RANGE_SENSOR_POSITION);
         let filter = QueryFilter::default().exclude_rigid_body(self.body);
         let query = phys.query_pipeline_with_filter(filter);
-        let ranges_mm = RANGE_DIRECTIONS.map(|d| {
-            let ray = Ray::new(origin, rot * d);
-            range_to_mm(
-                query
-                    .cast_ray(&ray, crazyflie::RANGE_MAX_M, true)
-                    .map(|(_, toi)| toi),
-            )
+        let ranges_mm = if cfg.is_race_rangers() {
+            // The race's DistanceSensors, exactly as before `[sensors]`.
+            RANGE_DIRECTIONS.map(|d| {
+                let ray = Ray::new(origin, rot * d);
+                range_to_mm(
+                    query
+                        .cast_ray(&ray, crazyflie::RANGE_MAX_M, true)
+                        .map(|(_, toi)| toi),
+                )
+            })
+        } else {
+            let angles = cfg.ray_angles();
+            let mut k = 0;
+            RANGE_DIRECTIONS.map(|d| {
+                k += 1;
+                ranger_mm(&query, origin, rot, d, &angles, cfg, (index, time, k - 1))
+            })
+        };
+        let up_down_mm = cfg.up_down.then(|| {
+            let angles = cfg.ray_angles();
+            let mut k = 4;
+            UP_DOWN_DIRECTIONS.map(|d| {
+                k += 1;
+                ranger_mm(&query, origin, rot, d, &angles, cfg, (index, time, k - 1))
+            })
+        });
+        let flow = cfg.flow.then(|| {
+            // The Flow deck's PMW3901 sees the floor move under the drone:
+            // the velocity in the body frame, scaled and noisy.
+            let v = rot.inverse() * body.linvel();
+            let n = |channel: u64| {
+                if cfg.flow_noise_m_s > 0.0 {
+                    cfg.flow_noise_m_s * sensor_normal(cfg.seed, index, time.0, channel)
+                } else {
+                    0.0
+                }
+            };
+            [v.x * cfg.flow_scale + n(6), v.y * cfg.flow_scale + n(7)]
         });
         SensorReadings {
             time,
@@ -210,6 +251,45 @@ impl DroneBody {
             attitude: inertial_unit_angles(rot),
             gyro: (rot.inverse() * body.angvel()).to_array(),
             ranges_mm,
+            up_down_mm,
+            flow,
         }
     }
+}
+
+/// One ranger (mm): the nearest return of its rays, the sensor's axis `dir`
+/// (body frame) turned by each of `angles` about the body's z axis (about y
+/// for the up and down rangers), plus Gaussian noise keyed by (drone, time,
+/// channel); nothing within `range_max_m` reads the maximum.
+fn ranger_mm(
+    query: &QueryPipeline<'_>,
+    origin: DVec3,
+    rot: DQuat,
+    dir: DVec3,
+    angles: &[f64],
+    cfg: &SensorConfig,
+    (drone, time, channel): (usize, Millis, u64),
+) -> f64 {
+    let axis = if dir.z == 0.0 { DVec3::Z } else { DVec3::Y };
+    let nearest = angles
+        .iter()
+        .filter_map(|&a| {
+            let d = if a == 0.0 {
+                dir
+            } else {
+                DQuat::from_axis_angle(axis, a) * dir
+            };
+            query
+                .cast_ray(&Ray::new(origin, rot * d), cfg.range_max_m, true)
+                .map(|(_, toi)| toi)
+        })
+        .reduce(f64::min);
+    let noisy = nearest.map(|d| {
+        if cfg.range_noise_m > 0.0 {
+            d + cfg.range_noise_m * sensor_normal(cfg.seed, drone, time.0, channel)
+        } else {
+            d
+        }
+    });
+    range_to_mm_within(noisy, cfg.range_max_m)
 }

@@ -18,7 +18,7 @@ use crate::gates::{openings, GateTracker};
 use crate::scene::{scene_boxes, ObjectId, SceneBox};
 use crate::sensors::{DroneState, SensorReadings};
 use crate::time::Millis;
-use crate::world_file::{CarriedPath, WorldDesc};
+use crate::world_file::{CarriedPath, SensorConfig, WorldDesc};
 
 use drone::DroneBody;
 
@@ -67,6 +67,8 @@ pub struct World {
     boxes: Vec<SceneBox>,
     /// Gates passed by each drone (DESIGN.md §10).
     gates: GateTracker,
+    /// The world file's `[sensors]`.
+    sensor_cfg: SensorConfig,
 }
 
 impl World {
@@ -123,6 +125,7 @@ impl World {
             cfg,
             boxes,
             gates,
+            sensor_cfg: desc.sensors.clone(),
         })
     }
 
@@ -319,8 +322,9 @@ impl World {
         self.gates.total()
     }
 
-    /// GPS, InertialUnit, Gyro and the four DistanceSensors of drone `d`.
+    /// GPS, InertialUnit, Gyro and the four DistanceSensors of drone `d`
+    /// (and what the world's `[sensors]` adds).
     pub fn sensors(&self, d: usize) -> SensorReadings {
-        self.drones[d].sensors(&self.phys, self.time)
+        self.drones[d].sensors(&self.phys, self.time, &self.sensor_cfg, d)
     }
 }

@@ -14,6 +14,8 @@ use rand_distr::{Distribution, StandardNormal};
 enum Domain {
     Reception = 0,
     ClockPhase = 1,
+    /// Range and flow sensor noise (world file `[sensors]`).
+    Sensor = 2,
 }
 
 /// A ChaCha generator whose 256-bit key is the tuple itself (seed, domain,
@@ -40,6 +42,14 @@ pub fn wrap_ps() -> u64 {
 pub fn clock_phase(seed: u64, drone: usize) -> Picos {
     let mut rng = stream(seed, Domain::ClockPhase, drone as u32, 0, 0);
     Picos(rng.random_range(0..wrap_ps()))
+}
+
+/// A standard normal draw for a sensor reading of drone `drone` at world
+/// time `time_ms` on `channel` (the rangers 0-5, the flow axes 6-7): the
+/// same reading whenever and however often it is asked for.
+pub fn sensor_normal(seed: u64, drone: usize, time_ms: u64, channel: u64) -> f64 {
+    let mut rng = stream(seed, Domain::Sensor, drone as u32, time_ms, channel);
+    StandardNormal.sample(&mut rng)
 }
 
 /// The draws of one (frame, receiver): always all three, in this order, so

@@ -13,7 +13,7 @@
 //! transmissions' times only, not on the granularity or order of the calls.
 
 mod config;
-mod draw;
+pub(crate) mod draw;
 mod log;
 
 pub use config::{RadioConfig, P2P_RSSI_1M_DBM, P2P_RSSI_NOISE_DB};

@@ -5,6 +5,7 @@
 //! the field (`gate[3].inner`, `drone[2].carried[3]`), never with a panic.
 
 mod drone;
+mod sensors;
 
 use std::path::{Path, PathBuf};
 
@@ -14,6 +15,7 @@ use toml::Spanned;
 use crate::radio::RadioConfig;
 
 pub use drone::{CarriedPath, DroneDesc, DEFAULT_DRONE_NAME, MAX_CLOCK_PPM, MAX_NAME_LEN};
+pub use sensors::{SensorConfig, MAX_FOV_DEG, MAX_RAYS};
 
 /// A world as read from a file, checked.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,6 +36,9 @@ pub struct WorldDesc {
     pub boxes: Vec<BoxDesc>,
     /// `[radio]`: the radio channel's parameters (DESIGN.md §8), checked.
     pub radio: RadioConfig,
+    /// `[sensors]`: range sensors and optical flow (DESIGN.md §9); the
+    /// race's four 2 m single-ray rangers when absent.
+    pub sensors: SensorConfig,
 }
 
 /// A world file as written.
@@ -58,6 +63,8 @@ struct RawWorld {
     boxes: Vec<BoxDesc>,
     #[serde(default)]
     radio: Option<Spanned<RadioConfig>>,
+    #[serde(default)]
+    sensors: Option<Spanned<sensors::RawSensors>>,
 }
 
 /// Start pose of the drone.
@@ -293,9 +300,18 @@ impl WorldDesc {
             }
             None => RadioConfig::default(),
         };
+        let sensors = match raw.sensors {
+            Some(r) => {
+                let at = r.span().start;
+                SensorConfig::try_from(r.into_inner())
+                    .map_err(|m| invalid(at, "sensors".into(), m))?
+            }
+            None => SensorConfig::default(),
+        };
         Ok(WorldDesc {
             name: raw.name,
             radio,
+            sensors,
             start,
             drones,
             ground: raw.ground,
