@@ -40,6 +40,10 @@ pub struct PositioningSpec {
     /// Windows of world time, each a table.
     #[serde(default)]
     pub table: Vec<TableSpec>,
+    /// Whose estimates are plotted (default: the observer); with several,
+    /// one pair of plots each, named after the drone.
+    #[serde(default)]
+    pub plot: Vec<String>,
 }
 
 /// One table (seed 003 Tables 7.1–7.4).
@@ -47,6 +51,9 @@ pub struct PositioningSpec {
 #[serde(deny_unknown_fields)]
 pub struct TableSpec {
     pub name: String,
+    /// Whose estimates (default: the `[positioning]` observer).
+    #[serde(default)]
+    pub observer: Option<String>,
     /// World time window [from_s, to_s).
     pub from_s: f64,
     pub to_s: f64,
@@ -124,14 +131,18 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 pub fn true_frame(refs: &[[f64; 3]]) -> Option<([f64; 3], [[f64; 3]; 3])> {
     let o = *refs.first()?;
     let x = unit(sub(*refs.get(1)?, o))?;
-    let y = match refs.get(2) {
-        Some(p) => {
-            let v = sub(*p, o);
-            let d = dot(v, x);
-            unit(sub(v, x.map(|c| c * d)))?
-        }
-        None => unit(cross([0.0, 0.0, 1.0], x)).unwrap_or([0.0, 1.0, 0.0]),
-    };
+    // The third reference fixes +Y; on the X axis (the seed's location 4,
+    // where A completes the frame) it does not, and the horizontal
+    // perpendicular is taken, as without a third.
+    let third = refs.get(2).and_then(|p| {
+        let v = sub(*p, o);
+        let d = dot(v, x);
+        let off = sub(v, x.map(|c| c * d));
+        (dot(off, off).sqrt() > 1e-6).then(|| unit(off)).flatten()
+    });
+    let y = third
+        .or_else(|| unit(cross([0.0, 0.0, 1.0], x)))
+        .unwrap_or([0.0, 1.0, 0.0]);
     let mut z = cross(x, y);
     let side = refs.get(3).map_or(1.0, |p| dot(sub(*p, o), z));
     if side < 0.0 {
@@ -170,6 +181,13 @@ pub fn position_rows(
             let Some(refs) = c.refs_at(e.t_ms) else {
                 continue;
             };
+            // With too few neighbours the observer itself completes the
+            // frame (+X in 1D, +Y in 2D; docs/SWARM_FIRMWARE.md §3); its
+            // references do not list it.
+            let mut refs = refs.to_vec();
+            if refs.len() < 3 && !refs.contains(&e.id) {
+                refs.push(e.id);
+            }
             let world_ms = (FIRMWARE_T0_MS + e.t_ms) as f64;
             let pts: Option<Vec<[f64; 3]>> = refs
                 .iter()
@@ -244,12 +262,13 @@ pub fn observer(scenario: &Scenario, spec: Option<&PositioningSpec>) -> Option<S
 }
 
 pub fn tables(scenario: &Scenario, spec: &PositioningSpec, rows: &[PositionRow]) -> Vec<Table> {
-    let Some(obs) = observer(scenario, Some(spec)) else {
+    let Some(default_obs) = observer(scenario, Some(spec)) else {
         return Vec::new();
     };
     spec.table
         .iter()
         .map(|t| {
+            let obs = t.observer.clone().unwrap_or_else(|| default_obs.clone());
             let rows = scenario
                 .platforms
                 .iter()
@@ -277,6 +296,7 @@ pub fn tables(scenario: &Scenario, spec: &PositioningSpec, rows: &[PositionRow])
                         seed: t.seed.get(&p.drone).copied(),
                     }
                 })
+                .filter(|r| r.samples > 0)
                 .collect();
             Table {
                 name: t.name.clone(),
@@ -330,6 +350,7 @@ pub fn draw_plots(
     scenario: &Scenario,
     obs: &str,
     rows: &[PositionRow],
+    names: (&str, &str),
 ) -> Result<Vec<PathBuf>, PlotError> {
     let mine: Vec<&PositionRow> = rows.iter().filter(|r| r.observer == obs).collect();
     if mine.is_empty() {
@@ -349,7 +370,12 @@ pub fn draw_plots(
     let mut xs = Vec::new();
     let mut ys = Vec::new();
     let mut errs = Vec::new();
-    for p in &scenario.platforms {
+    let seen: std::collections::BTreeSet<&str> = mine.iter().map(|r| r.drone.as_str()).collect();
+    for p in scenario
+        .platforms
+        .iter()
+        .filter(|p| seen.contains(p.drone.as_str()))
+    {
         let d = p.drone.as_str();
         xs.push(series(d, format!("{d} estimated"), &|r| r.est_x));
         xs.push(series(d, format!("{d} true"), &|r| r.true_x));
@@ -357,7 +383,7 @@ pub fn draw_plots(
         ys.push(series(d, format!("{d} true"), &|r| r.true_y));
         errs.push(series(d, d.to_string(), &|r| r.error()));
     }
-    let pos = out.join(POSITIONS_PNG);
+    let pos = out.join(names.0);
     panels(
         &pos,
         "world time (s)",
@@ -378,7 +404,7 @@ pub fn draw_plots(
         ],
         false,
     )?;
-    let err = out.join(ERROR_PNG);
+    let err = out.join(names.1);
     panels(
         &err,
         "world time (s)",
@@ -456,8 +482,24 @@ pub fn analyse(
     }
     let mut plots = Vec::new();
     if draw {
-        if let Some(obs) = observer(scenario, Some(&spec)) {
-            plots = draw_plots(out, scenario, &obs, &rows).map_err(|e| e.to_string())?;
+        let observers = if spec.plot.is_empty() {
+            observer(scenario, Some(&spec)).into_iter().collect()
+        } else {
+            spec.plot.clone()
+        };
+        for obs in &observers {
+            let names = if observers.len() == 1 {
+                (POSITIONS_PNG.to_string(), ERROR_PNG.to_string())
+            } else {
+                (
+                    format!("positions_{obs}.png"),
+                    format!("position_error_{obs}.png"),
+                )
+            };
+            plots.extend(
+                draw_plots(out, scenario, obs, &rows, (&names.0, &names.1))
+                    .map_err(|e| e.to_string())?,
+            );
         }
     }
     Ok(Some(Positioning {
@@ -489,6 +531,10 @@ mod tests {
         let p = axes.map(|a| dot(sub(w(0.5, 0.25), o), a));
         assert!((p[1] + 0.25).abs() < 1e-12);
         assert!(true_frame(&[w(0.0, 0.0), w(0.0, 0.0)]).is_none());
+        // A third reference on the X axis: the horizontal perpendicular.
+        let (o, axes) = true_frame(&[w(0.0, 0.0), w(1.0, 0.0), w(0.5, 0.0)]).unwrap();
+        let p = axes.map(|a| dot(sub(w(0.5, 0.25), o), a));
+        assert!((p[1] - 0.25).abs() < 1e-12, "{p:?}");
     }
 
     #[test]

@@ -95,7 +95,8 @@ static int trilaterate_node(const swarm_t *s, int node, float max_std, swarm_vec
 static int completing_role(const swarm_t *s, int node)
 {
     int role = swarm_role_of(s, node);
-    if (role < 0 && node == SWARM_SELF && s->nref >= 2 && s->nref < swarm_refs_needed(s) &&
+    if (role < 0 && node == SWARM_SELF && s->nref >= swarm_min_completed(s) &&
+        s->nref < swarm_refs_needed(s) &&
         (int)swarm_neighbour_count(s) == s->nref)
         role = s->nref;
     return role;
@@ -198,11 +199,13 @@ static void update_node(swarm_t *s, int node, int only, uint32_t now_us)
     /* This drone completing the frame defines the side of its axis too:
      * a first update with the start's σ of 100 m can throw the filter
      * across the X axis (found by swarm-table: A settled at y = -0.5). */
-    int completes = role < 0 && completing_role(s, node) >= 2;
-    if (completes && kf->x[s->nref - 1] < 0.0f)
+    int completes = role < 0 && completing_role(s, node) >= 1;
+    if (completes && (s->building || set->keep_frame) && kf->x[s->nref - 1] < 0.0f)
         swarm_kf_mirror(kf, s->nref - 1);
     if (set->planar)
         swarm_kf_update_axis(kf, 2, 0.0f, set->pseudo_std, &set->kf);
+    if (set->planar == SWARM_LINE)
+        swarm_kf_update_axis(kf, 1, 0.0f, set->pseudo_std, &set->kf);
     /* A flip happens after a poor start, not later: look every 8th update
      * (the check costs two square roots per placed node). */
     if (role < 0 && !completes && !s->building && (kf->updates & 7) == 0)
@@ -217,7 +220,7 @@ void swarm_positions_update(swarm_t *s, int node, uint32_t now_us)
      * this drone completes the frame (see initial_position) and must be
      * placed too. */
     int need = swarm_refs_needed(s);
-    int self_completes = s->nref >= 2 && s->nref == need - 1 &&
+    int self_completes = s->nref >= swarm_min_completed(s) && s->nref == need - 1 &&
                          (int)swarm_neighbour_count(s) == s->nref;
     if (s->building && (s->nref == need || self_completes)) {
         int all = !self_completes || swarm_placed(s, SWARM_SELF);
