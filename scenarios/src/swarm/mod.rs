@@ -12,6 +12,7 @@
 pub mod bench;
 pub mod console;
 pub mod launch;
+pub mod load;
 pub mod platforms;
 pub mod plot;
 pub mod positioning;

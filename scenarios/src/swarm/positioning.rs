@@ -480,6 +480,26 @@ pub fn analyse(
         std::fs::write(&p, &md).map_err(|e| format!("{}: {e}", p.display()))?;
         text.push_str(&format!("   tables         {}\n\n{md}", p.display()));
     }
+    if let Some(obs) = observer(scenario, Some(&spec)) {
+        if let Some(me) = consoles.get(&obs).filter(|c| !c.load.is_empty()) {
+            let others: Vec<&SwarmConsole> = consoles
+                .iter()
+                .filter(|(d, _)| **d != obs)
+                .map(|(_, c)| c)
+                .collect();
+            let rows = super::load::load_rows(me, &others);
+            let fw = scenario
+                .platforms
+                .iter()
+                .find(|p| p.drone == obs)
+                .map(|p| p.firmware.clone());
+            let ram = fw.as_deref().and_then(super::load::ram);
+            let md = super::load::load_markdown(&obs, &rows, ram);
+            let p = out.join(super::load::LOAD_MD);
+            std::fs::write(&p, &md).map_err(|e| format!("{}: {e}", p.display()))?;
+            text.push_str(&format!("   load           {}\n\n{md}\n", p.display()));
+        }
+    }
     let mut plots = Vec::new();
     if draw {
         let observers = if spec.plot.is_empty() {
