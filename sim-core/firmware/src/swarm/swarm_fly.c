@@ -26,6 +26,9 @@
 #ifndef LAPS
 #define LAPS 1
 #endif
+#ifndef JITTER_MS
+#define JITTER_MS 3
+#endif
 #define SIDE 2.0
 #define HEIGHT 1.0
 
@@ -42,6 +45,17 @@ static void perform(uint8_t op)
 {
     stm32_control = op;
     while (stm32_status != op)
+        ;
+    stm32_status = 0;
+    stm32_control = 0;
+}
+
+/* ITER_ADVANCE: a value v > 10 advances both simulations by v - 10 ms
+ * (race.c's advance_simul: the drone flies on with its last commands). */
+static void advance_ms(uint8_t ms)
+{
+    stm32_control = (uint8_t)(ITER_ADVANCE + ms);
+    while (stm32_status != ITER_ADVANCE)
         ;
     stm32_status = 0;
     stm32_control = 0;
@@ -74,6 +88,8 @@ int main(void)
     app_start(&uwb, eui, t0, &set);
     printf("[fly] EUI %u stable at 1 m, positioning on\n", (unsigned)eui);
 
+    uint32_t jitter = 0x9E3779B9u ^ (uint32_t)eui * 2654435761u;
+    (void)jitter;
     const int first = (int)((eui > 0 ? eui - 1 : 0) % 4);
     int low = 0;
     for (int leg = 1; leg <= 4 * LAPS && !low; leg++) {
@@ -85,6 +101,17 @@ int main(void)
         for (;;) {
             uint8_t s = pid_step();
             app_poll();
+#if JITTER_MS > 0
+            /* A transmission leaves at the end of the STM32 operation in
+             * progress (docs/SWARM.md §4.2): without this, every drone's
+             * frames start on the same timestep grid and collide. A pause
+             * of 1..JITTER_MS ms (xorshift from the EUI) spreads them. */
+            jitter ^= jitter << 13;
+            jitter ^= jitter >> 17;
+            jitter ^= jitter << 5;
+            advance_ms((uint8_t)(1 + jitter % JITTER_MS));
+            app_poll();
+#endif
             if (s == BATTERY_LOW)
                 low = 1;
             if (s != RUN_SINGLE_STEP_PID)
