@@ -36,7 +36,9 @@ pub struct LoadRow {
     pub rx_per_s: f64,
     /// rx / (own tx × neighbours), the seed's definition.
     pub ratio_seed: f64,
-    /// rx / (what the neighbours actually sent in that second).
+    /// rx / (what the neighbours actually sent in that second): their
+    /// lines of the same firmware second (meaningful for carried drones,
+    /// whose firmware clocks start together; not in flight).
     pub ratio_sent: f64,
     /// Share of the core's cycles in the library (ranging + estimation).
     pub swarm_share: f64,

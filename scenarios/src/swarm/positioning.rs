@@ -472,7 +472,7 @@ pub fn analyse(
     );
     if !tables.is_empty() {
         let md = format!(
-            "# {}: estimated positions (seed 003 §7.1)\n\n{}",
+            "# {}: estimated positions (real, mean estimate, std; seed 003 §7.1)\n\n{}",
             scenario.name,
             tables_markdown(&tables)
         );
