@@ -15,6 +15,7 @@ use sim_core::config::{RunConfig, RUN_KEYS};
 
 use crate::swarm::platforms::resolve_platforms;
 pub use crate::swarm::platforms::{PlatformSpec, PlatformTable, RADIO_ID_KEY};
+pub use crate::swarm::positioning::PositioningSpec;
 
 /// Why a scenario cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -93,6 +94,9 @@ pub struct ScenarioFile {
     /// Default `cosim sweep` parameters: key → values.
     #[serde(default)]
     pub sweep: BTreeMap<String, Vec<toml::Value>>,
+    /// Seed 003's positioning report (tables of §7.1, whose estimates).
+    #[serde(default)]
+    pub positioning: Option<PositioningSpec>,
 }
 
 fn default_timestep() -> u64 {
@@ -140,6 +144,8 @@ pub struct Scenario {
     /// `[[platform]]` tables in file order: empty for a scenario with one
     /// drone (the thesis's; then `firmware` and `run` are the platform's).
     pub platforms: Vec<PlatformSpec>,
+    /// The `[positioning]` table (docs/SWARM_RESULTS.md).
+    pub positioning: Option<PositioningSpec>,
 }
 
 pub(crate) fn value_text(v: &toml::Value) -> Result<String, String> {
@@ -258,6 +264,7 @@ impl Scenario {
             overrides: Vec::new(),
             sweep,
             platforms,
+            positioning: file.positioning,
         };
         s.set_scenario_key("image_encoding", &file.image_encoding)
             .and_then(|_| s.set_scenario_key("timestep_ms", &file.timestep_ms.to_string()))

@@ -10,9 +10,12 @@
 //! - [`bench`]: `cosim bench swarm` (real-time factor against the swarm's size).
 
 pub mod bench;
+pub mod console;
 pub mod launch;
+pub mod load;
 pub mod platforms;
 pub mod plot;
+pub mod positioning;
 pub mod report;
 pub mod world;
 
@@ -169,6 +172,13 @@ pub fn run_swarm(
     }
 
     let ranging = ranging(scenario, out, &tracks);
+    let positioning = match positioning::analyse(scenario, out, &tracks, draw) {
+        Ok(p) => p,
+        Err(e) => {
+            note(e);
+            None
+        }
+    };
     let figures: Vec<DroneFigures<'_>> = drones
         .iter()
         .map(|d| DroneFigures {
@@ -238,7 +248,10 @@ pub fn run_swarm(
         .iter()
         .map(|d| report::drone_line(&d.drone, d.summary.as_ref(), d.soc_init, d.exit_code))
         .collect();
-    let text = report::swarm_text(
+    if let Some(p) = &positioning {
+        top_plots.extend(p.plots.iter().cloned());
+    }
+    let mut text = report::swarm_text(
         &scenario.name,
         &scenario.description,
         &scenario.overrides_label(),
@@ -247,6 +260,9 @@ pub fn run_swarm(
         out,
         &top_plots,
     );
+    if let Some(p) = &positioning {
+        text.push_str(&p.text);
+    }
     let _ = std::fs::write(out.join(files::REPORT), &text);
     let failed_code = st
         .platforms

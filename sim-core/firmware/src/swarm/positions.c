@@ -89,6 +89,19 @@ static int trilaterate_node(const swarm_t *s, int node, float max_std, swarm_vec
     return swarm_trilaterate(ref, dist, n, s->set.planar, out) == SWARM_COORDS_OK;
 }
 
+/* The reference role of a node, counting this drone as the one that
+ * completes a frame lacking neighbours (the seed's three-drone table: A is
+ * placed from B and C alone, on +Y); -1 for the others. */
+static int completing_role(const swarm_t *s, int node)
+{
+    int role = swarm_role_of(s, node);
+    if (role < 0 && node == SWARM_SELF && s->nref >= swarm_min_completed(s) &&
+        s->nref < swarm_refs_needed(s) &&
+        (int)swarm_neighbour_count(s) == s->nref)
+        role = s->nref;
+    return role;
+}
+
 /* Where a filter starts: the closed-form frame of §5.3.2 for the
  * references, the trilateration from the placed nodes for the others. 0
  * while the distances it needs are missing. *provisional is set when the
@@ -96,12 +109,7 @@ static int trilaterate_node(const swarm_t *s, int node, float max_std, swarm_vec
 static int initial_position(const swarm_t *s, int node, swarm_vec3_t *out, int *provisional)
 {
     *provisional = 0;
-    int role = swarm_role_of(s, node);
-    /* This drone completes a frame that lacks neighbours (the seed's
-     * three-drone table: A is placed from B and C alone). */
-    if (role < 0 && node == SWARM_SELF && s->nref >= 2 && s->nref < swarm_refs_needed(s) &&
-        (int)swarm_neighbour_count(s) == s->nref)
-        role = s->nref;
+    int role = completing_role(s, node);
     if (role >= 0) {
         if (!frame_position(s, node, role, out))
             return 0;
@@ -188,11 +196,19 @@ static void update_node(swarm_t *s, int node, int only, uint32_t now_us)
         if (role >= 1 && kf->x[role - 1] < 0.0f)
             swarm_kf_mirror(kf, role - 1);
     }
+    /* This drone completing the frame defines the side of its axis too:
+     * a first update with the start's σ of 100 m can throw the filter
+     * across the X axis (found by swarm-table: A settled at y = -0.5). */
+    int completes = role < 0 && completing_role(s, node) >= 1;
+    if (completes && (s->building || set->keep_frame) && kf->x[s->nref - 1] < 0.0f)
+        swarm_kf_mirror(kf, s->nref - 1);
     if (set->planar)
         swarm_kf_update_axis(kf, 2, 0.0f, set->pseudo_std, &set->kf);
+    if (set->planar == SWARM_LINE)
+        swarm_kf_update_axis(kf, 1, 0.0f, set->pseudo_std, &set->kf);
     /* A flip happens after a poor start, not later: look every 8th update
      * (the check costs two square roots per placed node). */
-    if (role < 0 && !s->building && (kf->updates & 7) == 0)
+    if (role < 0 && !completes && !s->building && (kf->updates & 7) == 0)
         resolve_flip(s, node);
 }
 
@@ -204,7 +220,7 @@ void swarm_positions_update(swarm_t *s, int node, uint32_t now_us)
      * this drone completes the frame (see initial_position) and must be
      * placed too. */
     int need = swarm_refs_needed(s);
-    int self_completes = s->nref >= 2 && s->nref == need - 1 &&
+    int self_completes = s->nref >= swarm_min_completed(s) && s->nref == need - 1 &&
                          (int)swarm_neighbour_count(s) == s->nref;
     if (s->building && (s->nref == need || self_completes)) {
         int all = !self_completes || swarm_placed(s, SWARM_SELF);

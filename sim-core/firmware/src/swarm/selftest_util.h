@@ -5,6 +5,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "../cycles.h"
 #include "prng.h"
 
 extern int st_checks, st_failures;
@@ -24,13 +25,7 @@ extern int st_checks, st_failures;
 /* The core's mcycle CSR (awake cycles, 64 bits). */
 static inline uint64_t st_cycles(void)
 {
-    uint32_t hi, lo, hi2;
-    do {
-        __asm__ volatile("csrr %0, mcycleh" : "=r"(hi));
-        __asm__ volatile("csrr %0, mcycle" : "=r"(lo));
-        __asm__ volatile("csrr %0, mcycleh" : "=r"(hi2));
-    } while (hi != hi2);
-    return (uint64_t)hi << 32 | lo;
+    return csr_mcycle64();
 }
 
 /* Standard normal draw: sum of 12 uniforms minus 6 (Irwin-Hall; no libm). */

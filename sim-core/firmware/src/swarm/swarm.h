@@ -58,10 +58,14 @@ typedef struct {
     uint16_t swarm_rate_hz;        /* §6.5: 400 packets/s for the swarm */
     uint16_t min_rate_hz;          /* 20 */
     uint16_t max_rate_hz;          /* 100 */
-    uint8_t planar;                /* 2D (z = 0), as the thesis's table tests */
+    uint8_t planar;                /* 1: 2D (z = 0), as the thesis's table tests;
+                                      SWARM_LINE: 1D (y = z = 0), §7.3's pair */
     uint8_t keep_frame;            /* keep the frame's arbitrary values after
                                       it is built (the seed drops them) */
 } swarm_settings_t;
+
+/* `planar` for the 1D experiment of §7.3 (two drones on a line). */
+#define SWARM_LINE 2
 
 void swarm_default_settings(swarm_settings_t *s);
 

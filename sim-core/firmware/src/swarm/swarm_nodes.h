@@ -46,7 +46,14 @@ static inline int swarm_role_of(const swarm_t *s, int node)
 /* References the frame needs (§5.3.2): 4 in 3D, 3 on a table. */
 static inline int swarm_refs_needed(const swarm_t *s)
 {
-    return s->set.planar ? 3 : 4;
+    return s->set.planar == SWARM_LINE ? 2 : s->set.planar ? 3 : 4;
+}
+
+/* The fewest references a frame that this drone completes must have: the
+ * origin in 1D (the seed's §7.3 pair), origin and +X otherwise. */
+static inline int swarm_min_completed(const swarm_t *s)
+{
+    return s->set.planar == SWARM_LINE ? 1 : 2;
 }
 
 /* A TOF of the table in metres. */

@@ -1,0 +1,568 @@
+//! Seed 003's positioning read back from a run (docs/SWARM_RESULTS.md):
+//! every drone's estimates of every drone ([`console`](super::console)),
+//! set against the true positions from the world's trajectory expressed in
+//! the same frame (§5.3.2: origin at the first reference, +X toward the
+//! second, the XY plane through the third with it on +Y, +Z toward the
+//! fourth), written to `positions.csv`; with a `[positioning]` table in
+//! the scenario, the tables of §7.1 (real, mean estimate, standard
+//! deviation per window) beside the seed's, in `positioning.md`; and the
+//! plots of the estimates and their errors over time.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::console::{self, SwarmConsole};
+use super::report::DroneTrack;
+use crate::launch::files;
+use crate::plot::{panels, PlotError, Series};
+use crate::scenario::{Scenario, RADIO_ID_KEY};
+
+/// `positions.csv`, `positioning.md` and the plots in the run's directory.
+pub const POSITIONS_CSV: &str = "positions.csv";
+pub const POSITIONING_MD: &str = "positioning.md";
+pub const POSITIONS_PNG: &str = "positions.png";
+pub const ERROR_PNG: &str = "position_error.png";
+
+/// The firmware's clock starts when its radio's INIT_DONE comes: at the end
+/// of the world's warm-up (docs/SWARM.md §2, §4), 2.000 s of world time.
+pub const FIRMWARE_T0_MS: u64 = 2000;
+
+/// The scenario's `[positioning]` table.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PositioningSpec {
+    /// Whose estimates the tables and plots show (default: the first platform).
+    #[serde(default)]
+    pub observer: Option<String>,
+    /// Windows of world time, each a table.
+    #[serde(default)]
+    pub table: Vec<TableSpec>,
+    /// Whose estimates are plotted (default: the observer); with several,
+    /// one pair of plots each, named after the drone.
+    #[serde(default)]
+    pub plot: Vec<String>,
+}
+
+/// One table (seed 003 Tables 7.1–7.4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TableSpec {
+    pub name: String,
+    /// Whose estimates (default: the `[positioning]` observer).
+    #[serde(default)]
+    pub observer: Option<String>,
+    /// World time window [from_s, to_s).
+    pub from_s: f64,
+    pub to_s: f64,
+    /// The seed's row per drone: [x real, x estimated, y real, y estimated,
+    /// x std, y std].
+    #[serde(default)]
+    pub seed: BTreeMap<String, [f64; 6]>,
+}
+
+/// One row of `positions.csv`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PositionRow {
+    /// World time (s).
+    pub time_s: f64,
+    pub observer: String,
+    pub drone: String,
+    pub est_x: f64,
+    pub est_y: f64,
+    pub est_z: f64,
+    /// The filter's largest position σ (m).
+    pub sigma_m: f64,
+    /// 1 when the filter is stable (§6.8.3).
+    pub stable: u8,
+    pub true_x: f64,
+    pub true_y: f64,
+    pub true_z: f64,
+}
+
+impl PositionRow {
+    pub fn error(&self) -> f64 {
+        ((self.est_x - self.true_x).powi(2)
+            + (self.est_y - self.true_y).powi(2)
+            + (self.est_z - self.true_z).powi(2))
+        .sqrt()
+    }
+}
+
+/// A track's position at world time `ms`, linearly interpolated.
+fn at(track: &DroneTrack, ms: f64) -> Option<[f64; 3]> {
+    let p = &track.points;
+    let i = p.partition_point(|(t, _)| (*t as f64) <= ms);
+    match (i.checked_sub(1).map(|j| p[j]), p.get(i).copied()) {
+        (Some((t0, a)), Some((t1, b))) if t1 > t0 => {
+            let f = (ms - t0 as f64) / (t1 - t0) as f64;
+            Some([0, 1, 2].map(|k| a[k] + f * (b[k] - a[k])))
+        }
+        (Some((_, a)), _) => Some(a),
+        (None, Some((_, b))) => Some(b),
+        (None, None) => None,
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn unit(a: [f64; 3]) -> Option<[f64; 3]> {
+    let n = dot(a, a).sqrt();
+    (n > 1e-9).then(|| a.map(|v| v / n))
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The frame of §5.3.2 built from the references' true positions: origin,
+/// axes. With two references the Y axis is the horizontal perpendicular
+/// (a 1D frame: only x is defined); with three +Y is toward the third;
+/// with four +Z is toward the fourth (else world up's side).
+pub fn true_frame(refs: &[[f64; 3]]) -> Option<([f64; 3], [[f64; 3]; 3])> {
+    let o = *refs.first()?;
+    let x = unit(sub(*refs.get(1)?, o))?;
+    // The third reference fixes +Y; on the X axis (the seed's location 4,
+    // where A completes the frame) it does not, and the horizontal
+    // perpendicular is taken, as without a third.
+    let third = refs.get(2).and_then(|p| {
+        let v = sub(*p, o);
+        let d = dot(v, x);
+        let off = sub(v, x.map(|c| c * d));
+        (dot(off, off).sqrt() > 1e-6).then(|| unit(off)).flatten()
+    });
+    let y = third
+        .or_else(|| unit(cross([0.0, 0.0, 1.0], x)))
+        .unwrap_or([0.0, 1.0, 0.0]);
+    let mut z = cross(x, y);
+    let side = refs.get(3).map_or(1.0, |p| dot(sub(*p, o), z));
+    if side < 0.0 {
+        z = z.map(|c| -c);
+    }
+    Some((o, [x, y, z]))
+}
+
+/// The platforms' names by identifier (§6.2, from their radio_id).
+fn names_by_id(scenario: &Scenario) -> BTreeMap<u32, String> {
+    scenario
+        .platforms
+        .iter()
+        .filter_map(|p| {
+            let eui: u64 = p.run.get(RADIO_ID_KEY).ok()?.parse().ok()?;
+            Some((console::id_from_eui(eui), p.drone.clone()))
+        })
+        .collect()
+}
+
+/// Every estimate of every observer with the truth in its frame, in
+/// (observer order, time) order. Estimates before the observer's frame is
+/// built, and filters not started, are left out.
+pub fn position_rows(
+    scenario: &Scenario,
+    consoles: &BTreeMap<String, SwarmConsole>,
+    tracks: &BTreeMap<String, DroneTrack>,
+) -> Vec<PositionRow> {
+    let names = names_by_id(scenario);
+    let mut rows = Vec::new();
+    for p in &scenario.platforms {
+        let Some(c) = consoles.get(&p.drone) else {
+            continue;
+        };
+        for e in c.estimates.iter().filter(|e| e.built) {
+            let Some(refs) = c.refs_at(e.t_ms) else {
+                continue;
+            };
+            // With too few neighbours the observer itself completes the
+            // frame (+X in 1D, +Y in 2D; docs/SWARM_FIRMWARE.md §3); its
+            // references do not list it.
+            let mut refs = refs.to_vec();
+            if refs.len() < 3 && !refs.contains(&e.id) {
+                refs.push(e.id);
+            }
+            let world_ms = (FIRMWARE_T0_MS + e.t_ms) as f64;
+            let pts: Option<Vec<[f64; 3]>> = refs
+                .iter()
+                .map(|id| at(tracks.get(names.get(id)?)?, world_ms))
+                .collect();
+            let Some((o, axes)) = pts.as_deref().and_then(true_frame) else {
+                continue;
+            };
+            for n in &e.nodes {
+                let (Some(sigma), Some(name)) = (n.sigma, names.get(&n.id)) else {
+                    continue;
+                };
+                let Some(t) = tracks.get(name).and_then(|tr| at(tr, world_ms)) else {
+                    continue;
+                };
+                let v = sub(t, o);
+                let tr = axes.map(|a| dot(v, a));
+                rows.push(PositionRow {
+                    time_s: world_ms / 1000.0,
+                    observer: p.drone.clone(),
+                    drone: name.clone(),
+                    est_x: n.pos[0],
+                    est_y: n.pos[1],
+                    est_z: n.pos[2],
+                    sigma_m: sigma,
+                    stable: n.stable as u8,
+                    true_x: tr[0],
+                    true_y: tr[1],
+                    true_z: tr[2],
+                });
+            }
+        }
+    }
+    rows
+}
+
+/// Mean and (population) standard deviation.
+fn mean_sd(v: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
+    let n = v.clone().count().max(1) as f64;
+    let m = v.clone().sum::<f64>() / n;
+    let var = v.map(|x| (x - m).powi(2)).sum::<f64>() / n;
+    (m, var.sqrt())
+}
+
+/// One drone's line of a table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TableRow {
+    pub drone: String,
+    pub samples: usize,
+    pub x_real: f64,
+    pub x_est: f64,
+    pub y_real: f64,
+    pub y_est: f64,
+    pub x_sd: f64,
+    pub y_sd: f64,
+    /// The seed's [x real, x est, y real, y est, x std, y std].
+    pub seed: Option<[f64; 6]>,
+}
+
+/// A table of §7.1 for one window.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Table {
+    pub name: String,
+    pub observer: String,
+    pub rows: Vec<TableRow>,
+}
+
+/// The observer whose estimates the tables and plots show.
+pub fn observer(scenario: &Scenario, spec: Option<&PositioningSpec>) -> Option<String> {
+    spec.and_then(|s| s.observer.clone())
+        .or_else(|| scenario.platforms.first().map(|p| p.drone.clone()))
+}
+
+pub fn tables(scenario: &Scenario, spec: &PositioningSpec, rows: &[PositionRow]) -> Vec<Table> {
+    let Some(default_obs) = observer(scenario, Some(spec)) else {
+        return Vec::new();
+    };
+    spec.table
+        .iter()
+        .map(|t| {
+            let obs = t.observer.clone().unwrap_or_else(|| default_obs.clone());
+            let rows = scenario
+                .platforms
+                .iter()
+                .map(|p| {
+                    let sel: Vec<&PositionRow> = rows
+                        .iter()
+                        .filter(|r| {
+                            r.observer == obs
+                                && r.drone == p.drone
+                                && r.time_s >= t.from_s
+                                && r.time_s < t.to_s
+                        })
+                        .collect();
+                    let (x_est, x_sd) = mean_sd(sel.iter().map(|r| r.est_x));
+                    let (y_est, y_sd) = mean_sd(sel.iter().map(|r| r.est_y));
+                    TableRow {
+                        drone: p.drone.clone(),
+                        samples: sel.len(),
+                        x_real: mean_sd(sel.iter().map(|r| r.true_x)).0,
+                        x_est,
+                        y_real: mean_sd(sel.iter().map(|r| r.true_y)).0,
+                        y_est,
+                        x_sd,
+                        y_sd,
+                        seed: t.seed.get(&p.drone).copied(),
+                    }
+                })
+                .filter(|r| r.samples > 0)
+                .collect();
+            Table {
+                name: t.name.clone(),
+                observer: obs.clone(),
+                rows,
+            }
+        })
+        .collect()
+}
+
+/// The tables as markdown, ours beside the seed's.
+pub fn tables_markdown(tables: &[Table]) -> String {
+    let mut s = String::new();
+    let f = |v: f64| format!("{v:.3}");
+    let seed = |r: &TableRow, i: usize| r.seed.map_or("–".into(), |v| f(v[i]));
+    for t in tables {
+        let _ = writeln!(s, "### {} (estimates of {})\n", t.name, t.observer);
+        let _ = writeln!(
+            s,
+            "| drone | x real | x est. | x est. (seed) | y real | y est. | y est. (seed) | \
+             x std | x std (seed) | y std | y std (seed) | samples |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+        for r in &t.rows {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                r.drone,
+                f(r.x_real),
+                f(r.x_est),
+                seed(r, 1),
+                f(r.y_real),
+                f(r.y_est),
+                seed(r, 3),
+                f(r.x_sd),
+                seed(r, 4),
+                f(r.y_sd),
+                seed(r, 5),
+                r.samples
+            );
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The estimates of one observer over time (x and y of every drone, the
+/// truth beside each), and every drone's error.
+pub fn draw_plots(
+    out: &Path,
+    scenario: &Scenario,
+    obs: &str,
+    rows: &[PositionRow],
+    names: (&str, &str),
+) -> Result<Vec<PathBuf>, PlotError> {
+    let mine: Vec<&PositionRow> = rows.iter().filter(|r| r.observer == obs).collect();
+    if mine.is_empty() {
+        return Ok(Vec::new());
+    }
+    let series = |drone: &str, label: String, f: &dyn Fn(&PositionRow) -> f64| Series {
+        label,
+        points: crate::plot::decimate(
+            &mine
+                .iter()
+                .filter(|r| r.drone == drone)
+                .map(|r| (r.time_s, f(r)))
+                .collect::<Vec<_>>(),
+            4000,
+        ),
+    };
+    let mut xs = Vec::new();
+    let mut ys = Vec::new();
+    let mut errs = Vec::new();
+    let seen: std::collections::BTreeSet<&str> = mine.iter().map(|r| r.drone.as_str()).collect();
+    for p in scenario
+        .platforms
+        .iter()
+        .filter(|p| seen.contains(p.drone.as_str()))
+    {
+        let d = p.drone.as_str();
+        xs.push(series(d, format!("{d} estimated"), &|r| r.est_x));
+        xs.push(series(d, format!("{d} true"), &|r| r.true_x));
+        ys.push(series(d, format!("{d} estimated"), &|r| r.est_y));
+        ys.push(series(d, format!("{d} true"), &|r| r.true_y));
+        errs.push(series(d, d.to_string(), &|r| r.error()));
+    }
+    let pos = out.join(names.0);
+    panels(
+        &pos,
+        "world time (s)",
+        &[
+            (
+                format!(
+                    "{}: x estimated by {obs} (its frame) and true",
+                    scenario.name
+                ),
+                "x (m)".into(),
+                xs,
+            ),
+            (
+                format!("{}: y estimated by {obs} and true", scenario.name),
+                "y (m)".into(),
+                ys,
+            ),
+        ],
+        false,
+    )?;
+    let err = out.join(names.1);
+    panels(
+        &err,
+        "world time (s)",
+        &[(
+            format!(
+                "{}: position error of each drone as estimated by {obs}",
+                scenario.name
+            ),
+            "|estimate − truth| (m)".into(),
+            errs,
+        )],
+        false,
+    )?;
+    Ok(vec![pos, err])
+}
+
+/// What [`analyse`] found.
+#[derive(Debug, Clone, Default)]
+pub struct Positioning {
+    pub rows: usize,
+    pub tables: Vec<Table>,
+    pub plots: Vec<PathBuf>,
+    pub consoles: BTreeMap<String, SwarmConsole>,
+    /// Text for the run's report.
+    pub text: String,
+}
+
+/// Reads every drone's console; if any holds estimates, writes
+/// `positions.csv`, the tables (`positioning.md`) and the plots. `None`
+/// when no firmware printed estimates (not a positioning run).
+pub fn analyse(
+    scenario: &Scenario,
+    out: &Path,
+    tracks: &BTreeMap<String, DroneTrack>,
+    draw: bool,
+) -> Result<Option<Positioning>, String> {
+    let consoles: BTreeMap<String, SwarmConsole> = scenario
+        .platforms
+        .iter()
+        .map(|p| {
+            let path = super::launch::drone_dir(out, &p.drone).join(files::CONSOLE);
+            let text = std::fs::read_to_string(path).unwrap_or_default();
+            (p.drone.clone(), console::parse(&text))
+        })
+        .collect();
+    if consoles.values().all(|c| c.estimates.is_empty()) {
+        return Ok(None);
+    }
+    let rows = position_rows(scenario, &consoles, tracks);
+    let csv_path = out.join(POSITIONS_CSV);
+    let mut w =
+        csv::Writer::from_path(&csv_path).map_err(|e| format!("{}: {e}", csv_path.display()))?;
+    for r in &rows {
+        w.serialize(r)
+            .map_err(|e| format!("{}: {e}", csv_path.display()))?;
+    }
+    w.flush()
+        .map_err(|e| format!("{}: {e}", csv_path.display()))?;
+    let spec = scenario.positioning.clone().unwrap_or_default();
+    let tables = tables(scenario, &spec, &rows);
+    let mut text = format!(
+        "   positions      {} estimates in {}\n",
+        rows.len(),
+        csv_path.display()
+    );
+    if !tables.is_empty() {
+        let md = format!(
+            "# {}: estimated positions (real, mean estimate, std; seed 003 §7.1)\n\n{}",
+            scenario.name,
+            tables_markdown(&tables)
+        );
+        let p = out.join(POSITIONING_MD);
+        std::fs::write(&p, &md).map_err(|e| format!("{}: {e}", p.display()))?;
+        text.push_str(&format!("   tables         {}\n\n{md}", p.display()));
+    }
+    if let Some(obs) = observer(scenario, Some(&spec)) {
+        if let Some(me) = consoles.get(&obs).filter(|c| !c.load.is_empty()) {
+            let others: Vec<&SwarmConsole> = consoles
+                .iter()
+                .filter(|(d, _)| **d != obs)
+                .map(|(_, c)| c)
+                .collect();
+            let rows = super::load::load_rows(me, &others);
+            let fw = scenario
+                .platforms
+                .iter()
+                .find(|p| p.drone == obs)
+                .map(|p| p.firmware.clone());
+            let ram = fw.as_deref().and_then(super::load::ram);
+            let md = super::load::load_markdown(&obs, &rows, ram);
+            let p = out.join(super::load::LOAD_MD);
+            std::fs::write(&p, &md).map_err(|e| format!("{}: {e}", p.display()))?;
+            text.push_str(&format!("   load           {}\n\n{md}\n", p.display()));
+        }
+    }
+    let mut plots = Vec::new();
+    if draw {
+        let observers = if spec.plot.is_empty() {
+            observer(scenario, Some(&spec)).into_iter().collect()
+        } else {
+            spec.plot.clone()
+        };
+        for obs in &observers {
+            let names = if observers.len() == 1 {
+                (POSITIONS_PNG.to_string(), ERROR_PNG.to_string())
+            } else {
+                (
+                    format!("positions_{obs}.png"),
+                    format!("position_error_{obs}.png"),
+                )
+            };
+            plots.extend(
+                draw_plots(out, scenario, obs, &rows, (&names.0, &names.1))
+                    .map_err(|e| e.to_string())?,
+            );
+        }
+    }
+    Ok(Some(Positioning {
+        rows: rows.len(),
+        tables,
+        plots,
+        consoles,
+        text,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_true_frame_is_the_seeds() {
+        // B at (0,0), C at (1,0), A at (1,0.5), shifted and turned in the world.
+        let (c, s) = (0.6f64.cos(), 0.6f64.sin());
+        let w = |x: f64, y: f64| [3.0 + c * x - s * y, -1.0 + s * x + c * y, 0.8];
+        let (o, axes) = true_frame(&[w(0.0, 0.0), w(1.0, 0.0), w(1.0, 0.5)]).unwrap();
+        let v = sub(w(0.5, 0.25), o);
+        let p = axes.map(|a| dot(v, a));
+        for (got, want) in p.iter().zip([0.5, 0.25, 0.0]) {
+            assert!((got - want).abs() < 1e-12, "{p:?}");
+        }
+        // Mirrored: the third reference on the other side flips y.
+        let (o, axes) = true_frame(&[w(0.0, 0.0), w(1.0, 0.0), w(1.0, -0.5)]).unwrap();
+        let p = axes.map(|a| dot(sub(w(0.5, 0.25), o), a));
+        assert!((p[1] + 0.25).abs() < 1e-12);
+        assert!(true_frame(&[w(0.0, 0.0), w(0.0, 0.0)]).is_none());
+        // A third reference on the X axis: the horizontal perpendicular.
+        let (o, axes) = true_frame(&[w(0.0, 0.0), w(1.0, 0.0), w(0.5, 0.0)]).unwrap();
+        let p = axes.map(|a| dot(sub(w(0.5, 0.25), o), a));
+        assert!((p[1] - 0.25).abs() < 1e-12, "{p:?}");
+    }
+
+    #[test]
+    fn tracks_are_interpolated() {
+        let t = DroneTrack {
+            points: vec![(0, [0.0, 0.0, 0.0]), (10, [1.0, 2.0, 0.0])],
+        };
+        assert_eq!(at(&t, 5.0), Some([0.5, 1.0, 0.0]));
+        assert_eq!(at(&t, 20.0), Some([1.0, 2.0, 0.0]));
+    }
+}

@@ -1,0 +1,124 @@
+/*
+ * Four drones fly a square with seed 003's positioning running
+ * (scenarios/swarm-flight.toml). Each takes off to 1 m (GET_STABLE), then
+ * flies to the next corner of a 2 m square, clockwise, LAPS times, one PID
+ * step at a time (RUN_SINGLE_STEP_PID, the thesis's single-step mode,
+ * §4.2.1): between two steps the radio side of swarm_app.c runs (TX_DONE,
+ * frames received, a STATUS packet if due, the 100 Hz estimates). All
+ * four move together, so they stay 2 m apart. Then GO_DOWN.
+ *
+ * The corners are world coordinates, compiled in (the firmware has no way
+ * to learn its start, as race.c's targets): drone EUI e starts on corner
+ * e - 1 of (0,0), (2,0), (2,2), (0,2) (scenarios/worlds/swarm-flight.toml).
+ * In a flying firmware a transmission leaves at the end of the STM32 step
+ * in progress (docs/SWARM.md §4.2): the §6.5 window is quantised to the
+ * timestep, and the estimates' times are the core's (mtime), which in the
+ * thesis's bookkeeping runs ahead of the world by the core time between
+ * steps.
+ */
+#include <stdint.h>
+#include <stdio.h>
+
+#include "../cosim_regs.h"
+#include "../radio/radio.h"
+#include "swarm_app.h"
+
+#ifndef LAPS
+#define LAPS 1
+#endif
+#ifndef JITTER_MS
+#define JITTER_MS 3
+#endif
+#define SIDE 2.0
+#define HEIGHT 1.0
+
+#define stm32_control REG8(STM32_CTRL_REG_OFFSET)
+#define stm32_status REG8(STM32_STAT_REG_OFFSET)
+#define stm32_x REGF64(STM32_TARGET_POS_X_OFFSET)
+#define stm32_y REGF64(STM32_TARGET_POS_Y_OFFSET)
+#define stm32_z REGF64(STM32_TARGET_POS_Z_OFFSET)
+
+static const double corner[4][2] = {{0, 0}, {SIDE, 0}, {SIDE, SIDE}, {0, SIDE}};
+
+/* Listing 4.6. */
+static void perform(uint8_t op)
+{
+    stm32_control = op;
+    while (stm32_status != op)
+        ;
+    stm32_status = 0;
+    stm32_control = 0;
+}
+
+/* ITER_ADVANCE: a value v > 10 advances both simulations by v - 10 ms
+ * (race.c's advance_simul: the drone flies on with its last commands). */
+static void advance_ms(uint8_t ms)
+{
+    stm32_control = (uint8_t)(ITER_ADVANCE + ms);
+    while (stm32_status != ITER_ADVANCE)
+        ;
+    stm32_status = 0;
+    stm32_control = 0;
+}
+
+/* One PID step; returns its status (RUN_SINGLE_STEP_PID, TARGET_REACHED
+ * or BATTERY_LOW). */
+static uint8_t pid_step(void)
+{
+    stm32_control = RUN_SINGLE_STEP_PID;
+    uint8_t s;
+    while ((s = stm32_status) != RUN_SINGLE_STEP_PID && s != TARGET_REACHED && s != BATTERY_LOW)
+        ;
+    stm32_status = 0;
+    stm32_control = 0;
+    return s;
+}
+
+int main(void)
+{
+    perform(INIT_PID);
+    perform(GET_STABLE);
+    radio_t uwb = RADIO_UWB;
+    radio_init(&uwb); /* after INIT_PID: only switches the radio on */
+    const uint64_t eui = radio_eui(&uwb);
+    const uint64_t t0 = radio_now_cycles();
+    swarm_settings_t set;
+    swarm_default_settings(&set);
+    set.planar = 1; /* all four at 1 m: the frame's plane */
+    app_start(&uwb, eui, t0, &set);
+    printf("[fly] EUI %u stable at 1 m, positioning on\n", (unsigned)eui);
+
+    uint32_t jitter = 0x9E3779B9u ^ (uint32_t)eui * 2654435761u;
+    (void)jitter;
+    const int first = (int)((eui > 0 ? eui - 1 : 0) % 4);
+    int low = 0;
+    for (int leg = 1; leg <= 4 * LAPS && !low; leg++) {
+        const int k = (first + leg) % 4;
+        stm32_x = corner[k][0];
+        stm32_y = corner[k][1];
+        stm32_z = HEIGHT;
+        perform(SET_TARGET);
+        for (;;) {
+            uint8_t s = pid_step();
+            app_poll();
+#if JITTER_MS > 0
+            /* A transmission leaves at the end of the STM32 operation in
+             * progress (docs/SWARM.md §4.2): without this, every drone's
+             * frames start on the same timestep grid and collide. A pause
+             * of 1..JITTER_MS ms (xorshift from the EUI) spreads them. */
+            jitter ^= jitter << 13;
+            jitter ^= jitter >> 17;
+            jitter ^= jitter << 5;
+            advance_ms((uint8_t)(1 + jitter % JITTER_MS));
+            app_poll();
+#endif
+            if (s == BATTERY_LOW)
+                low = 1;
+            if (s != RUN_SINGLE_STEP_PID)
+                break;
+        }
+    }
+    app_end();
+    perform(GO_DOWN);
+    return 0;
+}
