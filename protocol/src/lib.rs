@@ -42,6 +42,7 @@ pub mod frame;
 mod image;
 mod message;
 pub mod radio;
+pub mod shm;
 pub mod tokio_transport;
 pub mod trace;
 

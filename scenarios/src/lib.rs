@@ -8,7 +8,9 @@
 //! - [`tracetool`]: `cosim trace show` and `cosim trace-check`.
 //! - [`plot`]: the PNG figures.
 //! - [`swarm`]: scenarios with several drones (`[[platform]]` tables).
+//! - [`bench_race`]: `cosim bench race`, what the thesis's race costs.
 
+pub mod bench_race;
 pub mod launch;
 pub mod plot;
 pub mod report;
