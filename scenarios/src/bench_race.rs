@@ -133,12 +133,17 @@ fn run_row(label: &'static str, o: &RunOutcome) -> RaceRun {
 /// Runs the measurements one after the other into `out/defaults`,
 /// `out/defaults-untraced`, `out/fast`, `out/world-alone-untraced` and
 /// `out/world-alone`; writes `out/bench.md`.
+///
+/// With `repeat` > 1 each measurement is made that many times in a row and
+/// the fastest kept (the load of other programs only ever slows a run).
 pub fn bench_race(
     bins: &Binaries,
     out: &Path,
     sets: &[String],
+    repeat: usize,
     mut progress: impl FnMut(&str),
 ) -> Result<RaceBench, BenchError> {
+    let repeat = repeat.max(1);
     let load = |extra: &[&str]| -> Result<Scenario, BenchError> {
         let mut s = Scenario::load(&resolve_scenario(Some(RACE))?)?;
         for a in sets.iter().map(String::as_str).chain(extra.iter().copied()) {
@@ -163,10 +168,20 @@ pub fn bench_race(
     };
 
     let mut co_sim = |label: &'static str, sc: &Scenario, dir: &str, o: &LaunchOptions| {
-        progress(&format!("{label} ..."));
-        let r = run_row(label, &run_scenario(sc, bins, &out.join(dir), o, false)?);
-        progress(&format!("{label}: {:.1}x real time", r.realtime_factor));
-        Ok::<_, BenchError>(r)
+        let mut best: Option<RaceRun> = None;
+        for k in 0..repeat {
+            progress(&format!("{label}, run {} ...", k + 1));
+            let r = run_row(label, &run_scenario(sc, bins, &out.join(dir), o, false)?);
+            progress(&format!("{label}: {:.1}x real time", r.realtime_factor));
+            let failed = !r.completed;
+            if failed || best.as_ref().is_none_or(|b| r.wall_s < b.wall_s) {
+                best = Some(r);
+            }
+            if failed {
+                break;
+            }
+        }
+        Ok::<_, BenchError>(best.expect("at least one run"))
     };
     let d = co_sim("defaults (traces)", &defaults, "defaults", &with_traces)?;
     let du = co_sim(
@@ -185,20 +200,24 @@ pub fn bench_race(
         let sock = w_dir.join("world.sock");
         let _ = std::fs::remove_file(&sock);
         let endpoint = Endpoint::Unix(sock);
-        let mut world = world_command(&defaults, bins, &endpoint, &w_dir, o)?
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .map_err(|e| BenchError::Output(format!("cannot start world-server: {e}")))?;
-        let wall = feed_world(&endpoint, &requests);
-        let status = world.wait();
-        let wall = wall?;
-        if !status.as_ref().is_ok_and(|s| s.success()) {
-            return Err(BenchError::Output(format!(
-                "the world-alone world-server failed ({status:?})"
-            )));
+        let mut best = f64::INFINITY;
+        for _ in 0..repeat {
+            let mut world = world_command(&defaults, bins, &endpoint, &w_dir, o)?
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .map_err(|e| BenchError::Output(format!("cannot start world-server: {e}")))?;
+            let wall = feed_world(&endpoint, &requests);
+            let status = world.wait();
+            let wall = wall?;
+            if !status.as_ref().is_ok_and(|s| s.success()) {
+                return Err(BenchError::Output(format!(
+                    "the world-alone world-server failed ({status:?})"
+                )));
+            }
+            progress(&format!("world alone ({dir}): {:.3} s", wall.as_secs_f64()));
+            best = best.min(wall.as_secs_f64());
         }
-        progress(&format!("world alone ({dir}): {:.3} s", wall.as_secs_f64()));
-        Ok(wall.as_secs_f64())
+        Ok(best)
     };
     let wu = alone("world-alone-untraced", &no_traces)?;
     let wt = alone("world-alone", &with_traces)?;

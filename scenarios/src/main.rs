@@ -238,6 +238,9 @@ enum BenchCmd {
         /// Overrides a scenario or run key of every run (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Runs per measurement; the fastest is kept (others' load only slows).
+        #[arg(long, default_value_t = 1)]
+        repeat: usize,
     },
 }
 
@@ -644,12 +647,17 @@ fn cmd_bench_swarm(
 fn cmd_bench_race(
     out: Option<PathBuf>,
     set: Vec<String>,
+    repeat: usize,
     bins: BinArgs,
 ) -> anyhow::Result<ExitCode> {
+    if repeat == 0 {
+        bail!("--repeat: expected at least 1 run per measurement");
+    }
     let out = out.unwrap_or_else(scenarios::bench_race::default_out);
     let bins = bins.locate()?;
-    let b =
-        scenarios::bench_race::bench_race(&bins, &out, &set, |m| eprintln!("cosim bench: {m}"))?;
+    let b = scenarios::bench_race::bench_race(&bins, &out, &set, repeat, |m| {
+        eprintln!("cosim bench: {m}")
+    })?;
     println!("{}", b.markdown());
     println!("table: {}", out.join("bench.md").display());
     Ok(if b.defaults.completed && b.fast.completed {
@@ -787,8 +795,8 @@ fn main() -> ExitCode {
                 },
         } => cmd_bench_swarm(sizes, out, set, repeat, bins),
         Cmd::Bench {
-            what: BenchCmd::Race { out, set },
-        } => cmd_bench_race(out, set, bins),
+            what: BenchCmd::Race { out, set, repeat },
+        } => cmd_bench_race(out, set, repeat, bins),
     };
     match result {
         Ok(code) => code,
