@@ -313,3 +313,49 @@ pub fn feed_world(
 pub fn default_out() -> PathBuf {
     Path::new("out").join("bench-race")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_world_trace_gives_its_requests_verbatim_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let t = dir.path().join("world.trace");
+        std::fs::write(
+            &t,
+            concat!(
+                r#"{"seq":0,"dir":"to_world","len":27,"msg":{"command":"GET_INIT_DATA"},"world_ms":2000}"#,
+                "\n",
+                r#"{"seq":1,"dir":"to_platform","len":9,"msg":{"COORDINATE_X":-2.6,"command":"GET_INIT_DATA"},"world_ms":2000}"#,
+                "\n",
+                r#"{"seq":2,"dir":"to_world","len":60,"msg":{"command":"SET_VELOCITY","m1":1.5,"m2":1.0,"m3":1.0,"m4":1.0},"world_ms":2000}"#,
+                "\n",
+                r#"{"seq":3,"dir":"to_world","len":22,"msg":{"command":"GET_DATA_2"},"world_ms":2032}"#,
+                "\n",
+            ),
+        )
+        .unwrap();
+        let r = load_requests(&t).unwrap();
+        let bodies: Vec<&str> = r
+            .iter()
+            .map(|r| std::str::from_utf8(&r.body).unwrap())
+            .collect();
+        assert_eq!(
+            bodies,
+            [
+                r#"{"command":"GET_INIT_DATA"}"#,
+                r#"{"command":"SET_VELOCITY","m1":1.5,"m2":1.0,"m3":1.0,"m4":1.0}"#,
+                r#"{"command":"GET_DATA_2"}"#,
+            ]
+        );
+        let replies: Vec<bool> = r.iter().map(|r| r.expects_reply).collect();
+        assert_eq!(replies, [true, false, true]);
+        // A trace without requests is an error, not an empty benchmark.
+        std::fs::write(&t, "").unwrap();
+        assert!(load_requests(&t)
+            .unwrap_err()
+            .to_string()
+            .contains("no requests"));
+    }
+}
