@@ -111,6 +111,9 @@ pub struct Connection {
     /// `InitData` reply, i.e. by the `GET_INIT_DATA` negotiation.
     image_encoding: ImageEncoding,
     observer: Option<Observer>,
+    /// Platform side: the world's shared-memory image file, once a reply
+    /// has named it (`"image_encoding":"shm"`).
+    shm: crate::shm::ShmReader,
 }
 
 impl std::fmt::Debug for Connection {
@@ -137,6 +140,7 @@ impl Connection {
             wbuf: Vec::new(),
             image_encoding: ImageEncoding::Array,
             observer: None,
+            shm: crate::shm::ShmReader::new(),
         }
     }
 
@@ -198,6 +202,27 @@ impl Connection {
         self.send_frame_with(None, |o| o.extend_from_slice(body))
     }
 
+    /// Sends frames with these exact bodies in one write (replay tools
+    /// pipelining recorded requests).
+    pub fn send_raw_batch(&mut self, bodies: &[&[u8]]) -> Result<()> {
+        self.wbuf.clear();
+        for b in bodies {
+            write_frame(&mut self.wbuf, self.max_frame, |o| o.extend_from_slice(b))?;
+        }
+        self.io.get_mut().write_all(&self.wbuf)?;
+        let dir = self.out_dir();
+        for b in bodies {
+            let ev = FrameEvent {
+                dir,
+                bytes: b,
+                image: None,
+                valid: true,
+            };
+            notify(&mut self.observer, &ev)?;
+        }
+        Ok(())
+    }
+
     /// Receives one frame body; `None` on a clean end of stream between
     /// frames. The slice is valid until the next receive.
     pub fn recv_raw(&mut self) -> Result<Option<&[u8]>> {
@@ -243,12 +268,17 @@ impl Connection {
         if !req.expects_reply() {
             return Ok(None);
         }
+        self.reply_to(req).map(Some)
+    }
+
+    /// The next reply, which must answer `req`.
+    fn reply_to(&mut self, req: &Request) -> Result<Reply> {
         let reply = self
             .recv_reply()?
             .ok_or(ProtocolError::Closed(req.command()))?;
         match reply {
             Reply::Error { error } => Err(ProtocolError::Remote(error)),
-            r if r.command() == req.command() => Ok(Some(r)),
+            r if r.command() == req.command() => Ok(r),
             r => Err(ProtocolError::UnexpectedReply {
                 expected: req.command(),
                 got: r.command().to_owned(),
@@ -256,12 +286,78 @@ impl Connection {
         }
     }
 
+    /// Pipelining: sends `reqs` in one write, then reads the replies of the
+    /// ones that have a reply, in order (a conforming world answers in
+    /// order, DESIGN.md §2, so this needs no negotiation). One write and,
+    /// usually, one read instead of one of each per request.
+    ///
+    /// The observer sees the frames in the order a one-at-a-time exchange
+    /// would show them (each request, then its reply), so a trace is the
+    /// same byte for byte. On failure, the error comes with the index in
+    /// `reqs` of the request it concerns.
+    pub fn pipeline(
+        &mut self,
+        reqs: &[Request],
+    ) -> std::result::Result<Vec<Reply>, (usize, ProtocolError)> {
+        self.wbuf.clear();
+        let mut ends = Vec::with_capacity(reqs.len());
+        for (i, req) in reqs.iter().enumerate() {
+            write_frame(&mut self.wbuf, self.max_frame, |o| encode_request(req, o))
+                .map_err(|e| (i, e))?;
+            ends.push(self.wbuf.len());
+        }
+        if let Err(e) = self.io.get_mut().write_all(&self.wbuf) {
+            // As in `send`: a world that already closed left an ERROR frame.
+            let first = reqs.iter().position(Request::expects_reply).unwrap_or(0);
+            return Err((
+                first,
+                match self.recv_reply() {
+                    Ok(Some(Reply::Error { error })) => ProtocolError::Remote(error),
+                    _ => ProtocolError::Io(e),
+                },
+            ));
+        }
+        let wbuf = std::mem::take(&mut self.wbuf);
+        let mut replies = Vec::new();
+        let mut start = 0;
+        let mut outcome = Ok(());
+        for (i, (req, end)) in reqs.iter().zip(ends).enumerate() {
+            let ev = FrameEvent {
+                dir: self.out_dir(),
+                bytes: &wbuf[start + 4..end],
+                image: None,
+                valid: true,
+            };
+            start = end;
+            if let Err(e) = notify(&mut self.observer, &ev) {
+                outcome = Err((i, e));
+                break;
+            }
+            if req.expects_reply() {
+                match self.reply_to(req) {
+                    Ok(r) => replies.push(r),
+                    Err(e) => {
+                        outcome = Err((i, e));
+                        break;
+                    }
+                }
+            }
+        }
+        self.wbuf = wbuf;
+        outcome.map(|()| replies)
+    }
+
     /// Receives one reply; `None` on a clean close.
     pub fn recv_reply(&mut self) -> Result<Option<Reply>> {
         if !read_frame(&mut self.io, &mut self.rbuf, self.max_frame)? {
             return Ok(None);
         }
-        let decoded = decode_reply(&self.rbuf);
+        let decoded = match decode_reply(&self.rbuf) {
+            // The pixels of a frame in shared memory: read them now, so the
+            // platform (and the trace's hash) sees an ordinary image.
+            Ok(Reply::ShmImage(f)) => self.shm.read(&f).map(Reply::Image).map_err(Into::into),
+            d => d,
+        };
         let image = match &decoded {
             Ok(Reply::Image(img)) => Some(img),
             _ => None,

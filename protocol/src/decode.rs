@@ -14,12 +14,19 @@ use serde_json::{Map, Value};
 use crate::error::{ProtocolError, Result};
 use crate::image::{decode_base64, parse_pixel_array, skip_ws, Image, ImageEncoding};
 use crate::message::command::GET_IMAGE;
+use crate::shm::ShmFrame;
+
+/// What `"camera"` holds: the pixels, or where to find them.
+pub(crate) enum Camera {
+    Pixels(Image),
+    Shm(ShmFrame),
+}
 
 pub(crate) struct Parsed {
     /// Every top-level key except `"camera"`.
     pub fields: Map<String, Value>,
     /// The image under `"camera"`, if the key was present.
-    pub camera: Option<Result<Image>>,
+    pub camera: Option<Result<Camera>>,
 }
 
 pub(crate) fn parse_message(body: &[u8]) -> Result<Parsed> {
@@ -132,11 +139,12 @@ fn parse_key(body: &[u8], pos: usize) -> Result<(String, usize)> {
 
 /// The camera object by hand. `Err` carries why it is not an image; the
 /// caller then re-parses it with serde_json to tell bad JSON from a bad image.
-fn parse_camera(body: &[u8], mut pos: usize) -> std::result::Result<(Image, usize), String> {
+fn parse_camera(body: &[u8], mut pos: usize) -> std::result::Result<(Camera, usize), String> {
     if body.get(pos) != Some(&b'{') {
         return Err("camera must be an object".into());
     }
     let (mut width, mut height, mut data, mut encoding) = (None, None, None, None);
+    let (mut seq, mut path) = (None, None);
     pos = skip_ws(body, pos + 1);
     if body.get(pos) == Some(&b'}') {
         pos += 1;
@@ -166,13 +174,28 @@ fn parse_camera(body: &[u8], mut pos: usize) -> std::result::Result<(Image, usiz
                     match k {
                         "width" => width = Some(dimension("width", &v)?),
                         "height" => height = Some(dimension("height", &v)?),
+                        "seq" => {
+                            seq = Some(v.as_u64().ok_or_else(|| {
+                                format!("camera.seq must be a non-negative integer, got {v}")
+                            })?)
+                        }
+                        "path" => {
+                            path = Some(
+                                v.as_str()
+                                    .filter(|s| !s.is_empty())
+                                    .ok_or_else(|| {
+                                        format!("camera.path must be a non-empty string, got {v}")
+                                    })?
+                                    .to_owned(),
+                            )
+                        }
                         "encoding" => {
                             encoding = Some(
                                 v.as_str()
                                     .and_then(|s| s.parse::<ImageEncoding>().ok())
                                     .ok_or_else(|| {
                                         format!(
-                                        "camera.encoding must be \"array\" or \"base64\", got {v}"
+                                        "camera.encoding must be \"array\", \"base64\" or \"shm\", got {v}"
                                     )
                                     })?,
                             )
@@ -194,6 +217,21 @@ fn parse_camera(body: &[u8], mut pos: usize) -> std::result::Result<(Image, usiz
     }
     let width = width.ok_or("missing field `camera.width`")?;
     let height = height.ok_or("missing field `camera.height`")?;
+    if encoding == Some(ImageEncoding::Shm) {
+        // The pixels are in the file the reply names (crate::shm).
+        if data.is_some() {
+            return Err("camera.encoding says shm but the frame has data".into());
+        }
+        return Ok((
+            Camera::Shm(ShmFrame {
+                width,
+                height,
+                seq: seq.ok_or("missing field `camera.seq`")?,
+                path: path.ok_or("missing field `camera.path`")?,
+            }),
+            pos,
+        ));
+    }
     let (data, spelled) = data.ok_or("missing field `camera.data`")?;
     if let Some(declared) = encoding {
         if declared != spelled {
@@ -209,11 +247,11 @@ fn parse_camera(body: &[u8], mut pos: usize) -> std::result::Result<(Image, usiz
         ));
     }
     Ok((
-        Image {
+        Camera::Pixels(Image {
             width,
             height,
             data,
-        },
+        }),
         pos,
     ))
 }

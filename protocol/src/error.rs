@@ -63,6 +63,10 @@ pub enum ProtocolError {
     /// Any other I/O failure (connect, bind, read, write).
     #[error("I/O error: {0}")]
     Io(#[from] io::Error),
+
+    /// A frame in shared memory (`"image_encoding":"shm"`) cannot be read.
+    #[error(transparent)]
+    Shm(#[from] crate::shm::ShmError),
 }
 
 impl ProtocolError {

@@ -46,6 +46,9 @@ pub enum ImageEncoding {
     Array,
     /// `"AAD/..."` (standard alphabet, padded) plus `"encoding":"base64"`.
     Base64,
+    /// The pixels in a shared-memory file, the reply naming it
+    /// ([`crate::shm`]): for a platform and a world on one host.
+    Shm,
 }
 
 impl ImageEncoding {
@@ -53,6 +56,7 @@ impl ImageEncoding {
         match self {
             ImageEncoding::Array => "array",
             ImageEncoding::Base64 => "base64",
+            ImageEncoding::Shm => "shm",
         }
     }
 }
@@ -63,7 +67,8 @@ impl std::str::FromStr for ImageEncoding {
         match s {
             "array" => Ok(ImageEncoding::Array),
             "base64" => Ok(ImageEncoding::Base64),
-            _ => Err(format!("unknown image encoding {s:?} (array|base64)")),
+            "shm" => Ok(ImageEncoding::Shm),
+            _ => Err(format!("unknown image encoding {s:?} (array|base64|shm)")),
         }
     }
 }
@@ -109,7 +114,10 @@ const SPELLINGS: [([u8; 4], u8); 256] = {
 /// Appends the `"data"` value: `[..]` or a quoted base64 string.
 pub(crate) fn write_image_data(out: &mut Vec<u8>, data: &[u8], encoding: ImageEncoding) {
     match encoding {
-        ImageEncoding::Array => write_pixel_array(out, data),
+        // A frame in shared memory is written by the connection that owns
+        // the file ([`crate::shm::ShmWriter`]); a pure encoder given an image
+        // falls back to the thesis's array, which every platform decodes.
+        ImageEncoding::Array | ImageEncoding::Shm => write_pixel_array(out, data),
         ImageEncoding::Base64 => {
             out.push(b'"');
             let start = out.len();

@@ -10,8 +10,9 @@
 //!   spelling: sorted keys, no spaces) and [`decode_request`],
 //!   [`decode_reply`] (unknown keys ignored, errors typed as
 //!   [`ProtocolError`]).
-//! - [`Image`] with [`ImageEncoding::Array`] (the thesis's, default) or
-//!   [`ImageEncoding::Base64`] (negotiated in `GET_INIT_DATA`).
+//! - [`Image`] with [`ImageEncoding::Array`] (the thesis's, default),
+//!   [`ImageEncoding::Base64`] or [`ImageEncoding::Shm`] (negotiated in
+//!   `GET_INIT_DATA`; [`shm`]: the pixels in a shared-memory file).
 //! - [`blocking`]: std sockets, for the lockstep platform.
 //! - [`tokio_transport`]: a `tokio_util` codec on `LengthDelimitedCodec`,
 //!   for the world server.
@@ -25,6 +26,7 @@
 //! | platform | `blocking::Client::connect(&Endpoint) -> Result<Connection>` (or `connect_retry`) |
 //! | platform | `Connection::request(&Request) -> Result<Option<Reply>>` (`None` for the reply-less `SET_VELOCITY` / `ADVANCE_TIME`; an `ERROR` reply is `Err(ProtocolError::Remote)`) |
 //! | platform | `Connection::send(&Request) -> Result<()>` |
+//! | platform | `Connection::pipeline(&[Request]) -> Result<Vec<Reply>, (usize, ProtocolError)>` (one write, replies in order) |
 //! | world | `tokio_transport::Listener::bind(&Endpoint).await`, `listener.accept().await -> Result<ServerFramed>`, then `StreamExt::next` for [`Request`]s and `SinkExt::send(&Reply)` |
 //! | world (blocking) | `blocking::Server::bind(&Endpoint)`, `server.accept() -> Result<Connection>`, `recv_request() -> Result<Option<Request>>` (`None` = clean close), `send_reply(&Reply)` |
 //! | both | `set_observer(Box<dyn FnMut(&FrameEvent) -> io::Result<()> + Send>)` on a `Connection` or a codec; `trace::TraceWriter::record(&FrameEvent, now)` inside it |
@@ -42,6 +44,7 @@ pub mod frame;
 mod image;
 mod message;
 pub mod radio;
+pub mod shm;
 pub mod tokio_transport;
 pub mod trace;
 

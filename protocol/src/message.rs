@@ -14,11 +14,12 @@ use base64::Engine as _;
 use serde::{Deserialize, Deserializer, Serialize};
 use serde_json::{Map, Value};
 
-use crate::decode::{parse_message, Parsed};
+use crate::decode::{parse_message, Camera, Parsed};
 use crate::dump::{write_key, write_object, write_str, write_u64, Val};
 use crate::error::{ProtocolError, Result};
 use crate::image::{write_image_data, Image, ImageEncoding};
 use crate::radio::{Radio, RadioPacket, TxDone};
+use crate::shm::ShmFrame;
 
 /// Command names on the wire.
 pub mod command {
@@ -235,6 +236,12 @@ pub enum Reply {
     Sensors(Sensors),
     /// `GET_IMAGE`: `"camera":{"width","height","data"}`.
     Image(Image),
+    /// `GET_IMAGE` with `"image_encoding":"shm"` negotiated: where the
+    /// pixels are (`"camera":{"encoding":"shm","height","path","seq","width"}`,
+    /// [`crate::shm`]). The blocking transport reads the file and hands the
+    /// platform a [`Reply::Image`]; worlds build this from an image with
+    /// [`crate::shm::ShmWriter`].
+    ShmImage(ShmFrame),
     /// `GET_DATA_2`: horizontal speed and world-frame x/y velocity, m/s.
     Data2 {
         velocity: f64,
@@ -275,7 +282,7 @@ impl Reply {
         match self {
             Reply::InitData { .. } => GET_INIT_DATA,
             Reply::Sensors(_) => GET_SENSORS,
-            Reply::Image(_) => GET_IMAGE,
+            Reply::Image(_) | Reply::ShmImage(_) => GET_IMAGE,
             Reply::Data2 { .. } => GET_DATA_2,
             Reply::Data3 { .. } => GET_DATA_3,
             Reply::Stop { .. } => STOP,
@@ -417,6 +424,25 @@ pub fn encode_reply(reply: &Reply, encoding: ImageEncoding, out: &mut Vec<u8>) {
             write_key(out, "width");
             write_u64(out, img.width.into());
             out.extend_from_slice(b"},");
+            write_key(out, "command");
+            write_str(out, command::GET_IMAGE);
+            out.push(b'}');
+        }
+        Reply::ShmImage(f) => {
+            // {"camera":{"encoding":"shm","height":H,"path":P,"seq":N,"width":W},"command":"GET_IMAGE"}
+            out.push(b'{');
+            write_key(out, "camera");
+            write_object(
+                out,
+                &[
+                    ("encoding", Val::Str(ImageEncoding::Shm.as_str())),
+                    ("height", Val::U64(f.height.into())),
+                    ("path", Val::Str(&f.path)),
+                    ("seq", Val::U64(f.seq)),
+                    ("width", Val::U64(f.width.into())),
+                ],
+            );
+            out.push(b',');
             write_key(out, "command");
             write_str(out, command::GET_IMAGE);
             out.push(b'}');
@@ -567,7 +593,7 @@ pub fn decode_request(body: &[u8]) -> Result<Request> {
                 Some(v) => Some(ImageEncoding::deserialize(v).map_err(|_| {
                     ProtocolError::bad(
                         GET_INIT_DATA,
-                        format!("image_encoding must be \"array\" or \"base64\", got {v}"),
+                        format!("image_encoding must be \"array\", \"base64\" or \"shm\", got {v}"),
                     )
                 })?),
             };
@@ -662,7 +688,10 @@ pub fn decode_reply(body: &[u8]) -> Result<Reply> {
         }
         GET_SENSORS => Reply::Sensors(typed(GET_SENSORS, fields)?),
         GET_IMAGE => match camera {
-            Some(r) => Reply::Image(r?),
+            Some(r) => match r? {
+                Camera::Pixels(img) => Reply::Image(img),
+                Camera::Shm(f) => Reply::ShmImage(f),
+            },
             None => return Err(ProtocolError::bad(GET_IMAGE, "missing field `camera`")),
         },
         GET_DATA_2 => {

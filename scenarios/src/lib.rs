@@ -8,11 +8,14 @@
 //! - [`tracetool`]: `cosim trace show` and `cosim trace-check`.
 //! - [`plot`]: the PNG figures.
 //! - [`swarm`]: scenarios with several drones (`[[platform]]` tables).
+//! - [`perturb`]: `cosim world perturb`, courses with displaced gates.
 //! - [`mapping`]: the map of an exploration run scored against the world.
+//! - [`bench_race`]: `cosim bench race`, what the thesis's race costs.
 
+pub mod bench_race;
 pub mod launch;
-pub mod perturb;
 pub mod mapping;
+pub mod perturb;
 pub mod plot;
 pub mod report;
 pub mod scenario;

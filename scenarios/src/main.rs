@@ -8,7 +8,7 @@
 //! - `cosim trace show TRACE`, `cosim trace-check TRACE [--world-cmd CMD]`
 //! - `cosim world SCENARIO --listen tcp:HOST:PORT`, `cosim run SCENARIO
 //!   --world-endpoint tcp:HOST:PORT` (a platform and its world on two hosts)
-//! - `cosim bench swarm [--sizes 1,2,4,8]`
+//! - `cosim bench swarm [--sizes 1,2,4,8]`, `cosim bench race`
 //! - `cosim list`
 
 use std::path::{Path, PathBuf};
@@ -247,6 +247,20 @@ enum BenchCmd {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
         /// Runs per size; the table keeps the fastest (others' load only slows).
+        #[arg(long, default_value_t = 1)]
+        repeat: usize,
+    },
+    /// The 32 ms race's real-time factor with the thesis's defaults and
+    /// with the fast options (shared-memory images, no traces), then the
+    /// world alone fed the same requests: one run after the other.
+    Race {
+        /// Output directory (default: out/bench-race).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Overrides a scenario or run key of every run (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Runs per measurement; the fastest is kept (others' load only slows).
         #[arg(long, default_value_t = 1)]
         repeat: usize,
     },
@@ -691,6 +705,29 @@ fn cmd_bench_swarm(
     })
 }
 
+fn cmd_bench_race(
+    out: Option<PathBuf>,
+    set: Vec<String>,
+    repeat: usize,
+    bins: BinArgs,
+) -> anyhow::Result<ExitCode> {
+    if repeat == 0 {
+        bail!("--repeat: expected at least 1 run per measurement");
+    }
+    let out = out.unwrap_or_else(scenarios::bench_race::default_out);
+    let bins = bins.locate()?;
+    let b = scenarios::bench_race::bench_race(&bins, &out, &set, repeat, |m| {
+        eprintln!("cosim bench: {m}")
+    })?;
+    println!("{}", b.markdown());
+    println!("table: {}", out.join("bench.md").display());
+    Ok(if b.defaults.completed && b.fast.completed {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
 fn cmd_list() -> anyhow::Result<ExitCode> {
     let dir = find_repo_file("scenarios/thesis-race.toml")
         .and_then(|p| p.parent().map(Path::to_path_buf))
@@ -830,6 +867,9 @@ fn main() -> ExitCode {
                     repeat,
                 },
         } => cmd_bench_swarm(sizes, out, set, repeat, bins),
+        Cmd::Bench {
+            what: BenchCmd::Race { out, set, repeat },
+        } => cmd_bench_race(out, set, repeat, bins),
     };
     match result {
         Ok(code) => code,

@@ -117,7 +117,7 @@ pub const SCENARIO_KEYS: [(&str, &str); 7] = [
     ("substeps", "physics steps per basicTimeStep"),
     ("platform", "platform file (MESSY JSON)"),
     ("max_time_s", "give up after this many simulated seconds"),
-    ("image_encoding", "array | base64"),
+    ("image_encoding", "array | base64 | shm"),
 ];
 
 /// A scenario ready to run: paths resolved, every value checked.

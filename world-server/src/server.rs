@@ -29,8 +29,9 @@ use std::pin::Pin;
 use std::time::Duration;
 
 use futures::stream::{self, FuturesUnordered, SelectAll};
-use futures::{Stream, StreamExt};
+use futures::{FutureExt, Stream, StreamExt};
 use protocol::frame::{write_frame, DEFAULT_MAX_FRAME, HEADER_LEN};
+use protocol::shm::{ShmError, ShmFrame, ShmWriter};
 use protocol::tokio_transport::{FrameCodec, Listener};
 use protocol::trace::{TraceClock, TraceWriter};
 use protocol::{
@@ -163,6 +164,7 @@ async fn serve_session(
         encodings: vec![ImageEncoding::Array; n],
         outbox: Vec::new(),
         spare: vec![Vec::new(); n],
+        shm: (0..n).map(|_| None).collect(),
     };
     let mut writers: Vec<Option<WriteHalf>> = Vec::with_capacity(n);
     let mut inputs: SelectAll<Inputs> = SelectAll::new();
@@ -220,30 +222,60 @@ async fn run_loop(
             return Ok(());
         }
         match inputs.next().await {
-            Some((d, input)) => {
-                match input {
-                    // Gone: nothing more can be written to it either.
-                    Input::Closed => {
-                        open[d] = false;
-                        writers[d] = None;
-                    }
-                    Input::Broken(_) => open[d] = false,
-                    Input::Frame { .. } => {}
-                }
-                session.push(d, input)?;
-            }
+            Some((d, input)) => accept_input(session, writers, open, d, input)?,
             None => unreachable!("every input stream ends with Closed, pushed above"),
+        }
+        // A pipelining platform sends an iteration's requests together
+        // (docs/PROTOCOL.md "Pipelining"): take every frame already read,
+        // so that their replies leave in one write and wake the platform
+        // once. Frames buffered by the codec come without a system call.
+        while let Some(Some((d, input))) = inputs.next().now_or_never() {
+            accept_input(session, writers, open, d, input)?;
         }
     }
 }
 
-/// Writes the replies in order; a STOP reply closes its connection.
+/// One input of drone `d` into the session.
+fn accept_input(
+    session: &mut Session,
+    writers: &mut [Option<WriteHalf>],
+    open: &mut [bool],
+    d: usize,
+    input: Input,
+) -> Result<(), SessionError> {
+    match input {
+        // Gone: nothing more can be written to it either.
+        Input::Closed => {
+            open[d] = false;
+            writers[d] = None;
+        }
+        Input::Broken(_) => open[d] = false,
+        Input::Frame { .. } => {}
+    }
+    session.push(d, input)
+}
+
+/// Writes the replies in order, the consecutive replies to one drone in
+/// one write; a STOP reply closes its connection.
 async fn send_outbox(
     wire: &mut Wire<'_>,
     writers: &mut [Option<WriteHalf>],
 ) -> Result<(), (usize, std::io::Error)> {
     let mut first_error = None;
-    for (d, frame, close) in std::mem::take(&mut wire.outbox) {
+    let mut frames = std::mem::take(&mut wire.outbox).into_iter().peekable();
+    while let Some((d, mut frame, mut close)) = frames.next() {
+        // Replies to the same drone that follow are appended (a reply after
+        // STOP cannot exist: STOP is a connection's last request).
+        while !close {
+            match frames.next_if(|(next, _, _)| *next == d) {
+                Some((_, more, c)) => {
+                    frame.extend_from_slice(&more);
+                    wire.spare[d] = more;
+                    close = c;
+                }
+                None => break,
+            }
+        }
         if let Some(w) = writers[d].as_mut() {
             let r = match w.write_all(&frame).await {
                 Ok(()) if close => w.shutdown().await,
@@ -290,9 +322,21 @@ struct Wire<'a> {
     outbox: Vec<(usize, Vec<u8>, bool)>,
     /// Per drone: a frame buffer to reuse.
     spare: Vec<Vec<u8>>,
+    /// Per drone: its shared-memory image file, if it negotiated "shm"
+    /// (removed when the run ends).
+    shm: Vec<Option<ShmWriter>>,
 }
 
 impl Wire<'_> {
+    /// Writes `img` into drone `d`'s shared-memory file (created at its
+    /// first image).
+    fn shm_frame(&mut self, d: usize, img: &protocol::Image) -> Result<ShmFrame, ShmError> {
+        if self.shm[d].is_none() {
+            self.shm[d] = Some(ShmWriter::create(ShmWriter::default_path(d))?);
+        }
+        self.shm[d].as_mut().expect("created above").write(img)
+    }
+
     fn traced(&mut self, ev: &FrameEvent<'_>, d: usize, now: Millis) -> Result<(), SessionError> {
         let drone = self.multi.then(|| self.names[d].as_str());
         match self.trace.as_deref_mut() {
@@ -329,10 +373,23 @@ impl Outputs for Wire<'_> {
             self.encodings[drone] = *image_encoding;
         }
         let encoding = self.encodings[drone];
+        // `"image_encoding":"shm"`: the pixels go to this connection's file,
+        // the reply names it (protocol::shm).
+        let shm_reply = match (&reply, encoding) {
+            (Reply::Image(img), ImageEncoding::Shm) => Some(Reply::ShmImage(
+                self.shm_frame(drone, img)
+                    .map_err(|e| SessionError::Drone {
+                        drone,
+                        name: self.names[drone].clone(),
+                        message: e.to_string(),
+                    })?,
+            )),
+            _ => None,
+        };
         let mut frame = std::mem::take(&mut self.spare[drone]);
         frame.clear();
         write_frame(&mut frame, DEFAULT_MAX_FRAME, |o| {
-            encode_reply(&reply, encoding, o)
+            encode_reply(shm_reply.as_ref().unwrap_or(&reply), encoding, o)
         })
         .map_err(|e| SessionError::Drone {
             drone,

@@ -46,18 +46,21 @@ impl Motors {
             m3: commands.m3,
             m4: commands.m4,
         };
-        for _ in 0..steps {
-            ctx_world.send(&request, now)?;
-            self.set_velocity_sent += 1;
-        }
+        // The whole iteration's traffic goes out together (pipelining, one
+        // write), the two replies are read together.
+        let mut batch = Vec::with_capacity(steps as usize + 3);
+        batch.extend(std::iter::repeat_n(request, steps as usize));
         // The last millisecond goes to the motor power model; it reaches the
         // world only when it rounds to a whole step.
         let extra = time.iteration_steps(Millis(iter.0.min(1)));
         if extra > 0 {
             let ms = extra * time.timestep().0;
-            ctx_world.send(&Request::AdvanceTime { time: ms }, now)?;
+            batch.push(Request::AdvanceTime { time: ms });
         }
-        self.refresh_model_data(now, ctx_world)
+        batch.extend([Request::GetData2, Request::GetData3]);
+        let replies = ctx_world.exchange(&batch, now)?;
+        self.set_velocity_sent += steps;
+        self.use_model_data(replies)
     }
 
     /// Sets the commanded speeds without talking to the world (STOP).
@@ -65,28 +68,26 @@ impl Motors {
         self.state.omega = [0.0; 4];
     }
 
-    fn refresh_model_data(
-        &mut self,
-        now: Picos,
-        world: &mut dyn super::WorldLink,
-    ) -> Result<(), LinkError> {
-        match world.call(&Request::GetData2, now)? {
+    /// The replies to GET_DATA_2 and GET_DATA_3, in that order.
+    fn use_model_data(&mut self, replies: Vec<Reply>) -> Result<(), LinkError> {
+        let mut replies = replies.into_iter();
+        match replies.next() {
             // The world-frame components are logged by the world's
             // trajectory; the D'Andrea model needs the horizontal speed.
-            Reply::Data2 { velocity, .. } => self.state.horizontal_speed = velocity,
+            Some(Reply::Data2 { velocity, .. }) => self.state.horizontal_speed = velocity,
             other => {
                 return Err(LinkError::Unexpected {
                     request: "GET_DATA_2",
-                    reply: other.command(),
+                    reply: other.map_or("no reply", |r| r.command()),
                 })
             }
         }
-        match world.call(&Request::GetData3, now)? {
-            Reply::Data3 {
+        match replies.next() {
+            Some(Reply::Data3 {
                 velocity,
                 velocity_z,
                 pitch,
-            } => {
+            }) => {
                 self.state.horizontal_speed = velocity;
                 self.state.vertical_speed = velocity_z;
                 self.state.pitch = pitch;
@@ -94,7 +95,7 @@ impl Motors {
             other => {
                 return Err(LinkError::Unexpected {
                     request: "GET_DATA_3",
-                    reply: other.command(),
+                    reply: other.map_or("no reply", |r| r.command()),
                 })
             }
         }

@@ -43,6 +43,24 @@ pub trait WorldLink {
     /// Sends a request without reply (SET_VELOCITY, ADVANCE_TIME).
     fn send(&mut self, request: &Request, now: Picos) -> Result<(), LinkError>;
     fn stats(&self) -> LinkStats;
+
+    /// Pipelining: sends `requests` together and returns the replies of the
+    /// ones that have a reply, in order. A conforming world answers in order
+    /// (DESIGN.md §2), so this needs no negotiation; what the world sees,
+    /// and what the traces record, is the same as from one
+    /// [`WorldLink::call`] or [`WorldLink::send`] after another (which is
+    /// what this default does).
+    fn exchange(&mut self, requests: &[Request], now: Picos) -> Result<Vec<Reply>, LinkError> {
+        let mut replies = Vec::new();
+        for r in requests {
+            if r.expects_reply() {
+                replies.push(self.call(r, now)?);
+            } else {
+                self.send(r, now)?;
+            }
+        }
+        Ok(replies)
+    }
 }
 
 /// A borrowed link is a link (so a caller can keep an in-process world and
@@ -56,6 +74,9 @@ impl<T: WorldLink + ?Sized> WorldLink for &mut T {
     }
     fn stats(&self) -> LinkStats {
         (**self).stats()
+    }
+    fn exchange(&mut self, requests: &[Request], now: Picos) -> Result<Vec<Reply>, LinkError> {
+        (**self).exchange(requests, now)
     }
 }
 
@@ -231,6 +252,20 @@ impl WorldLink for SocketWorld {
                 Err(Self::map(request, e))
             }
         }
+    }
+
+    /// One write for all of `requests`, then their replies
+    /// ([`protocol::blocking::Connection::pipeline`]).
+    fn exchange(&mut self, requests: &[Request], now: Picos) -> Result<Vec<Reply>, LinkError> {
+        if let Some(d) = self.slow {
+            std::thread::sleep(d * requests.len() as u32);
+        }
+        self.counters
+            .now_ps
+            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+        self.conn
+            .pipeline(requests)
+            .map_err(|(i, e)| Self::map(&requests[i], e))
     }
 
     fn stats(&self) -> LinkStats {

@@ -12,13 +12,13 @@
 //! Every file gets its header when it is created and is flushed by
 //! [`PowerLogger::flush`] and again when the logger is dropped — on normal
 //! exit, on an error return and while unwinding from a panic — so the files
-//! are always valid CSV (a row is written whole by `csv` before any flush).
+//! are always valid CSV (a row is handed to the buffer whole, [`CsvLine`]).
 
 use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
-
+use super::csv_line::CsvLine;
 use super::models::PowerModelKind;
 use super::{PowerError, PowerSample};
 
@@ -51,26 +51,6 @@ const POWER_HEADER: [&str; 16] = [
 
 const RADIO_HEADER: [&str; 2] = ["i_uwb_a", "i_p2p_a"];
 
-#[derive(Serialize)]
-struct PowerRow<'a> {
-    t_ps: u64,
-    time_s: f64,
-    i_core_a: f64,
-    i_camera_a: f64,
-    i_stm32_a: f64,
-    i_other_a: f64,
-    i_vcc_a: f64,
-    ldo_efficiency: f64,
-    i_vcc_battery_a: f64,
-    i_motor_a: f64,
-    i_battery_a: f64,
-    v_oc_v: f64,
-    v_battery_v: f64,
-    soc: f64,
-    low_battery: u8,
-    power_model: &'a str,
-}
-
 const MODEL_HEADER: [&str; 10] = [
     "t_ps",
     "time_s",
@@ -84,23 +64,10 @@ const MODEL_HEADER: [&str; 10] = [
     "selected",
 ];
 
-#[derive(Serialize)]
-struct ModelRow {
-    t_ps: u64,
-    time_s: f64,
-    mean_omega_rad_s: f64,
-    horizontal_speed_m_s: f64,
-    vertical_speed_m_s: f64,
-    pitch_rad: f64,
-    current_a: f64,
-    power_w: f64,
-    v_battery_v: f64,
-    selected: u8,
-}
-
 struct CsvFile {
     path: PathBuf,
-    writer: csv::Writer<File>,
+    writer: BufWriter<File>,
+    line: CsvLine,
 }
 
 impl CsvFile {
@@ -109,24 +76,24 @@ impl CsvFile {
             path: path.clone(),
             source,
         })?;
-        let mut writer = csv::WriterBuilder::new()
-            .has_headers(false)
-            .from_writer(file);
-        writer
-            .write_record(header)
-            .map_err(|source| PowerError::Csv {
-                path: path.clone(),
-                source,
-            })?;
-        let mut f = CsvFile { path, writer };
+        let mut f = CsvFile {
+            path,
+            writer: BufWriter::with_capacity(1 << 16, file),
+            line: CsvLine::new(),
+        };
+        for h in header {
+            f.line.ident(h);
+        }
+        f.finish()?;
         f.flush()?;
         Ok(f)
     }
 
-    fn row<T: Serialize>(&mut self, row: &T) -> Result<(), PowerError> {
-        self.writer
-            .serialize(row)
-            .map_err(|source| PowerError::Csv {
+    /// Appends the row built in `self.line`.
+    fn finish(&mut self) -> Result<(), PowerError> {
+        self.line
+            .finish(&mut self.writer)
+            .map_err(|source| PowerError::Io {
                 path: self.path.clone(),
                 source,
             })
@@ -138,29 +105,6 @@ impl CsvFile {
             source,
         })
     }
-}
-
-/// `power.csv` row with the radio columns (same columns, two more at the end).
-#[derive(Serialize)]
-struct PowerRowRadios<'a> {
-    t_ps: u64,
-    time_s: f64,
-    i_core_a: f64,
-    i_camera_a: f64,
-    i_stm32_a: f64,
-    i_other_a: f64,
-    i_vcc_a: f64,
-    ldo_efficiency: f64,
-    i_vcc_battery_a: f64,
-    i_motor_a: f64,
-    i_battery_a: f64,
-    v_oc_v: f64,
-    v_battery_v: f64,
-    soc: f64,
-    low_battery: u8,
-    power_model: &'a str,
-    i_uwb_a: f64,
-    i_p2p_a: f64,
 }
 
 /// Writers for `power.csv` and the three model files.
@@ -217,62 +161,48 @@ impl PowerLogger {
         } else {
             s.i_other.0
         };
+        // The columns of POWER_HEADER (and RADIO_HEADER), in order.
+        let l = &mut self.power.line;
+        l.u64(s.t.0)
+            .f64(time_s)
+            .f64(s.i_core.0)
+            .f64(s.i_camera.0)
+            .f64(s.i_stm32.0)
+            // Without radio columns, the radios are "other" loads.
+            .f64(if self.radio_columns {
+                s.i_other.0
+            } else {
+                i_other_all
+            })
+            .f64(s.i_vcc.0)
+            .f64(s.ldo_efficiency)
+            .f64(s.i_vcc_battery.0)
+            .f64(s.i_motor.0)
+            .f64(s.i_battery.0)
+            .f64(s.v_oc.0)
+            .f64(s.v_battery.0)
+            .f64(s.soc)
+            .u64(u64::from(s.low_battery))
+            .ident(s.selected.name());
         if self.radio_columns {
-            self.power.row(&PowerRowRadios {
-                t_ps: s.t.0,
-                time_s,
-                i_core_a: s.i_core.0,
-                i_camera_a: s.i_camera.0,
-                i_stm32_a: s.i_stm32.0,
-                i_other_a: s.i_other.0,
-                i_vcc_a: s.i_vcc.0,
-                ldo_efficiency: s.ldo_efficiency,
-                i_vcc_battery_a: s.i_vcc_battery.0,
-                i_motor_a: s.i_motor.0,
-                i_battery_a: s.i_battery.0,
-                v_oc_v: s.v_oc.0,
-                v_battery_v: s.v_battery.0,
-                soc: s.soc,
-                low_battery: u8::from(s.low_battery),
-                power_model: s.selected.name(),
-                i_uwb_a: i_uwb.0,
-                i_p2p_a: i_p2p.0,
-            })?;
-        } else {
-            self.power.row(&PowerRow {
-                t_ps: s.t.0,
-                time_s,
-                i_core_a: s.i_core.0,
-                i_camera_a: s.i_camera.0,
-                i_stm32_a: s.i_stm32.0,
-                // Nothing separate for the radios: they are "other" loads.
-                i_other_a: i_other_all,
-                i_vcc_a: s.i_vcc.0,
-                ldo_efficiency: s.ldo_efficiency,
-                i_vcc_battery_a: s.i_vcc_battery.0,
-                i_motor_a: s.i_motor.0,
-                i_battery_a: s.i_battery.0,
-                v_oc_v: s.v_oc.0,
-                v_battery_v: s.v_battery.0,
-                soc: s.soc,
-                low_battery: u8::from(s.low_battery),
-                power_model: s.selected.name(),
-            })?;
+            l.f64(i_uwb.0).f64(i_p2p.0);
         }
+        self.power.finish()?;
         for (kind, file) in PowerModelKind::ALL.iter().zip(self.models.iter_mut()) {
             let out = s.models[kind.index()];
-            file.row(&ModelRow {
-                t_ps: s.t.0,
-                time_s,
-                mean_omega_rad_s: s.motor.mean_omega(),
-                horizontal_speed_m_s: s.motor.horizontal_speed,
-                vertical_speed_m_s: s.motor.vertical_speed,
-                pitch_rad: s.motor.pitch,
-                current_a: out.current.0,
-                power_w: out.power.0,
-                v_battery_v: s.v_battery.0,
-                selected: u8::from(*kind == s.selected),
-            })?;
+            // The columns of MODEL_HEADER, in order.
+            file.line
+                .u64(s.t.0)
+                .f64(time_s)
+                .f64(s.motor.mean_omega())
+                .f64(s.motor.horizontal_speed)
+                .f64(s.motor.vertical_speed)
+                .f64(s.motor.pitch)
+                .f64(out.current.0)
+                .f64(out.power.0)
+                .f64(s.v_battery.0)
+                .u64(u64::from(*kind == s.selected));
+            file.finish()?;
         }
         Ok(())
     }

@@ -24,6 +24,7 @@
 pub mod battery;
 pub mod bus;
 pub mod converter;
+pub mod csv_line;
 pub mod log;
 pub mod models;
 
@@ -94,9 +95,6 @@ pub enum PowerError {
         path: PathBuf,
         source: std::io::Error,
     },
-    /// A log row could not be written.
-    #[error("cannot write {}: {source}", path.display())]
-    Csv { path: PathBuf, source: csv::Error },
 }
 
 /// The core's power state (platform file `core.states`).
