@@ -385,8 +385,8 @@ impl Scenario {
         };
         let text = std::fs::read_to_string(&self.world)
             .map_err(|e| format!("cannot read {}: {e}", self.world.display()))?;
-        let mut doc: toml::Table = toml::from_str(&text)
-            .map_err(|e| format!("{}: {e}", self.world.display()))?;
+        let mut doc: toml::Table =
+            toml::from_str(&text).map_err(|e| format!("{}: {e}", self.world.display()))?;
         let seed = i64::try_from(seed).map_err(|_| format!("radio_seed {seed}: too large"))?;
         let radio = doc
             .entry("radio")

@@ -35,7 +35,7 @@ pub struct RadarRun {
     /// Distance between the same two drones at the end of the run (both
     /// landed: what the seed measured), m.
     pub landed_distance_m: Option<f64>,
-    /// Smallest distance between any two drones during the run, m.
+    /// Smallest distance between the detecting pair during the run, m.
     pub min_distance_m: Option<f64>,
     /// Drones whose firmware landed (a `RADAR end` line).
     pub landed: Vec<String>,
@@ -50,7 +50,10 @@ fn detection(console: &str) -> Option<(u64, i64)> {
         line.split_whitespace()
             .find_map(|w| w.strip_prefix(k)?.strip_prefix('='))
     };
-    Some((field("from")?.parse().ok()?, field("rssi_cdbm")?.parse().ok()?))
+    Some((
+        field("from")?.parse().ok()?,
+        field("rssi_cdbm")?.parse().ok()?,
+    ))
 }
 
 fn radar_id(console: &str) -> Option<u64> {
@@ -73,7 +76,8 @@ fn received_frames(path: &Path) -> Result<Vec<Frame>, String> {
             continue;
         }
         let num = |i: usize| rec.get(i).and_then(|v| v.parse::<f64>().ok());
-        let (Some(end), Some(d), Some(rssi)) = (rec.get(1).and_then(|v| v.parse().ok()), num(5), num(6))
+        let (Some(end), Some(d), Some(rssi)) =
+            (rec.get(1).and_then(|v| v.parse().ok()), num(5), num(6))
         else {
             return Err(format!("{}: a malformed row", path.display()));
         };
@@ -139,18 +143,16 @@ pub fn read_run(
         .filter(|(_, t)| t.lines().any(|l| l.starts_with("RADAR end ")))
         .map(|(d, _)| d.clone())
         .collect();
-    let mut min_distance_m: Option<f64> = None;
-    let names: Vec<&String> = tracks.keys().collect();
-    for (i, a) in names.iter().enumerate() {
-        for b in &names[i + 1..] {
-            for ((ta, pa), (tb, pb)) in tracks[*a].points.iter().zip(&tracks[*b].points) {
-                if ta == tb {
-                    let d = dist(pa, pb);
-                    min_distance_m = Some(min_distance_m.map_or(d, |m| m.min(d)));
-                }
-            }
-        }
-    }
+    // Closest approach of the detecting pair (whole run, same world steps).
+    let min_distance_m = best.as_ref().and_then(|(a, b, _)| {
+        let (ta, tb) = (tracks.get(a)?, tracks.get(b)?);
+        ta.points
+            .iter()
+            .zip(&tb.points)
+            .filter(|((x, _), (y, _))| x == y)
+            .map(|((_, pa), (_, pb))| dist(pa, pb))
+            .reduce(f64::min)
+    });
     let landed_distance_m = best
         .as_ref()
         .and_then(|(a, b, _)| last_distance(tracks.get(a)?, tracks.get(b)?));
@@ -194,7 +196,7 @@ pub fn sweep_table(runs: &[(String, PathBuf)]) -> Option<String> {
     }
     let cm = |v: Option<f64>| v.map_or("-".into(), |m| format!("{:.0}", m * 100.0));
     let mut md = String::from(
-        "| run | distance at detection (cm) | detected by | RSSI (dBm) | after landing (cm) | closest (cm) | collisions |\n|---|---|---|---|---|---|---|\n",
+        "| run | distance at detection (cm) | detected by | RSSI (dBm) | after landing (cm) | closest, same pair (cm) | world collisions (all drones) |\n|---|---|---|---|---|---|---|\n",
     );
     for (label, r) in &rows {
         md.push_str(&format!(
@@ -208,7 +210,10 @@ pub fn sweep_table(runs: &[(String, PathBuf)]) -> Option<String> {
         ));
     }
     let at: Vec<f64> = rows.iter().filter_map(|(_, r)| r.distance_m).collect();
-    let after: Vec<f64> = rows.iter().filter_map(|(_, r)| r.landed_distance_m).collect();
+    let after: Vec<f64> = rows
+        .iter()
+        .filter_map(|(_, r)| r.landed_distance_m)
+        .collect();
     let ms = |v: &[f64]| {
         mean_std(v).map_or("-".into(), |(m, s)| {
             format!("{:.1} ± {:.1}", m * 100.0, s * 100.0)
@@ -237,7 +242,10 @@ mod tests {
         // Table 7's eight distances: 117.88 ± 65.02 cm.
         let v = [156.0, 90.0, 195.0, 54.0, 170.0, 197.0, 58.0, 23.0];
         let (m, s) = mean_std(&v).unwrap();
-        assert!((m - 117.875).abs() < 1e-9 && (s - 65.02).abs() < 0.01, "{m} {s}");
+        assert!(
+            (m - 117.875).abs() < 1e-9 && (s - 65.02).abs() < 0.01,
+            "{m} {s}"
+        );
     }
 
     #[test]

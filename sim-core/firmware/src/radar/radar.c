@@ -53,6 +53,8 @@ volatile int32_t radar_period_ms = 100;        /* §4.3.2.A: read every 100 ms *
 __attribute__((section(".data"))) volatile int32_t radar_watch_id = 0;
 /* Lands anyway after this long in the air (the run always ends). */
 volatile int32_t radar_max_ms = 40000;
+/* This drone's send phase in the period, ms (-1: by its id, phase_ms()). */
+volatile int32_t radar_phase_ms = -1;
 volatile int32_t radar_core_hz = 250000000;
 
 enum { PKT_BEACON = 0xA5, PKT_LAND = 0x1D };
@@ -83,18 +85,34 @@ static uint32_t ext(uint32_t cmd)
     return s;
 }
 
-static void iteration(void)
+static void advance_ms(uint32_t ms)
 {
-    stm32_control = (uint8_t)(ITER_ADVANCE + ITER_MS - PID_MS);
+    stm32_control = (uint8_t)(ITER_ADVANCE + ms);
     while (stm32_status != ITER_ADVANCE)
         ;
     stm32_status = 0;
+}
+
+static void pid_step(void)
+{
     stm32_control = RUN_SINGLE_STEP_PID;
     while (stm32_status == 0)
         ;
     stm32_status = 0;
     stm32_control = 0;
 }
+
+/* One PID iteration. A frame started between iterations leaves at the
+ * world time the drone's clock has reached (docs/SWARM.md §4.2): the STM32
+ * sends its ITER_ADVANCE to the world together with the PID step, so every
+ * transmission of a flying drone leaves on the 32 ms grid of its
+ * iterations, common to all drones (they start together). */
+static void iteration(void)
+{
+    advance_ms(ITER_MS - PID_MS);
+    pid_step();
+}
+
 
 static uint32_t now_ms(void)
 {
@@ -103,16 +121,18 @@ static uint32_t now_ms(void)
 
 static int32_t mm(double m) { return (int32_t)lround(m * 1000.0); }
 
-/* The send phase in the 100 ms period: 0, 50, 25, 75 ms for ids 1, 2, 3,
- * 4, ... Transmissions leave at the end of the PID iteration in progress
- * (docs/SWARM.md §4.2), i.e. on a 32 ms grid common to all drones: two
- * drones whose send times fall in the same iteration would transmit
- * together and, half duplex, never hear each other. 50 ms apart, A and B
- * never share an iteration (a 32 ms grid cannot put two times 50 ms apart
- * in one bin); the cluster's third and fourth drone sometimes share one
- * with A or B, as a crowded channel would. */
+/* The send phase in the period: radar_phase_ms, or by default 0, 50, 25,
+ * 75 ms for ids 1, 2, 3, 4 (of a 100 ms period). Frames leave on the
+ * drones' common 32 ms iteration grid (iteration() above), so two drones
+ * whose send times fall into one iteration transmit together and, half
+ * duplex, do not hear each other; 50 ms apart, A and B never share one (a
+ * 32 ms grid cannot put two times 50 ms apart into one bin). Four drones
+ * cannot share 100 ms on that grid without collisions: the cluster
+ * scenario gives each its own 32 ms slot of a 128 ms period. */
 static uint32_t phase_ms(uint32_t period)
 {
+    if (radar_phase_ms >= 0)
+        return (uint32_t)radar_phase_ms % period;
     uint32_t k = id > 0 ? id - 1 : 0;
     return ((k % 2) * period / 2 + ((k / 2) % 2) * period / 4) % period;
 }
@@ -132,7 +152,7 @@ static int send(uint8_t kind, uint16_t seq)
  * prints the totals. */
 static int land(void)
 {
-    for (int n = 0; n < LAND_REPEATS;) {
+    for (int n = 0, tries = 0; n < LAND_REPEATS && tries < 10; tries++) {
         n += send(PKT_LAND, (uint16_t)n);
         iteration();
     }
@@ -183,8 +203,7 @@ int main(void)
     uint32_t next_tx = start + phase_ms(period);
     uint16_t seq = 0;
     for (;;) {
-        uint32_t t = now_ms();
-        if ((int32_t)(t - next_tx) >= 0 && send(PKT_BEACON, seq)) {
+        if ((int32_t)(now_ms() - next_tx) >= 0 && send(PKT_BEACON, seq)) {
             seq++;
             next_tx += period;
         }
