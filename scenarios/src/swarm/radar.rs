@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::report::DroneTrack;
+use super::report::{mean_sd as mean_std, DroneTrack};
 
 /// The file a radar run leaves in its directory.
 pub const RADAR_JSON: &str = "radar.json";
@@ -167,21 +167,6 @@ pub fn read_run(
         landed,
         collisions,
     }))
-}
-
-/// Mean and sample standard deviation (n − 1, as the seed's 65.02 cm).
-pub fn mean_std(v: &[f64]) -> Option<(f64, f64)> {
-    if v.is_empty() {
-        return None;
-    }
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    let var = if v.len() > 1 {
-        v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)
-    } else {
-        0.0
-    };
-    Some((mean, var.sqrt()))
 }
 
 /// The sweep's Table 7/8: one row per run directory holding a radar.json.
