@@ -557,7 +557,7 @@ pub fn world_command(
         Endpoint::Tcp(addr) => cmd.arg("--tcp").arg(addr),
     };
     cmd.arg("--world")
-        .arg(&scenario.world)
+        .arg(scenario.world_file_for_run(out).map_err(LaunchError::Io)?)
         .arg("--timestep")
         .arg(scenario.timestep_ms.to_string())
         .arg("--substeps")

@@ -110,7 +110,7 @@ fn default_encoding() -> String {
 }
 
 /// Keys `--set` accepts besides the run keys.
-pub const SCENARIO_KEYS: [(&str, &str); 7] = [
+pub const SCENARIO_KEYS: [(&str, &str); 8] = [
     ("world", "world file (TOML)"),
     ("firmware", "firmware ELF"),
     ("timestep_ms", "basicTimeStep in ms"),
@@ -118,6 +118,10 @@ pub const SCENARIO_KEYS: [(&str, &str); 7] = [
     ("platform", "platform file (MESSY JSON)"),
     ("max_time_s", "give up after this many simulated seconds"),
     ("image_encoding", "array | base64 | shm"),
+    (
+        "radio_seed",
+        "the world's [radio] seed for this run (a copy of the world file in the run's directory)",
+    ),
 ];
 
 /// A scenario ready to run: paths resolved, every value checked.
@@ -133,6 +137,9 @@ pub struct Scenario {
     pub timestep_ms: u64,
     pub substeps: u32,
     pub max_time_s: Option<f64>,
+    /// Overrides the world file's `[radio] seed` (one channel draw per
+    /// trial of a sweep, e.g. seed 004's radar trials, docs/SWARM.md "Radar").
+    pub radio_seed: Option<u64>,
     pub image_encoding: protocol::ImageEncoding,
     pub targets: Vec<[f64; 3]>,
     /// The run configuration sim-core gets (written to `run.toml`).
@@ -258,6 +265,7 @@ impl Scenario {
             timestep_ms: file.timestep_ms,
             substeps: file.substeps,
             max_time_s: file.max_time_s,
+            radio_seed: None,
             image_encoding: protocol::ImageEncoding::Array,
             targets: file.targets,
             run,
@@ -361,12 +369,50 @@ impl Scenario {
                     _ => return Err(bad("expected a positive number of seconds")),
                 }
             }
+            "radio_seed" => {
+                self.radio_seed = match value.parse::<u64>() {
+                    Ok(n) => Some(n),
+                    _ => return Err(bad("expected a whole number >= 0")),
+                }
+            }
             "image_encoding" => {
                 self.image_encoding = value.parse().map_err(|_| bad("expected array or base64"))?
             }
             _ => return Err(unknown_key(key)),
         }
         Ok(())
+    }
+
+    /// The world file the world-server of a run in `out` reads: the
+    /// scenario's, or with `radio_seed` set a copy of it in `out`
+    /// (`world.toml`) whose `[radio] seed` is that value.
+    pub fn world_file_for_run(&self, out: &Path) -> Result<PathBuf, String> {
+        let Some(seed) = self.radio_seed else {
+            return Ok(self.world.clone());
+        };
+        let text = std::fs::read_to_string(&self.world)
+            .map_err(|e| format!("cannot read {}: {e}", self.world.display()))?;
+        let mut doc: toml::Table =
+            toml::from_str(&text).map_err(|e| format!("{}: {e}", self.world.display()))?;
+        let seed = i64::try_from(seed).map_err(|_| format!("radio_seed {seed}: too large"))?;
+        let radio = doc
+            .entry("radio")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let toml::Value::Table(radio) = radio else {
+            return Err(format!("{}: radio is not a table", self.world.display()));
+        };
+        radio.insert("seed".into(), toml::Value::Integer(seed));
+        let path = out.join("world.toml");
+        let body = toml::to_string(&doc).map_err(|e| e.to_string())?;
+        std::fs::write(
+            &path,
+            format!(
+                "# {} with [radio] seed = {seed} (cosim radio_seed)\n{body}",
+                self.world.display()
+            ),
+        )
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(path)
     }
 
     /// Checks that every file the run needs exists.

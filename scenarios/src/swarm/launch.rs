@@ -129,7 +129,7 @@ fn world_command(
     c.arg("--socket")
         .arg(socket)
         .arg("--world")
-        .arg(&scenario.world)
+        .arg(scenario.world_file_for_run(out).map_err(LaunchError::Io)?)
         .arg("--timestep")
         .arg(scenario.timestep_ms.to_string())
         .arg("--substeps")

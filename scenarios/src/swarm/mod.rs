@@ -16,6 +16,7 @@ pub mod load;
 pub mod platforms;
 pub mod plot;
 pub mod positioning;
+pub mod radar;
 pub mod report;
 pub mod world;
 
@@ -205,6 +206,19 @@ pub fn run_swarm(
             }
         }
         Err(e) => note(format!("cannot write {}: {e}", files::SUMMARY)),
+    }
+
+    // Seed 004's radar (radar.elf): who detected whom, and how far apart.
+    match radar::read_run(out, &names, &tracks, sum.collisions) {
+        Ok(Some(r)) => {
+            let path = out.join(radar::RADAR_JSON);
+            let text = serde_json::to_string_pretty(&r).unwrap_or_default();
+            if let Err(e) = std::fs::write(&path, text + "\n") {
+                note(format!("cannot write {}: {e}", path.display()));
+            }
+        }
+        Ok(None) => {}
+        Err(e) => note(format!("radar: {e}")),
     }
 
     let mut top_plots = Vec::new();

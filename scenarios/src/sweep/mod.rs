@@ -258,6 +258,12 @@ pub(crate) fn write_outputs(
     if let Err(e) = write_plots(params, rows, out) {
         tracing::warn!("sweep plots: {e}");
     }
+    // Seed 004's radar trials (Tables 7-8), when the runs left radar.json.
+    let runs: Vec<(String, PathBuf)> = rows.iter().map(|r| (r.label(), r.dir.clone())).collect();
+    if let Some(md) = crate::swarm::radar::sweep_table(&runs) {
+        std::fs::write(out.join(crate::swarm::radar::RADAR_MD), md)
+            .map_err(|e| SweepError::Output(e.to_string()))?;
+    }
     Ok(())
 }
 
