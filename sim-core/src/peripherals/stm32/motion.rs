@@ -19,7 +19,7 @@
 //! | 2 | EXT_SET_VELOCITY | at once: velocity mode with CMD_VX/VY (body frame, the horizontal speed clamped to the speed limit), CMD_HEIGHT (approached at the speed limit), CMD_YAW_RATE; each RUN_SINGLE_STEP_PID then flies one iteration (7 ms, as in race mode) of it |
 //! | 3 | EXT_SET_SPEED_LIMIT | at once: CMD_SPEED_LIMIT (> 0; default 0.2 m/s, cflib's) |
 //! | 4 | EXT_TAKEOFF | iterations of one timestep each (as GET_STABLE) climbing at the speed limit to CMD_HEIGHT above the start, until within the tolerance; then velocity mode, hovering |
-//! | 5 | EXT_LAND | iterations of one timestep each descending at the speed limit to the ground, until within the tolerance of it for TARGET_CYCLES iterations (as GO_DOWN's last stage), then STOP and the motors' stop time |
+//! | 5 | EXT_LAND | iterations of one timestep each descending at the speed limit to the ground, until within the tolerance of it for 3 iterations (cflib's MotionCommander lands, then stops the motors at once), then STOP and the motors' stop time |
 //! | 6 | EXT_POSITION_MODE | at once: back to the race's position targets (SET_TARGET, RUN_SINGLE_STEP_PID, RUN_PID), the target set to the current position |
 //! | 0xFFFFFFFF | EXT_ERROR | an unknown command, a non-finite or out-of-range argument, a command before INIT_PID or while a process (GET_STABLE, RUN_PID, GO_DOWN, take-off, landing) runs |
 //!
@@ -545,7 +545,7 @@ impl Stm32 {
             Process::TakingOff if ramped && near => Outcome::Reached,
             Process::ExtLanding if ramped && near => {
                 self.motion.landed_for += 1;
-                if self.motion.landed_for >= self.cfg.target_cycles {
+                if self.motion.landed_for >= LANDED_ITERATIONS {
                     Outcome::Reached
                 } else {
                     Outcome::Flying
@@ -560,6 +560,14 @@ impl Stm32 {
         Ok((outcome, commands))
     }
 }
+
+/// Iterations on the ground (height ramp at 0, within the tolerance) before
+/// EXT_LAND stops the motors. cflib's `MotionCommander.land()` descends for
+/// height / velocity and then sends the stop set-point at once; waiting
+/// TARGET_CYCLES (100 iterations, 3.2 s at 32 ms) on the ground with the
+/// attitude loop still driving the motors made the drone tilt against the
+/// ground's friction and skid up to 2.4 m (seed004-radar, before this).
+const LANDED_ITERATIONS: u32 = 3;
 
 /// The horizontal speed clamped to `limit`, direction kept.
 fn clamp_speed(vx: f64, vy: f64, limit: f64) -> (f64, f64) {
