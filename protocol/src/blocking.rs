@@ -12,6 +12,7 @@ use std::io::{self, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use crate::endpoint::{bind_unix, tcp_bind_error, unlink_if_ours, Endpoint};
@@ -114,6 +115,75 @@ pub struct Connection {
     /// Platform side: the world's shared-memory image file, once a reply
     /// has named it (`"image_encoding":"shm"`).
     shm: crate::shm::ShmReader,
+    /// Platform side: the last deferred reply
+    /// ([`Connection::request_deferred`]), decoded at the next receive.
+    deferred: Option<Arc<Mutex<Slot>>>,
+}
+
+/// A deferred reply: the frame body, then, once decoded (by the
+/// connection before it reads its next frame, or by the waiter), the
+/// result. The body stays for the next deferred frame to reuse (a 380 KB
+/// buffer, not allocated and faulted in per image).
+#[derive(Debug)]
+struct Slot {
+    body: Vec<u8>,
+    reply: Option<Result<Reply>>,
+}
+
+impl Slot {
+    fn decode(&mut self) {
+        if self.reply.is_none() {
+            self.reply = Some(decode_reply(&self.body));
+        }
+    }
+}
+
+fn lock(slot: &Mutex<Slot>) -> std::sync::MutexGuard<'_, Slot> {
+    // Decoding cannot panic short of a bug; the data stays consistent.
+    slot.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// A reply received whole but perhaps not yet decoded
+/// ([`Connection::request_deferred`]).
+#[derive(Debug)]
+pub struct PendingReply {
+    command: &'static str,
+    state: Pending,
+}
+
+#[derive(Debug)]
+enum Pending {
+    Ready(Result<Reply>),
+    Deferred(Arc<Mutex<Slot>>),
+}
+
+impl PendingReply {
+    /// The reply, with exactly the result [`Connection::request`] would
+    /// have given for the same frame (the same errors, by the same code).
+    pub fn wait(self) -> Result<Reply> {
+        let decoded = match self.state {
+            Pending::Ready(r) => r,
+            Pending::Deferred(slot) => {
+                let mut s = lock(&slot);
+                s.decode();
+                s.reply.take().expect("decoded above")
+            }
+        };
+        check_reply(self.command, decoded?)
+    }
+}
+
+/// `reply`, which must answer `command` (see [`Connection::request`]).
+fn check_reply(command: &'static str, reply: Reply) -> Result<Reply> {
+    match reply {
+        Reply::Error { error } => Err(ProtocolError::Remote(error)),
+        r if r.command() == command => Ok(r),
+        r => Err(ProtocolError::UnexpectedReply {
+            expected: command,
+            got: r.command().to_owned(),
+        }),
+    }
 }
 
 impl std::fmt::Debug for Connection {
@@ -141,6 +211,7 @@ impl Connection {
             image_encoding: ImageEncoding::Array,
             observer: None,
             shm: crate::shm::ShmReader::new(),
+            deferred: None,
         }
     }
 
@@ -276,13 +347,62 @@ impl Connection {
         let reply = self
             .recv_reply()?
             .ok_or(ProtocolError::Closed(req.command()))?;
-        match reply {
-            Reply::Error { error } => Err(ProtocolError::Remote(error)),
-            r if r.command() == req.command() => Ok(r),
-            r => Err(ProtocolError::UnexpectedReply {
-                expected: req.command(),
-                got: r.command().to_owned(),
-            }),
+        check_reply(req.command(), reply)
+    }
+
+    /// [`Connection::request`] for a request with a reply, its reply
+    /// decoded later: returns once the frame is read whole, and
+    /// [`PendingReply::wait`] gives what `request` would have given. The
+    /// frame is decoded when this connection is about to read its next
+    /// frame (after the next requests were written, so while the world
+    /// works on them), or by `wait` if that comes first: a camera image's
+    /// ~380 KB of JSON are parsed while the platform would otherwise wait.
+    ///
+    /// The observer sees the frame when it is read, without the decoded
+    /// image (`image: None`) and with `valid: true` (not yet known): use
+    /// this only when no trace needs the image's hash. Replies in shared
+    /// memory (`"image_encoding":"shm"` negotiated) are decoded at once, as
+    /// the next image overwrites the file.
+    pub fn request_deferred(&mut self, req: &Request) -> Result<PendingReply> {
+        let command = req.command();
+        if !req.expects_reply() || self.image_encoding == ImageEncoding::Shm {
+            let state = Pending::Ready(match self.request(req) {
+                Ok(Some(r)) => Ok(r),
+                Ok(None) => Err(ProtocolError::Closed(command)),
+                Err(e) => Err(e),
+            });
+            return Ok(PendingReply { command, state });
+        }
+        self.send(req)?;
+        // Decodes the previous deferred frame if nobody did, and reuses
+        // its buffer.
+        self.settle_deferred();
+        let mut body = match self.deferred.take() {
+            Some(slot) => std::mem::take(&mut lock(&slot).body),
+            None => Vec::new(),
+        };
+        if !read_frame(&mut self.io, &mut body, self.max_frame)? {
+            return Err(ProtocolError::Closed(command));
+        }
+        let ev = FrameEvent {
+            dir: Direction::ToPlatform,
+            bytes: &body,
+            image: None,
+            valid: true,
+        };
+        notify(&mut self.observer, &ev)?;
+        let slot = Arc::new(Mutex::new(Slot { body, reply: None }));
+        self.deferred = Some(Arc::clone(&slot));
+        Ok(PendingReply {
+            command,
+            state: Pending::Deferred(slot),
+        })
+    }
+
+    /// Decodes the deferred frame, if any is still undecoded.
+    fn settle_deferred(&mut self) {
+        if let Some(slot) = &self.deferred {
+            lock(slot).decode();
         }
     }
 
@@ -349,6 +469,9 @@ impl Connection {
 
     /// Receives one reply; `None` on a clean close.
     pub fn recv_reply(&mut self) -> Result<Option<Reply>> {
+        // The requests before this read are written: decode a deferred
+        // frame now, while the world works on them.
+        self.settle_deferred();
         if !read_frame(&mut self.io, &mut self.rbuf, self.max_frame)? {
             return Ok(None);
         }
@@ -358,6 +481,12 @@ impl Connection {
             Ok(Reply::ShmImage(f)) => self.shm.read(&f).map(Reply::Image).map_err(Into::into),
             d => d,
         };
+        // Platform side: remember the negotiated encoding (decides whether
+        // `request_deferred` may defer).
+        if let (Role::Platform, Ok(Reply::InitData { image_encoding, .. })) = (self.role, &decoded)
+        {
+            self.image_encoding = *image_encoding;
+        }
         let image = match &decoded {
             Ok(Reply::Image(img)) => Some(img),
             _ => None,

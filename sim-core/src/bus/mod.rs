@@ -244,6 +244,8 @@ impl<W: WorldLink> Platform<W> {
     /// this drone. Returns the platform time at the end of the motors' stop
     /// (the world's STOP_TIME is spent by both sides, as at GO_DOWN).
     pub fn end_session(&mut self, now: Picos) -> Result<Option<Picos>, DeviceError> {
+        // The last frame's pixels, decoded or refused, before the end.
+        self.camera.join()?;
         if !self.session.is_live() {
             return Ok(None);
         }
@@ -264,12 +266,12 @@ impl<W: WorldLink> Platform<W> {
         })
     }
 
-    fn read_byte(&mut self, offset: u32, now: Picos) -> u8 {
-        match route(offset).expect("checked by the caller") {
-            Target::Camera(o) => self.camera.read(o, now),
+    fn read_byte(&mut self, offset: u32, now: Picos) -> Result<u8, DeviceError> {
+        Ok(match route(offset).expect("checked by the caller") {
+            Target::Camera(o) => self.camera.read(o, now)?,
             Target::Stm32(o) => self.stm32.read(o, now),
             Target::Radio(i, o) => self.radios[i].read(o, now),
-        }
+        })
     }
 
     /// The window offset of an access, if every byte of it is a register.
@@ -301,7 +303,10 @@ impl<W: WorldLink> Mmio for Platform<W> {
         let offset = self.check(addr, size)?;
         let mut value = 0u32;
         for i in 0..size.bytes() {
-            value |= (self.read_byte(offset + i, now) as u32) << (8 * i);
+            match self.read_byte(offset + i, now) {
+                Ok(b) => value |= (b as u32) << (8 * i),
+                Err(e) => return Err(self.fail(addr, e)),
+            }
         }
         Ok(value)
     }

@@ -7,10 +7,19 @@
 //! shows status 1 after the capture time (16 ms: the sensor's 60 FPS limit,
 //! §4.2.1). The capture starts a PID iteration: `iter_delay` = 16 ms
 //! (§4.2.4 "Adapting the simulation to the use-case scenario").
+//!
+//! Over a socket without a trace the reply is decoded later
+//! ([`super::WorldLink::call_deferred`]): by the link before it reads its
+//! next frame, i.e. after the next GET_IMAGE is sent, so the ~380 KB of JSON
+//! are parsed while the world renders the next frame instead of the world
+//! waiting for the parse. The pixels enter the image registers when these
+//! are read, at the next capture, or at the end of the session. A bad image
+//! still ends the run with the same error, but there, after one more
+//! exchange with the world (docs/COSIM.md "Performance").
 
 use protocol::{Reply, Request};
 
-use super::{DeviceCtx, DeviceError, DevicePower, TimedReg};
+use super::{DeferredReply, DeviceCtx, DeviceError, DevicePower, TimedReg};
 use crate::units::{Millis, Picos};
 
 pub const WIDTH: u32 = 320;
@@ -32,6 +41,8 @@ pub struct Camera {
     pub power: DevicePower,
     /// Frames served so far.
     pub frames: u64,
+    /// The last GET_IMAGE's reply, if not yet in the image registers.
+    pending: Option<DeferredReply>,
 }
 
 impl Camera {
@@ -43,20 +54,58 @@ impl Camera {
             capture,
             power,
             frames: 0,
+            pending: None,
         }
     }
 
     /// The last frame in the image registers.
-    pub fn image(&self) -> &[u8] {
-        &self.image
+    pub fn image(&mut self) -> Result<&[u8], DeviceError> {
+        self.join()?;
+        Ok(&self.image)
     }
 
-    pub fn read(&self, offset: u32, now: Picos) -> u8 {
-        match offset {
+    pub fn read(&mut self, offset: u32, now: Picos) -> Result<u8, DeviceError> {
+        Ok(match offset {
             CTRL => self.control,
             STATUS => self.status.get(now),
-            _ => self.image[(offset - IMAGE) as usize],
+            _ => {
+                self.join()?;
+                self.image[(offset - IMAGE) as usize]
+            }
+        })
+    }
+
+    /// Puts the last GET_IMAGE's pixels into the image registers, once
+    /// decoded, or reports why they cannot be.
+    pub fn join(&mut self) -> Result<(), DeviceError> {
+        let Some(pending) = self.pending.take() else {
+            return Ok(());
+        };
+        let world_err = |source| DeviceError::World {
+            device: "camera",
+            error: source,
+        };
+        let reply = pending.wait().map_err(world_err)?;
+        let Reply::Image(frame) = reply else {
+            return Err(world_err(super::LinkError::Unexpected {
+                request: "GET_IMAGE",
+                reply: reply.command(),
+            }));
+        };
+        if frame.width != WIDTH || frame.height != HEIGHT || frame.data.len() != self.image.len() {
+            return Err(DeviceError::Invalid {
+                device: "camera",
+                message: format!(
+                    "the world sent a {}x{} image with {} bytes; the image registers hold {WIDTH}x{HEIGHT}",
+                    frame.width,
+                    frame.height,
+                    frame.data.len()
+                ),
+            });
         }
+        // The decoded frame becomes the image registers (no copy).
+        self.image = frame.data;
+        Ok(())
     }
 
     pub fn stable_until(&self, offset: u32, now: Picos) -> Picos {
@@ -104,27 +153,20 @@ impl Camera {
             device: "camera",
             error: source,
         };
-        let reply = ctx.world.call(&Request::GetImage, now).map_err(world_err)?;
-        let Reply::Image(frame) = reply else {
-            return Err(world_err(super::LinkError::Unexpected {
-                request: "GET_IMAGE",
-                reply: reply.command(),
-            }));
-        };
-        if frame.width != WIDTH || frame.height != HEIGHT || frame.data.len() != self.image.len() {
-            return Err(DeviceError::Invalid {
-                device: "camera",
-                message: format!(
-                    "the world sent a {}x{} image with {} bytes; the image registers hold {WIDTH}x{HEIGHT}",
-                    frame.width,
-                    frame.height,
-                    frame.data.len()
-                ),
-            });
-        }
-        // The decoded frame becomes the image registers (no copy).
-        self.image = frame.data;
+        // The request first: the link decodes the previous frame while the
+        // world renders this one. Then the previous frame's errors, which
+        // come before this one's.
+        let reply = ctx.world.call_deferred(&Request::GetImage, now);
+        self.join()?;
+        let reply = reply.map_err(world_err)?;
+        let decoded = reply.is_ready();
+        self.pending = Some(reply);
         self.frames += 1;
+        if decoded {
+            // An in-process world or a traced link decoded at once: the
+            // errors at the capture, as before.
+            self.join()?;
+        }
         let done = now + self.capture.to_picos();
         self.status.set_at(done, GET_IMAGE);
         self.power.busy_reading(done);

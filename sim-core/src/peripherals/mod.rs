@@ -21,7 +21,7 @@ pub use motors::Motors;
 pub use power_state::DevicePower;
 pub use solo_world::SoloWorld;
 pub use stm32::Stm32;
-pub use world_link::{LinkError, LinkStats, SocketWorld, WorldLink};
+pub use world_link::{DeferredReply, LinkError, LinkStats, SocketWorld, WorldLink};
 pub use world_session::WorldSession;
 
 use thiserror::Error;

@@ -44,6 +44,13 @@ pub trait WorldLink {
     fn send(&mut self, request: &Request, now: Picos) -> Result<(), LinkError>;
     fn stats(&self) -> LinkStats;
 
+    /// [`WorldLink::call`] whose reply may still be decoding when this
+    /// returns ([`DeferredReply::wait`] gives what `call` would have given).
+    /// This default decodes at once.
+    fn call_deferred(&mut self, request: &Request, now: Picos) -> Result<DeferredReply, LinkError> {
+        Ok(DeferredReply::ready(self.call(request, now)))
+    }
+
     /// Pipelining: sends `requests` together and returns the replies of the
     /// ones that have a reply, in order. A conforming world answers in order
     /// (DESIGN.md §2), so this needs no negotiation; what the world sees,
@@ -77,6 +84,46 @@ impl<T: WorldLink + ?Sized> WorldLink for &mut T {
     }
     fn exchange(&mut self, requests: &[Request], now: Picos) -> Result<Vec<Reply>, LinkError> {
         (**self).exchange(requests, now)
+    }
+    fn call_deferred(&mut self, request: &Request, now: Picos) -> Result<DeferredReply, LinkError> {
+        (**self).call_deferred(request, now)
+    }
+}
+
+/// A reply received, perhaps still being decoded on another thread
+/// ([`WorldLink::call_deferred`]).
+#[derive(Debug)]
+pub struct DeferredReply {
+    request: &'static str,
+    state: Deferred,
+}
+
+#[derive(Debug)]
+enum Deferred {
+    Ready(Result<Reply, LinkError>),
+    Decoding(protocol::blocking::PendingReply),
+}
+
+impl DeferredReply {
+    /// A reply already decoded (or the error in its place).
+    pub fn ready(reply: Result<Reply, LinkError>) -> Self {
+        DeferredReply {
+            request: "",
+            state: Deferred::Ready(reply),
+        }
+    }
+
+    /// Whether the reply is already decoded.
+    pub fn is_ready(&self) -> bool {
+        matches!(self.state, Deferred::Ready(_))
+    }
+
+    /// Waits for the decoded reply.
+    pub fn wait(self) -> Result<Reply, LinkError> {
+        match self.state {
+            Deferred::Ready(r) => r,
+            Deferred::Decoding(p) => p.wait().map_err(|e| SocketWorld::map(self.request, e)),
+        }
     }
 }
 
@@ -190,15 +237,10 @@ impl SocketWorld {
         }
     }
 
-    fn map(request: &Request, e: protocol::ProtocolError) -> LinkError {
+    fn map(request: &'static str, e: protocol::ProtocolError) -> LinkError {
         match e {
-            protocol::ProtocolError::Remote(message) => LinkError::Remote {
-                request: request.command(),
-                message,
-            },
-            protocol::ProtocolError::Closed(_) => LinkError::Closed {
-                request: request.command(),
-            },
+            protocol::ProtocolError::Remote(message) => LinkError::Remote { request, message },
+            protocol::ProtocolError::Closed(_) => LinkError::Closed { request },
             other => LinkError::Protocol(other),
         }
     }
@@ -226,7 +268,7 @@ impl WorldLink for SocketWorld {
                 request: request.command(),
                 reply: "no reply",
             }),
-            Err(e) => Err(Self::map(request, e)),
+            Err(e) => Err(Self::map(request.command(), e)),
         }
     }
 
@@ -249,9 +291,32 @@ impl WorldLink for SocketWorld {
                         message: error,
                     });
                 }
-                Err(Self::map(request, e))
+                Err(Self::map(request.command(), e))
             }
         }
+    }
+
+    /// Without a trace, a reply is decoded on the connection's decoder
+    /// thread while the platform goes on (a trace records an image's hash
+    /// in its reply's line, so with one the reply is decoded at once).
+    fn call_deferred(&mut self, request: &Request, now: Picos) -> Result<DeferredReply, LinkError> {
+        if self.trace.is_some() {
+            return Ok(DeferredReply::ready(self.call(request, now)));
+        }
+        if let Some(d) = self.slow {
+            std::thread::sleep(d);
+        }
+        self.counters
+            .now_ps
+            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+        let command = request.command();
+        Ok(match self.conn.request_deferred(request) {
+            Ok(p) => DeferredReply {
+                request: command,
+                state: Deferred::Decoding(p),
+            },
+            Err(e) => DeferredReply::ready(Err(Self::map(command, e))),
+        })
     }
 
     /// One write for all of `requests`, then their replies
@@ -265,7 +330,7 @@ impl WorldLink for SocketWorld {
             .store(now.0, std::sync::atomic::Ordering::Relaxed);
         self.conn
             .pipeline(requests)
-            .map_err(|(i, e)| Self::map(&requests[i], e))
+            .map_err(|(i, e)| Self::map(requests[i].command(), e))
     }
 
     fn stats(&self) -> LinkStats {
