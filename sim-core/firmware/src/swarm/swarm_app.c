@@ -108,7 +108,10 @@ uint64_t app_next_wake(void)
     return next_out < next_tx || on_air ? next_out : next_tx;
 }
 
-void app_poll(void)
+/* app_poll with a look-ahead of `ahead` mtime cycles: a transmission due
+ * before now + ahead is started now, delayed to its time (the DW1000's
+ * delayed send, docs/SWARM.md §4.3). */
+static inline void poll(uint64_t ahead)
 {
     uint64_t now = radio_now_cycles();
     const uint32_t now_us = (uint32_t)((now - t0) / CYCLES_PER_US);
@@ -130,13 +133,22 @@ void app_poll(void)
         else
             sec_bad++;
     }
-    if (!on_air && now >= next_tx) {
+    if (!on_air && now + ahead >= next_tx) {
         uint64_t c = mcycle();
         size_t len = swarm_build_status(&ctx, txbuf, sizeof txbuf);
         uint32_t delay = swarm_next_tx_delay_us(&ctx);
         cyc_swarm += mcycle() - c;
         if (len > 0) {
-            radio_send(&uwb, txbuf, (uint8_t)len);
+            uint64_t wait = 0; /* cycles from now to next_tx (0 unless ahead) */
+            if (ahead) {
+                const uint64_t at = radio_now_cycles();
+                wait = next_tx > at ? next_tx - at : 0;
+            }
+            if (wait)
+                radio_send_delayed(&uwb, txbuf, (uint8_t)len,
+                                   (uint32_t)(wait * 1000000000ull / APP_CORE_HZ));
+            else
+                radio_send(&uwb, txbuf, (uint8_t)len);
             on_air = 1;
             sec_tx++;
         }
@@ -176,6 +188,20 @@ void app_poll(void)
         next_load += APP_CORE_HZ;
     }
 }
+
+void app_poll(void)
+{
+    poll(0);
+}
+
+#ifdef APP_POLL_AHEAD
+/* Only in the flying firmware's build (Makefile): the carried drones' code
+ * stays the one poll(0) inlined, cycle for cycle. */
+void app_poll_ahead(uint64_t ahead)
+{
+    poll(ahead);
+}
+#endif
 
 void app_end(void)
 {
