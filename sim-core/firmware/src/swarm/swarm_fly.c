@@ -17,7 +17,12 @@
  * falls inside the coming step is started with the DW1000's delayed send
  * (TX_DELAY, docs/SWARM.md §4.3) that places it at that time
  * (app_poll_ahead, with the mtime length of the previous step as the
- * look-ahead). The estimates' times are the core's (mtime), which in the
+ * look-ahead): the step lasts STEP_MS of world time but more of the core's
+ * (the thesis's bookkeeping adds the core time between steps, ~7 ms per
+ * step here), so the packet goes at the same fraction of the world's step;
+ * a delay as long as the core's step would end past the world's step,
+ * TX_DONE would come a step later and the next packet would go late. The
+ * estimates' times are the core's (mtime), which in the
  * thesis's bookkeeping runs ahead of the world by the core time between
  * steps.
  */
@@ -30,6 +35,11 @@
 
 #ifndef LAPS
 #define LAPS 1
+#endif
+/* World time of one RUN_SINGLE_STEP_PID: the scenario's basicTimeStep
+ * (scenarios/swarm-flight.toml timestep_ms). */
+#ifndef STEP_MS
+#define STEP_MS 4
 #endif
 #define SIDE 2.0
 #define HEIGHT 1.0
@@ -90,7 +100,7 @@ int main(void)
         perform(SET_TARGET);
         for (;;) {
             /* A transmission due within the coming step leaves at its time. */
-            app_poll_ahead(step);
+            app_poll_ahead(step, (uint64_t)STEP_MS * 1000000u);
             const uint64_t before = radio_now_cycles();
             uint8_t s = pid_step();
             step = radio_now_cycles() - before;
