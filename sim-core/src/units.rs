@@ -92,6 +92,17 @@ impl fmt::Display for Millis {
     }
 }
 
+/// A whole number of nanoseconds (the radios' TX_DELAY register,
+/// docs/SWARM.md §4.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct Nanos(pub u32);
+
+impl Nanos {
+    pub const fn to_picos(self) -> Picos {
+        Picos::from_ns(self.0 as u64)
+    }
+}
+
 /// Core clock cycles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub struct Cycles(pub u64);

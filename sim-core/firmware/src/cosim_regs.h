@@ -111,6 +111,7 @@
 #define RADIO_RX_RSSI_OFFSET 0x18    /* i32 R   1/100 dBm */
 #define RADIO_RX_LOST_OFFSET 0x1C    /* u32 R */
 #define RADIO_EUI_OFFSET 0x20        /* u64 R   run key radio_id */
+#define RADIO_TX_DELAY_OFFSET 0x28   /* u32 RW  ns after the next TX_START (one-shot) */
 #define RADIO_TX_BUF_OFFSET 0x40     /* 128 B RW */
 #define RADIO_RX_BUF_OFFSET 0xC0     /* 128 B R */
 #define RADIO_BUF_SIZE 128

@@ -8,6 +8,7 @@
  *   radio_init(&uwb);                 claims the world if nobody has
  *   radio_rx_on(&uwb);
  *   radio_send(&uwb, buf, len);       then radio_wait(&uwb, RADIO_TX_DONE, ...)
+ *   radio_send_delayed(&uwb, buf, len, ns)  the frame leaves ns after the call
  *   radio_tx_stamp(&uwb);             40-bit DW1000 stamp of that frame
  *   radio_recv(&uwb, &frame);         1 if a frame was taken from RX_BUF
  *
@@ -142,6 +143,18 @@ static inline void radio_send(const radio_t *r, const void *data, uint8_t len)
     RADIO_REG8(r, RADIO_TX_LEN_OFFSET) = len;
     radio_clear(r, RADIO_TX_DONE);
     RADIO_REG8(r, RADIO_CTRL_OFFSET) = RADIO_TX_START;
+}
+
+/* Starts a transmission that leaves `delay_ns` after its TX_START (the
+ * DW1000's delayed send, DX_TIME + SYS_CTRL.TXDLYS; docs/SWARM.md §4.3),
+ * i.e. about delay_ns + the time to fill TX_BUF after this call; the radio
+ * is busy from the TX_START to the frame's end; TX_DONE as radio_send. */
+static inline void radio_send_delayed(const radio_t *r, const void *data, uint8_t len,
+                                      uint32_t delay_ns)
+{
+    for (uint32_t i = 0; i < 4; i++)
+        RADIO_REG8(r, RADIO_TX_DELAY_OFFSET + i) = (uint8_t)(delay_ns >> (8 * i));
+    radio_send(r, data, len);
 }
 
 /* The stamp of the last finished transmission (uwb). */

@@ -103,6 +103,11 @@ void app_start(const radio_t *r, uint64_t eui, uint64_t start, const swarm_setti
     sec_busy = mcycle();
 }
 
+#ifdef APP_POLL_AHEAD
+/* app_poll_ahead's look-ahead (mtime cycles) and the world time it covers. */
+static uint64_t ahead, ahead_world_ns;
+#endif
+
 uint64_t app_next_wake(void)
 {
     return next_out < next_tx || on_air ? next_out : next_tx;
@@ -130,12 +135,26 @@ void app_poll(void)
         else
             sec_bad++;
     }
+#ifdef APP_POLL_AHEAD
+    if (!on_air && now + ahead >= next_tx) {
+#else
     if (!on_air && now >= next_tx) {
+#endif
         uint64_t c = mcycle();
         size_t len = swarm_build_status(&ctx, txbuf, sizeof txbuf);
         uint32_t delay = swarm_next_tx_delay_us(&ctx);
         cyc_swarm += mcycle() - c;
         if (len > 0) {
+#ifdef APP_POLL_AHEAD
+            /* The DW1000's delayed send (docs/SWARM.md §4.3): the packet
+             * goes at the same fraction of the coming ahead_world_ns of
+             * world time as next_tx is of the look-ahead. */
+            const uint64_t at = radio_now_cycles();
+            if (next_tx > at)
+                radio_send_delayed(&uwb, txbuf, (uint8_t)len,
+                                   (uint32_t)((next_tx - at) * ahead_world_ns / ahead));
+            else
+#endif
             radio_send(&uwb, txbuf, (uint8_t)len);
             on_air = 1;
             sec_tx++;
@@ -176,6 +195,17 @@ void app_poll(void)
         next_load += APP_CORE_HZ;
     }
 }
+
+#ifdef APP_POLL_AHEAD
+/* Only in the flying firmware's build (Makefile: -DAPP_POLL_AHEAD), so the
+ * carried drones' code stays as it was, cycle for cycle. */
+void app_poll_ahead(uint64_t cycles, uint64_t world_ns)
+{
+    ahead = cycles;
+    ahead_world_ns = world_ns;
+    app_poll();
+}
+#endif
 
 void app_end(void)
 {

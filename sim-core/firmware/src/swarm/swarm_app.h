@@ -9,6 +9,10 @@
  *   app_poll()                         TX_DONE, every frame received, a
  *                                      transmission if due (§6.5), the 100 Hz
  *                                      estimates line, the per-second load line
+ *   app_poll_ahead(c, w)               app_poll, and a transmission due within
+ *                                      the next c cycles is started now with
+ *                                      the delay that places it as far into
+ *                                      the next w ns of world time
  *   app_end()                          the "swarm end" counters line
  *
  * Times are mtime cycles (core cycles at APP_CORE_HZ); t0 is the mtime of
@@ -31,6 +35,7 @@
 void app_start(const radio_t *uwb, uint64_t eui, uint64_t t0, const swarm_settings_t *set);
 uint64_t app_next_wake(void);
 void app_poll(void);
+void app_poll_ahead(uint64_t ahead, uint64_t world_ns);
 void app_end(void);
 /* Sleeps in wfi until mtime reaches t. */
 void app_sleep_until(uint64_t t);

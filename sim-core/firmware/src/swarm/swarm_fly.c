@@ -10,9 +10,19 @@
  * The corners are world coordinates, compiled in (the firmware has no way
  * to learn its start, as race.c's targets): drone EUI e starts on corner
  * e - 1 of (0,0), (2,0), (2,2), (0,2) (scenarios/worlds/swarm-flight.toml).
- * In a flying firmware a transmission leaves at the end of the STM32 step
- * in progress (docs/SWARM.md §4.2): the §6.5 window is quantised to the
- * timestep, and the estimates' times are the core's (mtime), which in the
+ * In a flying firmware the world is advanced to the end of each STM32 step
+ * when it starts (docs/SWARM.md §4.2), so a transmission started during or
+ * between steps would leave on the steps' common grid and collide with the
+ * other drones'. Instead, before each step, a STATUS packet whose §6.5 time
+ * falls inside the coming step is started with the DW1000's delayed send
+ * (TX_DELAY, docs/SWARM.md §4.3) that places it at that time
+ * (app_poll_ahead, with the mtime length of the previous step as the
+ * look-ahead): the step lasts STEP_MS of world time but more of the core's
+ * (the thesis's bookkeeping adds the core time between steps, ~7 ms per
+ * step here), so the packet goes at the same fraction of the world's step;
+ * a delay as long as the core's step would end past the world's step,
+ * TX_DONE would come a step later and the next packet would go late. The
+ * estimates' times are the core's (mtime), which in the
  * thesis's bookkeeping runs ahead of the world by the core time between
  * steps.
  */
@@ -26,8 +36,10 @@
 #ifndef LAPS
 #define LAPS 1
 #endif
-#ifndef JITTER_MS
-#define JITTER_MS 3
+/* World time of one RUN_SINGLE_STEP_PID: the scenario's basicTimeStep
+ * (scenarios/swarm-flight.toml timestep_ms). */
+#ifndef STEP_MS
+#define STEP_MS 4
 #endif
 #define SIDE 2.0
 #define HEIGHT 1.0
@@ -45,17 +57,6 @@ static void perform(uint8_t op)
 {
     stm32_control = op;
     while (stm32_status != op)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-}
-
-/* ITER_ADVANCE: a value v > 10 advances both simulations by v - 10 ms
- * (race.c's advance_simul: the drone flies on with its last commands). */
-static void advance_ms(uint8_t ms)
-{
-    stm32_control = (uint8_t)(ITER_ADVANCE + ms);
-    while (stm32_status != ITER_ADVANCE)
         ;
     stm32_status = 0;
     stm32_control = 0;
@@ -88,8 +89,7 @@ int main(void)
     app_start(&uwb, eui, t0, &set);
     printf("[fly] EUI %u stable at 1 m, positioning on\n", (unsigned)eui);
 
-    uint32_t jitter = 0x9E3779B9u ^ (uint32_t)eui * 2654435761u;
-    (void)jitter;
+    uint64_t step = 0; /* mtime length of the last PID step */
     const int first = (int)((eui > 0 ? eui - 1 : 0) % 4);
     int low = 0;
     for (int leg = 1; leg <= 4 * LAPS && !low; leg++) {
@@ -99,19 +99,11 @@ int main(void)
         stm32_z = HEIGHT;
         perform(SET_TARGET);
         for (;;) {
+            /* A transmission due within the coming step leaves at its time. */
+            app_poll_ahead(step, (uint64_t)STEP_MS * 1000000u);
+            const uint64_t before = radio_now_cycles();
             uint8_t s = pid_step();
-            app_poll();
-#if JITTER_MS > 0
-            /* A transmission leaves at the end of the STM32 operation in
-             * progress (docs/SWARM.md §4.2): without this, every drone's
-             * frames start on the same timestep grid and collide. A pause
-             * of 1..JITTER_MS ms (xorshift from the EUI) spreads them. */
-            jitter ^= jitter << 13;
-            jitter ^= jitter >> 17;
-            jitter ^= jitter << 5;
-            advance_ms((uint8_t)(1 + jitter % JITTER_MS));
-            app_poll();
-#endif
+            step = radio_now_cycles() - before;
             if (s == BATTERY_LOW)
                 low = 1;
             if (s != RUN_SINGLE_STEP_PID)

@@ -18,6 +18,7 @@
 //! | 0x18 | i32 | RX_RSSI | R | RSSI of the frame in RX_BUF, 1/100 dBm |
 //! | 0x1C | u32 | RX_LOST | R | frames lost: receiver off when they ended, or FIFO full |
 //! | 0x20 | u64 | EUI | R | the radio's identifier (run key `radio_id`) |
+//! | 0x28 | u32 | TX_DELAY | RW | delay (ns) of the next TX_START; back to 0 after it |
 //! | 0x40 | 128 B | TX_BUF | RW | payload to send |
 //! | 0xC0 | 128 B | RX_BUF | R | payload received |
 //!
@@ -33,6 +34,16 @@
 //! the receiver was on (STATE = RX) at the platform time its reception ended.
 //! The receiver stays on after a frame (the DW1000's RX auto re-enable) and
 //! returns to RX after a transmission started from RX.
+//!
+//! **Delayed transmission** (the DW1000's DX_TIME with SYS_CTRL.TXDLYS,
+//! DW1000 User Manual §3.3 and register 0x0A; here relative to the command,
+//! in whole nanoseconds, instead of an absolute device time whose low 9 bits
+//! are ignored): TX_START with TX_DELAY = d sends the frame d after the
+//! command, in world time too (docs/SWARM.md §4.2); the radio is busy (STATE
+//! TX, further TX_STARTs refused) from the command to the end of the airtime
+//! and draws the TX current for the airtime only. TX_DELAY is one-shot: it
+//! reads 0 again after the TX_START that used it, so a firmware that never
+//! writes it transmits at once, as before.
 //!
 //! **Power.** OFF (before INIT: the radio draws nothing, so a platform that
 //! never switches a radio on is electrically the thesis's), SLEEP, IDLE, RX,
@@ -54,7 +65,7 @@ pub use power::{RadioCurrents, RadioPower, RadioPowerState};
 
 use super::{DeviceCtx, DeviceError, LinkError};
 use crate::config::PlatformConfig;
-use crate::units::Picos;
+use crate::units::{Nanos, Picos};
 
 /// Register offsets within a radio.
 pub const CTRL: u32 = 0x00;
@@ -69,6 +80,7 @@ pub const RX_STAMP: u32 = 0x10;
 pub const RX_RSSI: u32 = 0x18;
 pub const RX_LOST: u32 = 0x1C;
 pub const EUI: u32 = 0x20;
+pub const TX_DELAY: u32 = 0x28;
 pub const TX_BUF: u32 = 0x40;
 pub const RX_BUF: u32 = 0xC0;
 /// Bytes of one payload buffer (a DW1000 frame holds at most 127).
@@ -199,6 +211,8 @@ pub struct RadioDevice {
     /// A transmission is on the air until this platform time.
     tx_until: Picos,
     tx_len: u8,
+    /// TX_DELAY: the delay of the next TX_START (one-shot).
+    tx_delay: Nanos,
     tx_buf: [u8; BUF_SIZE as usize],
     tx_stamp: u64,
     /// The frame in RX_BUF (kept after RX_DONE is cleared, until the next).
@@ -228,6 +242,7 @@ impl RadioDevice {
             switched_on: false,
             tx_until: Picos::ZERO,
             tx_len: 0,
+            tx_delay: Nanos(0),
             tx_buf: [0; BUF_SIZE as usize],
             tx_stamp: 0,
             rx_frame: None,
@@ -365,6 +380,9 @@ impl RadioDevice {
             }
             o if (RX_LOST..RX_LOST + 4).contains(&o) => byte(u64::from(self.rx_lost), RX_LOST),
             o if (EUI..EUI + 8).contains(&o) => byte(self.eui, EUI),
+            o if (TX_DELAY..TX_DELAY + 4).contains(&o) => {
+                byte(u64::from(self.tx_delay.0), TX_DELAY)
+            }
             o if (TX_BUF..TX_BUF + BUF_SIZE).contains(&o) => self.tx_buf[(o - TX_BUF) as usize],
             o if (RX_BUF..RX_BUF + BUF_SIZE).contains(&o) => frame
                 .and_then(|f| f.data.get((o - RX_BUF) as usize).copied())
@@ -383,7 +401,10 @@ impl RadioDevice {
         match offset {
             STATE if self.tx_until > now => next.min(self.tx_until),
             CTRL | IRQ_MASK | TX_LEN => Picos::MAX,
-            o if (EUI..EUI + 8).contains(&o) || (TX_BUF..TX_BUF + BUF_SIZE).contains(&o) => {
+            o if (EUI..EUI + 8).contains(&o)
+                || (TX_DELAY..TX_DELAY + 4).contains(&o)
+                || (TX_BUF..TX_BUF + BUF_SIZE).contains(&o) =>
+            {
                 Picos::MAX
             }
             _ => next,
@@ -420,9 +441,15 @@ impl RadioDevice {
                 self.tx_buf[(o - TX_BUF) as usize] = value;
                 Ok(())
             }
+            o if (TX_DELAY..TX_DELAY + 4).contains(&o) => {
+                let shift = 8 * (o - TX_DELAY);
+                self.tx_delay =
+                    Nanos(self.tx_delay.0 & !(0xFF << shift) | u32::from(value) << shift);
+                Ok(())
+            }
             o => Err(self.invalid(format!(
                 "the register at offset {o:#x} is read-only (write {value:#04x}); \
-                 write CTRL, STATUS, IRQ_MASK and TX_LEN with byte stores"
+                 write CTRL, STATUS, IRQ_MASK, TX_LEN and TX_DELAY with byte stores"
             ))),
         }
     }
@@ -510,9 +537,10 @@ impl RadioDevice {
         Ok(())
     }
 
-    /// TX_START: RADIO_SEND now, with the offset of docs/SWARM.md §4.2; the
-    /// radio is in TX for the frame's airtime; TX_DONE (with TX_STAMP) comes
-    /// when the world reports the transmission finished.
+    /// TX_START: RADIO_SEND now, with the offset of docs/SWARM.md §4.2 plus
+    /// TX_DELAY; the radio is busy from now to the end of the frame, in TX
+    /// (power) for its airtime from now + TX_DELAY; TX_DONE (with TX_STAMP)
+    /// comes when the world reports the transmission finished.
     fn transmit(&mut self, now: Picos, ctx: &mut DeviceCtx<'_>) -> Result<(), DeviceError> {
         if self.mode == Mode::Sleep {
             return Err(self.invalid("TX_START while asleep: INIT wakes the radio".into()));
@@ -536,13 +564,15 @@ impl RadioDevice {
         // p − p_d, but never before the drone's clock nor before the end of
         // this radio's previous transmission in world time (a flying
         // firmware's transmissions during one device delay all map to the
-        // delay's end; they must not overlap there).
+        // delay's end; they must not overlap there); then TX_DELAY later.
         let p_d = ctx.time.accounted_until();
         let t_d = ctx.session.world_clock(ctx.time).0;
+        let delay = std::mem::take(&mut self.tx_delay).to_picos();
         let offset_ps = now
             .0
             .saturating_sub(p_d.0)
-            .max(self.world_tx_end.saturating_sub(t_d));
+            .max(self.world_tx_end.saturating_sub(t_d))
+            + delay.0;
         let airtime = self.spec.kind.airtime(len);
         self.world_tx_end = t_d + offset_ps + airtime.0;
         let request = Request::RadioSend {
@@ -553,8 +583,8 @@ impl RadioDevice {
         ctx.world
             .send(&request, now)
             .map_err(|error| self.world_err(error))?;
-        self.tx_until = now + Picos(airtime.0);
-        self.power.transmit(now, self.tx_until);
+        self.tx_until = now + delay + Picos(airtime.0);
+        self.power.transmit(now + delay, self.tx_until);
         self.stats.frames_sent += 1;
         Ok(())
     }

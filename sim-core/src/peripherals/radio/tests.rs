@@ -329,3 +329,66 @@ fn world_times_map_to_platform_times() {
     // Before the platform's time 0 (never happens; clamped).
     assert_eq!(platform_time_of(0, t_d, Picos::from_ms(5)), Picos::ZERO);
 }
+
+/// The offset_ps of the `i`-th RADIO_SEND.
+fn sent_offset(b: &Bench, i: usize) -> u64 {
+    match &b.world.requests("RADIO_SEND")[i].request {
+        Request::RadioSend { offset_ps, .. } => *offset_ps,
+        _ => unreachable!(),
+    }
+}
+
+#[test]
+fn a_delayed_transmission_leaves_its_delay_after_the_command() {
+    let mut b = Bench::new(uwb::SPEC);
+    let p0 = b.init();
+    b.session
+        .tick(p0 + ms(8), &mut b.world, &mut b.time)
+        .unwrap();
+    b.write(CTRL, CMD_RX_ON, p0 + ms(8)).unwrap();
+    b.write(TX_BUF, 0x55, p0).unwrap();
+    b.write(TX_LEN, 20, p0).unwrap();
+    // TX_DELAY = 2_345_678 ns, written byte by byte (little endian).
+    let d_ns: u32 = 2_345_678;
+    for (i, byte) in d_ns.to_le_bytes().into_iter().enumerate() {
+        b.write(TX_DELAY + i as u32, byte, p0).unwrap();
+    }
+    assert_eq!(b.radio.read(TX_DELAY + 1, p0), d_ns.to_le_bytes()[1]);
+    assert_eq!(b.radio.stable_until(TX_DELAY, p0), Picos::MAX);
+    // The command at p_d + 1.5 ms: offset = 1.5 ms + d.
+    let p = p0 + ms(8) + Picos::from_us(1500);
+    let d = Picos::from_ns(u64::from(d_ns));
+    b.write(CTRL, CMD_TX_START, p).unwrap();
+    assert_eq!(sent_offset(&b, 0), Picos::from_us(1500).0 + d.0);
+    // One-shot: TX_DELAY reads 0 again.
+    assert_eq!((0..4).map(|i| b.radio.read(TX_DELAY + i, p)).max(), Some(0));
+    // Busy from the command to the end of the airtime; TX current for the
+    // airtime only, the commanded state (RX) during the wait.
+    let air = Picos(Radio::Uwb.airtime(20).0);
+    assert_eq!(b.radio.read(STATE, p), STATE_TX);
+    assert_eq!(b.radio.stable_until(STATE, p), p + d + air);
+    let e = b.write(CTRL, CMD_TX_START, p + d).unwrap_err();
+    assert!(e.to_string().contains("on the air"), "{e}");
+    assert_eq!(b.radio.read(STATE, p + d + air), STATE_RX);
+    assert_eq!(
+        b.radio.power.state_at(p + d - Picos(1)),
+        RadioPowerState::Rx
+    );
+    assert_eq!(b.radio.power.state_at(p + d), RadioPowerState::Tx);
+    assert_eq!(
+        b.radio.power.state_at(p + d + air - Picos(1)),
+        RadioPowerState::Tx
+    );
+    assert_eq!(b.radio.power.state_at(p + d + air), RadioPowerState::Rx);
+    // The world's end of that frame maps back to p + d + airtime.
+    let end_world = Millis(2008).to_picos().0 + sent_offset(&b, 0) + air.0;
+    let t_d = b.session.world_clock(&b.time);
+    assert_eq!(
+        platform_time_of(end_world, t_d, b.time.accounted_until()),
+        p + d + air
+    );
+    // The next TX_START (no delay written) leaves at once.
+    let q = p + d + air;
+    b.write(CTRL, CMD_TX_START, q).unwrap();
+    assert_eq!(sent_offset(&b, 1), (q - (p0 + ms(8))).0);
+}
