@@ -763,9 +763,16 @@ fn main() -> ExitCode {
         .init();
     // `cosim world perturb ...` is `cosim perturb ...` (`cosim world
     // SCENARIO` serves a world; a scenario named "perturb" cannot exist).
+    // The subcommand is the first argument that is neither a global option
+    // nor the value of one (`cosim --no-build world perturb ...`).
     let mut args: Vec<std::ffi::OsString> = std::env::args_os().collect();
-    if args.len() > 2 && args[1] == "world" && args[2] == "perturb" {
-        args.remove(1);
+    let mut i = 1;
+    while i < args.len() && args[i].to_string_lossy().starts_with('-') {
+        let takes_value = args[i] == "--sim-core" || args[i] == "--world-server";
+        i += if takes_value { 2 } else { 1 };
+    }
+    if i + 1 < args.len() && args[i] == "world" && args[i + 1] == "perturb" {
+        args.remove(i);
     }
     let cli = Cli::parse_from(args);
     let bins = cli.bins;
