@@ -6,6 +6,7 @@ use std::io::Write;
 use sim_core::config::{
     ConfigError, DebugLevel, PlatformConfig, RunConfig, SyncMode, DEFAULT_CRAZYFLIE_JSON, RUN_KEYS,
 };
+use sim_core::peripherals::stm32::PositionSource;
 use sim_core::power::battery::{BatteryModel, CurveAxis};
 use sim_core::power::converter::Converter;
 use sim_core::power::models::PowerModelKind;
@@ -183,6 +184,8 @@ fn non_default(key: &str) -> &'static str {
         "platform" => "/tmp/other.json",
         // Above i64::MAX: the TOML round trip keeps it as text.
         "radio_id" => "18446744073709551615",
+        "stm32.position_source" => "flow",
+        "stm32.range_max_m" => "4.5",
         _ => panic!("a key without a test value: {key}"),
     }
 }
@@ -212,6 +215,8 @@ fn every_key_can_be_set_and_read_back() {
         Some(std::path::Path::new("/tmp/other.json"))
     );
     assert_eq!(c.radio_id, u64::MAX);
+    assert_eq!(c.position_source, PositionSource::Flow);
+    assert_eq!(c.range_max_m, 4.5);
     // And the whole thing survives TOML.
     let back = RunConfig::from_toml_str(&c.to_toml(), "round trip").unwrap();
     assert_eq!(back, c);
@@ -234,6 +239,9 @@ fn bad_values_and_keys_are_errors() {
         ("stolaroff_efficiency", "0"),
         ("stolaroff_factor", "five"),
         ("platform", ""),
+        ("stm32.position_source", "compass"),
+        ("stm32.range_max_m", "-2"),
+        ("stm32.range_max_m", "NaN"),
     ];
     for (key, value) in bad {
         let e = c.set(key, value).unwrap_err();
