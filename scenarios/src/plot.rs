@@ -7,6 +7,7 @@
 use std::path::Path;
 use std::sync::Once;
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
@@ -222,6 +223,56 @@ pub(crate) fn rect(c: [f64; 3], sx: f64, sy: f64, yaw: f64) -> Vec<(f64, f64)> {
     .collect()
 }
 
+/// The x and y ranges of a top view: the points' span with `margin` (a
+/// fraction of it) on each side, widened to a square at least `min_side`
+/// metres across so that a metre is as long across as up.
+pub(crate) fn square_view(
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    margin: f64,
+    min_side: f64,
+) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
+    let (x0, x1) = span(xs.into_iter(), margin);
+    let (y0, y1) = span(ys.into_iter(), margin);
+    let side = (x1 - x0).max(y1 - y0).max(min_side);
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    (
+        cx - side / 2.0..cx + side / 2.0,
+        cy - side / 2.0..cy + side / 2.0,
+    )
+}
+
+/// A top view's chart: metres on both axes.
+pub(crate) type TopChart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A top view's chart on `root` (cleared to white): title, metre axes, mesh.
+pub(crate) fn top_chart<'a, 'b: 'a>(
+    root: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    path: &Path,
+    title: &str,
+    (xr, yr): (std::ops::Range<f64>, std::ops::Range<f64>),
+) -> Result<TopChart<'a, 'b>, PlotError> {
+    root.fill(&WHITE).map_err(|e| err(path, e))?;
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, (FONT, 20))
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(50)
+        .build_cartesian_2d(xr, yr)
+        .map_err(|e| err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 15))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|e| err(path, e))?;
+    Ok(chart)
+}
+
 /// The flight from above: the path (x, y), the gates as seen from above
 /// (a bar across the direction of travel, its opening marked), boxes,
 /// the targets numbered, and the start.
@@ -246,37 +297,9 @@ pub fn top_view(
     let start = world.start.position.0;
     xs.push(start[0]);
     ys.push(start[1]);
-    let (x0, x1) = span(xs.into_iter(), 0.08);
-    let (y0, y1) = span(ys.into_iter(), 0.08);
-    // Equal scale on both axes: a metre is as long across as up.
-    let (w, h) = (x1 - x0, y1 - y0);
-    let side = w.max(h);
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-    let (x0, x1, y0, y1) = (
-        cx - side / 2.0,
-        cx + side / 2.0,
-        cy - side / 2.0,
-        cy + side / 2.0,
-    );
-
+    let view = square_view(xs, ys, 0.08, 0.0);
     let root = BitMapBackend::new(path, (900, 900)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(path, e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (FONT, 20))
-        .margin(10)
-        .x_label_area_size(40)
-        .y_label_area_size(50)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("x (m)")
-        .y_desc("y (m)")
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 15))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(|e| err(path, e))?;
+    let mut chart = top_chart(&root, path, title, view)?;
     let gate_color = RGBColor(200, 160, 0);
     for (i, g) in world.gates.iter().enumerate() {
         let outer = g.inner.0 + 2.0 * g.bar.0;

@@ -9,7 +9,7 @@ use std::path::Path;
 use plotters::prelude::*;
 use world_server::WorldDesc;
 
-use crate::plot::{err, fonts, rect, span, PlotError, FONT, PALETTE};
+use crate::plot::{err, fonts, rect, square_view, top_chart, PlotError, FONT, PALETTE};
 
 /// One drone's path seen from above.
 #[derive(Debug, Clone)]
@@ -92,36 +92,11 @@ pub fn swarm_top_view(
             ys.push(g.centre.0[1]);
         }
     }
-    let (x0, x1) = span(xs.into_iter(), 0.15);
-    let (y0, y1) = span(ys.into_iter(), 0.15);
-    // Equal scale on both axes, and at least a metre across (drones that
-    // stay put would otherwise fill the plot with a millimetre).
-    let side = (x1 - x0).max(y1 - y0).max(1.0);
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-    let (x0, x1, y0, y1) = (
-        cx - side / 2.0,
-        cx + side / 2.0,
-        cy - side / 2.0,
-        cy + side / 2.0,
-    );
+    // At least a metre across: drones that stay put would otherwise fill
+    // the plot with a millimetre.
+    let view = square_view(xs, ys, 0.15, 1.0);
     let root = BitMapBackend::new(path, (900, 900)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(path, e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (FONT, 20))
-        .margin(10)
-        .x_label_area_size(40)
-        .y_label_area_size(50)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("x (m)")
-        .y_desc("y (m)")
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 15))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()
-        .map_err(|e| err(path, e))?;
+    let mut chart = top_chart(&root, path, title, view)?;
     if let Some(w) = world {
         let gate_color = RGBColor(200, 160, 0);
         for g in &w.gates {
