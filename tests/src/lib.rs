@@ -135,3 +135,17 @@ pub fn output_text(o: &Output) -> String {
         String::from_utf8_lossy(&o.stderr)
     )
 }
+
+/// Asserts that each of `files` (paths relative to `a` and `b`) has the same
+/// bytes in both directories: the byte-identical-outputs check of every
+/// end-to-end test. `what` ends the message ("between two runs").
+pub fn assert_same_files<S: AsRef<str>>(a: &Path, b: &Path, files: &[S], what: &str) {
+    for f in files {
+        let f = f.as_ref();
+        let read = |dir: &Path| {
+            std::fs::read(dir.join(f)).unwrap_or_else(|e| panic!("{}: {e}", dir.join(f).display()))
+        };
+        // Not assert_eq!: a mismatch would print two whole files.
+        assert!(read(a) == read(b), "{f} differs {what}");
+    }
+}

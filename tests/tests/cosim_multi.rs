@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use e2e_tests::{output_text as text, repo_root, CosimBins as Bins};
+use e2e_tests::{assert_same_files, output_text as text, repo_root, CosimBins as Bins};
 use serde_json::Value;
 
 fn json(path: &Path) -> Value {
@@ -197,18 +197,18 @@ fn swarm_ping_runs_end_to_end_and_repeats_bit_for_bit() {
     let lines = trace_lines(&a.join("world.trace"));
     assert!(lines.iter().all(|l| l["drone"] == "A" || l["drone"] == "B"));
     let again = run("b");
-    for f in [
-        "world.trace",
-        "A/platform.trace",
-        "B/platform.trace",
-        "radio.csv",
-        "trajectory.csv",
-    ] {
-        assert!(
-            std::fs::read(a.join(f)).unwrap() == std::fs::read(again.join(f)).unwrap(),
-            "{f} differs between two runs"
-        );
-    }
+    assert_same_files(
+        &a,
+        &again,
+        &[
+            "world.trace",
+            "A/platform.trace",
+            "B/platform.trace",
+            "radio.csv",
+            "trajectory.csv",
+        ],
+        "between two runs",
+    );
 
     // The recorded world trace agrees with a live world, drone by drone.
     let world = repo_root().join("scenarios/worlds/swarm-ping.toml");
@@ -297,18 +297,18 @@ fn two_hovering_drones_repeat_replay_check_and_sweep() {
         second.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    for f in [
-        "world.trace",
-        "trajectory.csv",
-        "d1/platform.trace",
-        "d2/platform.trace",
-        "d1/power.csv",
-    ] {
-        assert!(
-            std::fs::read(a.join(f)).unwrap() == std::fs::read(second.join(f)).unwrap(),
-            "{f} differs between two runs"
-        );
-    }
+    assert_same_files(
+        &a,
+        &second,
+        &[
+            "world.trace",
+            "trajectory.csv",
+            "d1/platform.trace",
+            "d2/platform.trace",
+            "d1/power.csv",
+        ],
+        "between two runs",
+    );
     for d in ["d1", "d2"] {
         assert_eq!(
             deterministic(json(&a.join(d).join("summary.json"))),

@@ -8,7 +8,7 @@
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use e2e_tests::{output_text as text, repo_root, CosimBins as Bins};
+use e2e_tests::{assert_same_files, output_text as text, repo_root, CosimBins as Bins};
 use serde_json::Value;
 
 fn summary(dir: &Path) -> Value {
@@ -193,18 +193,18 @@ fn run_outputs_agree_repeat_bit_for_bit_and_replay() {
         second.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", text(&o));
-    for f in [
-        "world.trace",
-        "platform.trace",
-        "power.csv",
-        "trajectory.csv",
-        "console.log",
-    ] {
-        assert!(
-            std::fs::read(a.join(f)).unwrap() == std::fs::read(second.join(f)).unwrap(),
-            "{f} differs between two runs"
-        );
-    }
+    assert_same_files(
+        &a,
+        &second,
+        &[
+            "world.trace",
+            "platform.trace",
+            "power.csv",
+            "trajectory.csv",
+            "console.log",
+        ],
+        "between two runs",
+    );
     assert_eq!(deterministic(summary(&a)), deterministic(summary(&second)));
 
     // Replay the world's trace (pixels from the frames) to a fresh sim-core,

@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use e2e_tests::{output_text as text, CosimBins as Bins};
+use e2e_tests::{assert_same_files, output_text as text, CosimBins as Bins};
 use serde_json::Value;
 
 fn summary(dir: &Path) -> Value {
@@ -72,19 +72,19 @@ fn shm_images_fly_the_same_run_as_array_images() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
 
-    for f in [
-        "trajectory.csv",
-        "power.csv",
-        "motor_empirical.csv",
-        "motor_dandrea.csv",
-        "motor_stolaroff.csv",
-        "console.log",
-    ] {
-        assert!(
-            std::fs::read(a.join(f)).unwrap() == std::fs::read(s.join(f)).unwrap(),
-            "{f} differs between array and shm images"
-        );
-    }
+    assert_same_files(
+        &a,
+        &s,
+        &[
+            "trajectory.csv",
+            "power.csv",
+            "motor_empirical.csv",
+            "motor_dandrea.csv",
+            "motor_stolaroff.csv",
+            "console.log",
+        ],
+        "between array and shm images",
+    );
     for t in ["platform.trace", "world.trace"] {
         let (x, y) = (comparable_trace(&a.join(t)), comparable_trace(&s.join(t)));
         assert_eq!(x.len(), y.len(), "{t}");

@@ -13,7 +13,7 @@
 
 use std::path::Path;
 
-use e2e_tests::{output_text as text, repo_root, CosimBins as Bins};
+use e2e_tests::{assert_same_files, output_text as text, repo_root, CosimBins as Bins};
 use serde_json::Value;
 
 fn summary(dir: &Path) -> Value {
@@ -97,17 +97,18 @@ fn an_unseen_room_is_explored_landed_and_reproduced() {
     );
     assert!(dirs[0].join("map.png").exists());
     // Twice the same run: the same bytes.
-    for f in [
-        "map.cfog",
-        "map.csv",
-        "exploration.csv",
-        "trajectory.csv",
-        "console.log",
-    ] {
-        let a = std::fs::read(dirs[0].join(f)).unwrap();
-        let b = std::fs::read(dirs[1].join(f)).unwrap();
-        assert!(a == b, "{f} differs between two identical runs");
-    }
+    assert_same_files(
+        &dirs[0],
+        &dirs[1],
+        &[
+            "map.cfog",
+            "map.csv",
+            "exploration.csv",
+            "trajectory.csv",
+            "console.log",
+        ],
+        "between two identical runs",
+    );
 }
 
 #[test]

@@ -10,7 +10,7 @@
 
 use std::path::Path;
 
-use e2e_tests::{output_text as text, CosimBins as Bins};
+use e2e_tests::{assert_same_files, output_text as text, CosimBins as Bins};
 use serde_json::Value;
 
 const WORLD: &str = r#"
@@ -87,18 +87,17 @@ fn b_is_detected_both_land_without_collision_and_twice_the_same() {
         .expect("a frame above -48 dBm");
     assert_eq!(first[4], by, "{first:?} vs {r}");
     assert!((first[6].parse::<f64>().unwrap() - rssi).abs() < 1e-9);
-    for f in [
-        "radar.json",
-        "radio.csv",
-        "trajectory.csv",
-        "A/console.log",
-        "B/console.log",
-        "A/power.csv",
-    ] {
-        assert_eq!(
-            std::fs::read(dirs[0].join(f)).unwrap(),
-            std::fs::read(dirs[1].join(f)).unwrap(),
-            "{f} differs between two runs"
-        );
-    }
+    assert_same_files(
+        &dirs[0],
+        &dirs[1],
+        &[
+            "radar.json",
+            "radio.csv",
+            "trajectory.csv",
+            "A/console.log",
+            "B/console.log",
+            "A/power.csv",
+        ],
+        "between two runs",
+    );
 }

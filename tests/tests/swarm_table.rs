@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use e2e_tests::{output_text, repo_root, CosimBins};
+use e2e_tests::{assert_same_files, output_text, repo_root, CosimBins};
 
 /// B at (0, 0), C at (1, 0), A at location 1 (1, 0.5) until 5 s of world
 /// time, carried in 0.5 s to location 2 (0.5, 0.25). Clocks and noise as
@@ -198,11 +198,5 @@ fn a_is_placed_within_the_noise_bound_and_runs_repeat_bit_for_bit() {
         files.push(format!("{d}/console.log"));
         files.push(format!("{d}/platform.trace"));
     }
-    for f in &files {
-        let (x, y) = (
-            std::fs::read(a.join(f)).unwrap(),
-            std::fs::read(b2.join(f)).unwrap(),
-        );
-        assert!(x == y, "{f} differs between two runs");
-    }
+    assert_same_files(&a, &b2, &files, "between two runs");
 }

@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use e2e_tests::{output_text as text, CosimBins};
+use e2e_tests::{assert_same_files, output_text as text, CosimBins};
 use serde_json::Value;
 
 fn run(bins: &CosimBins, firmware: &str, out: &Path) -> std::process::Output {
@@ -85,17 +85,16 @@ fn the_race_misses_a_displaced_gate_and_the_vision_race_passes_it() {
     let b = dir.path().join("vision-b");
     let o = run(&bins, "vision_race_short", &b);
     assert!(o.status.success(), "{}", text(&o));
-    for f in [
-        "trajectory.csv",
-        "world.trace",
-        "platform.trace",
-        "console.log",
-        "power.csv",
-    ] {
-        let (x, y) = (
-            std::fs::read(a.join(f)).unwrap(),
-            std::fs::read(b.join(f)).unwrap(),
-        );
-        assert!(x == y, "{f} differs between two runs");
-    }
+    assert_same_files(
+        &a,
+        &b,
+        &[
+            "trajectory.csv",
+            "world.trace",
+            "platform.trace",
+            "console.log",
+            "power.csv",
+        ],
+        "between two runs",
+    );
 }
