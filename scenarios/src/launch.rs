@@ -348,6 +348,27 @@ impl Supervised {
     }
 }
 
+/// Waits (up to 30 s) for the world server to create its socket, so that
+/// sim-core's connection does not depend on its retry patience; a world that
+/// dies first, or never listens (it is then killed), is the error returned.
+pub(crate) fn wait_for_socket(world: &mut Supervised, socket: &Path) -> Option<String> {
+    let until = Instant::now() + Duration::from_secs(30);
+    while !socket.exists() {
+        if let Some(st) = world.poll() {
+            return Some(format!(
+                "world-server exited before listening ({})",
+                describe(Some(st))
+            ));
+        }
+        if Instant::now() > until {
+            world.kill();
+            return Some("world-server did not create its socket within 30 s".into());
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    None
+}
+
 pub(crate) fn describe(status: Option<ExitStatus>) -> String {
     match status {
         Some(s) => match s.code() {
@@ -403,26 +424,7 @@ pub fn launch(
 
     let started = Instant::now();
     let mut world = Supervised::spawn("world", world_cmd, &sink)?;
-    // Wait for the socket so that sim-core's connection does not depend on
-    // its retry patience; a world that dies here is reported as such.
-    let mut error = None;
-    let socket_until = Instant::now() + Duration::from_secs(30);
-    while !socket.exists() {
-        if let Some(st) = world.poll() {
-            error = Some(format!(
-                "world-server exited before listening ({})",
-                describe(Some(st))
-            ));
-            break;
-        }
-        if Instant::now() > socket_until {
-            error = Some("world-server did not create its socket within 30 s".into());
-            world.kill();
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    if let Some(error) = error {
+    if let Some(error) = wait_for_socket(&mut world, &socket) {
         let w = world.join();
         return Ok(RunStatus {
             sim_core: None,

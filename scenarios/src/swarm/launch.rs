@@ -19,8 +19,8 @@ use std::time::{Duration, Instant};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::launch::{
-    abs, describe, files, io_err, run_toml, Binaries, LaunchError, LaunchOptions, LogSink,
-    Supervised,
+    abs, describe, files, io_err, run_toml, wait_for_socket, Binaries, LaunchError, LaunchOptions,
+    LogSink, Supervised,
 };
 use crate::scenario::Scenario;
 
@@ -348,24 +348,7 @@ pub fn launch_swarm(
             b.finish_with_message(format!("ended ({})", describe(status)));
         }
     };
-    let socket_until = Instant::now() + Duration::from_secs(30);
-    let mut error = None;
-    while !socket.exists() {
-        if let Some(st) = world.poll() {
-            error = Some(format!(
-                "world-server exited before listening ({})",
-                describe(Some(st))
-            ));
-            break;
-        }
-        if Instant::now() > socket_until {
-            error = Some("world-server did not create its socket within 30 s".into());
-            world.kill();
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    if let Some(error) = error {
+    if let Some(error) = wait_for_socket(&mut world, &socket) {
         let w = world.join();
         finish_bar(&world_bar, w);
         return Ok(SwarmStatus {
