@@ -330,7 +330,10 @@ fn shards_on_ssh_hosts_through_gnu_parallel() {
         &ssh,
         "#!/bin/sh\n\
          # ssh HOST [--] COMMAND...: options and host dropped, the command\n\
-         # run by the shell as sshd does.\n\
+         # run by the shell as sshd does. sshd also sets SHELL (the login\n\
+         # shell), which parallel's remote wrapper execs the job with: a\n\
+         # test run without SHELL in its environment (CI) must still have it.\n\
+         export SHELL=\"${SHELL:-/bin/sh}\"\n\
          while [ $# -gt 0 ]; do case \"$1\" in -o|-p|-l|-S|-i) shift 2;; -*) shift;; *) shift; break;; esac; done\n\
          [ \"$1\" = \"--\" ] && shift\n\
          exec sh -c \"$*\"\n",
