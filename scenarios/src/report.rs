@@ -258,6 +258,12 @@ pub fn summary_text(
         s.messages,
         s.collisions.map_or("?".into(), |c| c.to_string()),
     );
+    if let Some(d) = &s.flow_drift {
+        t += &format!(
+            "   flow drift     estimate - GPS: final {:.3} m, max {:.3} m, mean {:.3} m\n",
+            d.final_m, d.max_m, d.mean_m
+        );
+    }
     t += &format!("   outputs        {}\n", out.display());
     for p in plots {
         t += &format!("   plot           {}\n", p.display());

@@ -186,6 +186,7 @@ fn non_default(key: &str) -> &'static str {
         "radio_id" => "18446744073709551615",
         "stm32.position_source" => "flow",
         "stm32.range_max_m" => "4.5",
+        "stm32.flow_std_m_s" => "0.02",
         _ => panic!("a key without a test value: {key}"),
     }
 }
@@ -242,6 +243,8 @@ fn bad_values_and_keys_are_errors() {
         ("stm32.position_source", "compass"),
         ("stm32.range_max_m", "-2"),
         ("stm32.range_max_m", "NaN"),
+        ("stm32.flow_std_m_s", "-0.1"),
+        ("stm32.flow_std_m_s", "inf"),
     ];
     for (key, value) in bad {
         let e = c.set(key, value).unwrap_err();

@@ -16,6 +16,7 @@ use crate::power::models::{ModelParams, PowerModelKind};
 pub use crate::sync::SyncMode;
 
 use super::ConfigError;
+use crate::peripherals::stm32::estimator::DEFAULT_FLOW_STD;
 use crate::peripherals::stm32::PositionSource;
 
 /// A table's keys with its sub-tables' keys as `table.key`
@@ -111,7 +112,7 @@ impl fmt::Display for DebugLevel {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 15] = [
+pub const RUN_KEYS: [(&str, &str); 16] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -163,6 +164,10 @@ pub const RUN_KEYS: [(&str, &str); 15] = [
         "stm32.range_max_m",
         "range sensors' max range in m (2); a reading at or beyond it is 'nothing in range'",
     ),
+    (
+        "stm32.flow_std_m_s",
+        "flow mode: the flow noise the STM32's filter assumes, m/s per sample (0.069, the Flow deck's at 0.3 m; 0 = the raw flow)",
+    ),
 ];
 
 /// The run configuration. [`RunConfig::default`] is the thesis's setting of
@@ -201,6 +206,8 @@ pub struct RunConfig {
     pub position_source: PositionSource,
     /// The range sensors' max range (m).
     pub range_max_m: f64,
+    /// The flow noise σ (m/s) the STM32's flow filter assumes.
+    pub flow_std_m_s: f64,
 }
 
 /// The prefix of the firmware-parameter keys (`firmware.NAME`).
@@ -232,6 +239,7 @@ impl Default for RunConfig {
             firmware_params: BTreeMap::new(),
             position_source: PositionSource::Gps,
             range_max_m: 2.0,
+            flow_std_m_s: DEFAULT_FLOW_STD.0,
         }
     }
 }
@@ -264,6 +272,15 @@ fn parse_positive(value: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err("expected a positive number".into())
+    }
+}
+
+fn parse_non_negative(value: &str) -> Result<f64, String> {
+    let v = parse_number(value)?;
+    if v >= 0.0 && v.is_finite() {
+        Ok(v)
+    } else {
+        Err("expected a number >= 0".into())
     }
 }
 
@@ -333,6 +350,7 @@ impl RunConfig {
             }
             "stm32.position_source" => self.position_source = value.parse().map_err(bad)?,
             "stm32.range_max_m" => self.range_max_m = parse_positive(value).map_err(bad)?,
+            "stm32.flow_std_m_s" => self.flow_std_m_s = parse_non_negative(value).map_err(bad)?,
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -376,6 +394,7 @@ impl RunConfig {
             "radio_id" => self.radio_id.to_string(),
             "stm32.position_source" => self.position_source.to_string(),
             "stm32.range_max_m" => self.range_max_m.to_string(),
+            "stm32.flow_std_m_s" => self.flow_std_m_s.to_string(),
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -457,6 +476,7 @@ impl RunConfig {
             let default = RunConfig::default();
             if (key == "stm32.position_source" && self.position_source == default.position_source)
                 || (key == "stm32.range_max_m" && self.range_max_m == default.range_max_m)
+                || (key == "stm32.flow_std_m_s" && self.flow_std_m_s == default.flow_std_m_s)
             {
                 continue;
             }
@@ -466,7 +486,8 @@ impl RunConfig {
                 | "dandrea_efficiency"
                 | "stolaroff_efficiency"
                 | "stolaroff_factor"
-                | "stm32.range_max_m" => toml::Value::Float(text.parse().expect("a number")),
+                | "stm32.range_max_m"
+                | "stm32.flow_std_m_s" => toml::Value::Float(text.parse().expect("a number")),
                 "target_cycles" | "unlock_cycles" => {
                     toml::Value::Integer(text.parse().expect("an integer"))
                 }

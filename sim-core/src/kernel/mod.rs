@@ -18,7 +18,9 @@ mod summary;
 
 pub use console::Console;
 pub use map_dump::MAP_FILE;
-pub use summary::{BatterySummary, EnergySummary, RadioSummary, RadiosSummary, Summary};
+pub use summary::{
+    BatterySummary, EnergySummary, FlowDriftSummary, RadioSummary, RadiosSummary, Summary,
+};
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -30,6 +32,7 @@ use crate::bus::{Platform, PERIPHERAL_BASE, WINDOW_SIZE};
 use crate::config::{PlatformConfig, RunConfig};
 use crate::iss::{load_elf, Cpu, CpuConfig, ElfError, Memory, StopReason};
 use crate::peripherals::radio::{self, RadioDevice};
+use crate::peripherals::stm32::estimator::{FlowFilterParams, MetresPerSecond};
 use crate::peripherals::stm32::Stm32Config;
 use crate::peripherals::{Camera, DeviceError, DevicePower, Stm32, WorldLink, WorldSession};
 use crate::power::{CoreState, Loads, PowerError, PowerLogger, PowerNetwork};
@@ -115,6 +118,10 @@ fn stm32_config(cfg: &KernelConfig) -> Stm32Config {
         unlock_cycles: cfg.run.unlock_cycles,
         position_source: cfg.run.position_source,
         range_max_mm: cfg.run.range_max_m * 1000.0,
+        flow_filter: FlowFilterParams {
+            flow_std: MetresPerSecond(cfg.run.flow_std_m_s),
+            ..FlowFilterParams::default()
+        },
         ..Stm32Config::default()
     }
 }

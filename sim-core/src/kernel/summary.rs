@@ -104,6 +104,19 @@ pub struct Summary {
     /// Gates in the world file (`--gates-total`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gates_total: Option<u64>,
+    /// Flow mode (`stm32.position_source = flow`): how far the STM32's
+    /// dead-reckoned x, y strayed from the world's GPS.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flow_drift: Option<FlowDriftSummary>,
+}
+
+/// The flow estimate's horizontal distance from the GPS over a run (m).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FlowDriftSummary {
+    /// At the last sensor read.
+    pub final_m: f64,
+    pub max_m: f64,
+    pub mean_m: f64,
 }
 
 impl Summary {
@@ -159,6 +172,7 @@ impl Summary {
             radios: None,
             gates_passed: None,
             gates_total: cfg.gates_total,
+            flow_drift: None,
         }
     }
 
@@ -251,6 +265,11 @@ impl Summary {
         s.bytes_to_platform = link.bytes_to_platform;
         s.collisions = stop.and_then(|s| s.collisions);
         s.gates_passed = stop.and_then(|s| s.gates_passed);
+        s.flow_drift = platform.stm32.flow_drift().map(|d| FlowDriftSummary {
+            final_m: d.last_m,
+            max_m: d.max_m,
+            mean_m: d.mean_m(),
+        });
         s
     }
 

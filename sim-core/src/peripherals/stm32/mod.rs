@@ -22,10 +22,12 @@
 //! commands, a heading target) and their commands are in [`motion`].
 
 mod clock;
+pub mod estimator;
 mod flight;
 pub mod motion;
 pub mod pid;
 
+use self::estimator::FlowFilterParams;
 use self::flight::{Flight, Outcome};
 pub use self::motion::PositionSource;
 use self::motion::{Mode, Motion};
@@ -88,6 +90,9 @@ pub struct Stm32Config {
     /// (run key `stm32.range_max_m`; the Webots DistanceSensor's lookup table
     /// saturates at 2000 mm, DESIGN.md §5).
     pub range_max_mm: f64,
+    /// The flow-mode estimator's noise settings (run key
+    /// `stm32.flow_std_m_s`; [`estimator`]).
+    pub flow_filter: FlowFilterParams,
 }
 
 impl Default for Stm32Config {
@@ -103,6 +108,7 @@ impl Default for Stm32Config {
             landing_height: 0.2,
             position_source: PositionSource::Gps,
             range_max_mm: 2000.0,
+            flow_filter: FlowFilterParams::default(),
         }
     }
 }
@@ -151,9 +157,15 @@ pub struct Stm32 {
 }
 
 impl Stm32 {
+    /// The flow estimate's drift from the GPS (flow mode, once it has read
+    /// the sensors; `None` otherwise).
+    pub fn flow_drift(&self) -> Option<estimator::Drift> {
+        self.motion.drift
+    }
+
     pub fn new(cfg: Stm32Config, power: DevicePower) -> Self {
         let pid = PidController::new(cfg.gains);
-        let motion = Motion::new(cfg.position_source, cfg.range_max_mm);
+        let motion = Motion::new(cfg.position_source, cfg.range_max_mm, cfg.flow_filter);
         Stm32 {
             cfg,
             control: 0,

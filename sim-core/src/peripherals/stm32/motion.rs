@@ -37,6 +37,7 @@
 
 use protocol::{Reply, Request, Sensors};
 
+use super::estimator::{Attitude, Drift, FlowFilter, FlowFilterParams, Seconds};
 use super::pid::{DesiredState, MotorCommands};
 use super::{invalid, world_err, Outcome, Process, Stm32};
 use crate::peripherals::{DeviceCtx, DeviceError, LinkError, TimedReg};
@@ -102,8 +103,9 @@ pub enum PositionSource {
     /// The world's GPS, as the thesis (Appendix C).
     #[default]
     Gps,
-    /// Dead reckoning: FLOW_VX/VY rotated by the yaw, integrated from the
-    /// start position (so the estimate drifts with the flow's noise).
+    /// Dead reckoning: FLOW_VX/VY fused with the attitude by the flow
+    /// filter ([`super::estimator`]), its velocity integrated from the
+    /// start position (so the estimate drifts with the flow's errors).
     Flow,
 }
 
@@ -160,16 +162,23 @@ pub(super) struct Motion {
     speed_limit: f64,
     source: PositionSource,
     range_max_mm: f64,
-    /// Start position (INIT_PID) and the dead-reckoned x, y.
+    /// Start position (INIT_PID) and the flow filter's dead reckoning.
     start: [f64; 3],
-    dead: [f64; 2],
+    filter_params: FlowFilterParams,
+    dead: FlowFilter,
+    /// The flow estimate's distance from the GPS (flow mode only).
+    pub(super) drift: Option<Drift>,
     last: Option<(f64, [f64; 3])>,
     /// Iterations on the ground while landing.
     pub(super) landed_for: u32,
 }
 
 impl Motion {
-    pub(super) fn new(source: PositionSource, range_max_mm: f64) -> Self {
+    pub(super) fn new(
+        source: PositionSource,
+        range_max_mm: f64,
+        filter_params: FlowFilterParams,
+    ) -> Self {
         Motion {
             ctrl: [0; 4],
             stat: TimedReg::default(),
@@ -182,7 +191,9 @@ impl Motion {
             source,
             range_max_mm,
             start: [0.0; 3],
-            dead: [0.0; 2],
+            filter_params,
+            dead: FlowFilter::new(filter_params, [0.0; 2]),
+            drift: None,
             last: None,
             landed_for: 0,
         }
@@ -226,7 +237,7 @@ impl Motion {
     /// At INIT_PID: the start pose, and the estimate from it.
     pub(super) fn init(&mut self, time_s: f64, pos: [f64; 3]) {
         self.start = pos;
-        self.dead = [pos[0], pos[1]];
+        self.dead = FlowFilter::new(self.filter_params, [pos[0], pos[1]]);
         self.last = Some((time_s, pos));
         self.est[0..3].copy_from_slice(&pos);
         // GET_INIT_DATA has no attitude, velocities or ranges: yaw and
@@ -277,13 +288,17 @@ impl Motion {
                     "stm32.position_source = flow, but the world sends no FLOW_VX/FLOW_VY".into(),
                 );
             };
-            if dt > 0.0 {
-                let (sn, cs) = s.yaw.sin_cos();
-                self.dead[0] += (fvx * cs - fvy * sn) * dt;
-                self.dead[1] += (fvx * sn + fvy * cs) * dt;
-            }
-            s.x = self.dead[0];
-            s.y = self.dead[1];
+            let att = Attitude {
+                roll: s.roll,
+                pitch: s.pitch,
+                yaw: s.yaw,
+            };
+            let truth = [s.x, s.y];
+            self.dead.step(Seconds(dt), att, [fvx, fvy]);
+            [s.x, s.y] = self.dead.position();
+            self.drift
+                .get_or_insert_with(Drift::default)
+                .record(truth, [s.x, s.y]);
         }
         let pos = [s.x, s.y, s.z];
         let vel = if dt > 0.0 {

@@ -188,7 +188,7 @@ fn the_register_file_has_a_faulting_gap_before_the_extension() {
 
 #[test]
 fn without_a_heading_the_race_controller_is_appendix_c_bit_for_bit() {
-    let m = Motion::new(PositionSource::Gps, 2000.0);
+    let m = Motion::new(PositionSource::Gps, 2000.0, FlowFilterParams::default());
     for yaw in [FRAC_PI_2, 1.5, 0.0, -3.0] {
         assert_eq!(m.steer(0.25, -0.5, yaw), (0.25, -0.5, 0.0));
     }
@@ -196,7 +196,7 @@ fn without_a_heading_the_race_controller_is_appendix_c_bit_for_bit() {
 
 #[test]
 fn with_a_heading_the_world_demand_is_rotated_by_the_yaw() {
-    let mut m = Motion::new(PositionSource::Gps, 2000.0);
+    let mut m = Motion::new(PositionSource::Gps, 2000.0, FlowFilterParams::default());
     // At yaw +π/2 with the heading held: Appendix C's mapping.
     m.heading = Some(FRAC_PI_2);
     let (vx, vy, r) = m.steer(0.25, -0.5, FRAC_PI_2);
@@ -217,7 +217,13 @@ fn with_a_heading_the_world_demand_is_rotated_by_the_yaw() {
 
 #[test]
 fn ranges_in_metres_negative_out_of_range_and_flow_dead_reckoning() {
-    let mut m = Motion::new(PositionSource::Flow, 2000.0);
+    // σ = 0: the flow filter's gain is 1, the estimate is the raw flow
+    // (estimator.rs has the filter's own closed-form tests).
+    let raw = FlowFilterParams {
+        flow_std: super::super::estimator::MetresPerSecond(0.0),
+        ..FlowFilterParams::default()
+    };
+    let mut m = Motion::new(PositionSource::Flow, 2000.0, raw);
     m.init(2.0, [1.0, 2.0, 0.015]);
     let mut s = Sensors {
         time_s: 2.5,
@@ -249,7 +255,7 @@ fn ranges_in_metres_negative_out_of_range_and_flow_dead_reckoning() {
     s.flow_vx = None;
     assert!(m.update(&mut s).unwrap_err().contains("FLOW_VX"));
     // GPS mode: positions as the world says.
-    let mut g = Motion::new(PositionSource::Gps, 2000.0);
+    let mut g = Motion::new(PositionSource::Gps, 2000.0, FlowFilterParams::default());
     g.init(2.0, [1.0, 2.0, 0.015]);
     let mut s2 = Sensors {
         time_s: 2.5,

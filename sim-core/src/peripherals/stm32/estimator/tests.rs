@@ -1,0 +1,149 @@
+//! Closed-form checks of the flow filter.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use super::*;
+
+const DT: Seconds = Seconds(0.032);
+
+fn level(yaw: f64) -> Attitude {
+    Attitude {
+        roll: 0.0,
+        pitch: 0.0,
+        yaw,
+    }
+}
+
+#[test]
+fn the_covariance_converges_to_the_riccati_fixed_point() {
+    let p = FlowFilterParams::default();
+    let mut f = FlowFilter::new(p, [0.0; 2]);
+    for _ in 0..2000 {
+        f.step(DT, level(0.0), [0.0, 0.0]);
+    }
+    // After the update, P = (1 − K)·P⁻ = K·r at the fixed point.
+    let k = p.steady_state_gain(DT);
+    let expected = k * p.flow_std.0.powi(2);
+    assert!(
+        (f.variance() - expected).abs() < 1e-9 * expected.max(1e-12),
+        "{} vs {expected}",
+        f.variance()
+    );
+    // With the defaults (σ = 0.069 m/s, σₐ = 0.03 m/s², 32 ms): q = 9.216e-7,
+    // r = 4.761e-3, P⁻ = 6.670e-5, K = 0.01382.
+    assert!((k - 0.01382).abs() < 1e-5, "K = {k}");
+}
+
+#[test]
+fn stationary_noise_is_reduced_by_the_predicted_factor() {
+    // Hovering level, flow = pure noise: the estimate's variance is
+    // K/(2 − K)·σ² (0.00696·σ² with the defaults: σ 0.069 → 0.0058 m/s).
+    let p = FlowFilterParams::default();
+    let mut f = FlowFilter::new(p, [0.0; 2]);
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let sigma = p.flow_std.0;
+    let (mut sum, mut sum2, mut n) = ([0.0; 2], [0.0; 2], 0.0);
+    for i in 0..400_000 {
+        let z: [f64; 2] = std::array::from_fn(|_| {
+            let x: f64 = StandardNormal.sample(&mut rng);
+            sigma * x
+        });
+        f.step(DT, level(0.3), z);
+        if i >= 1000 {
+            for a in 0..2 {
+                sum[a] += f.velocity()[a];
+                sum2[a] += f.velocity()[a].powi(2);
+            }
+            n += 1.0;
+        }
+    }
+    let predicted = p.steady_state_noise_variance(DT);
+    for a in 0..2 {
+        let mean = sum[a] / n;
+        let var = sum2[a] / n - mean * mean;
+        // 400 000 correlated samples (correlation time 1/K ≈ 72 steps):
+        // about 5 500 independent ones, a relative error of √(2/5500) = 1.9 %.
+        assert!(
+            (var / predicted - 1.0).abs() < 0.08,
+            "axis {a}: variance {var:.3e}, predicted {predicted:.3e}"
+        );
+        assert!(
+            predicted / sigma.powi(2) < 0.01,
+            "reduction {}",
+            predicted / sigma.powi(2)
+        );
+    }
+}
+
+#[test]
+fn a_constant_tilt_is_tracked_without_lag() {
+    // Pitch 3° at yaw 90°: forward is world +y, a = g·tan 3° = 0.514 m/s².
+    // The flow (the true body velocity + noise) and the prediction agree,
+    // so the estimate follows v = a·t with only the noise's error.
+    let p = FlowFilterParams::default();
+    let att = Attitude {
+        roll: 0.0,
+        pitch: 3f64.to_radians(),
+        yaw: std::f64::consts::FRAC_PI_2,
+    };
+    let a = G * att.pitch.tan();
+    let mut f = FlowFilter::new(p, [1.0, 2.0]);
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let bound = 4.0 * p.steady_state_noise_variance(DT).sqrt();
+    let mut t = 0.0;
+    for _ in 0..100 {
+        t += DT.0;
+        let v = a * t;
+        let n: [f64; 2] = std::array::from_fn(|_| {
+            let x: f64 = StandardNormal.sample(&mut rng);
+            p.flow_std.0 * x
+        });
+        f.step(DT, att, [v + n[0], n[1]]);
+        let e = f.velocity();
+        assert!(e[0].abs() < bound, "sideways {} at {t}", e[0]);
+        assert!((e[1] - v).abs() < bound, "{} vs {v} at {t}", e[1]);
+    }
+    // Position: ½·a·t² (3.2 s: 2.63 m), up to the integrated noise and the
+    // half step of the rectangle rule (a·t·dt/2 = 0.026 m).
+    let x = f.position();
+    let expected = 0.5 * a * t * t;
+    assert!((x[0] - 1.0).abs() < 0.05, "x {}", x[0]);
+    assert!(
+        (x[1] - 2.0 - expected).abs() < 0.06,
+        "{} vs {expected}",
+        x[1] - 2.0
+    );
+}
+
+#[test]
+fn roll_accelerates_to_the_right_and_yaw_rotates_the_flow() {
+    // Positive roll tilts the thrust to −y (the controller's roll demand
+    // is −kp·vy error, pid.rs).
+    let a = tilt_acceleration(Attitude {
+        roll: 0.1,
+        pitch: 0.0,
+        yaw: 0.0,
+    });
+    assert!((a[1] + G * 0.1f64.tan()).abs() < 1e-12 && a[0].abs() < 1e-12);
+    // Yaw 90°: the body's forward flow is world +y.
+    let w = rotate(std::f64::consts::FRAC_PI_2, [1.0, 0.0]);
+    assert!(w[0].abs() < 1e-12 && (w[1] - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn without_noise_the_filter_is_the_raw_flow() {
+    // σ = 0: the gain is 1, the estimate is the flow and the position its
+    // integral (the model before this filter).
+    let p = FlowFilterParams {
+        flow_std: MetresPerSecond(0.0),
+        ..FlowFilterParams::default()
+    };
+    let mut f = FlowFilter::new(p, [0.0; 2]);
+    f.step(DT, level(0.0), [0.3, -0.1]);
+    f.step(DT, level(0.0), [0.5, -0.2]);
+    assert_eq!(f.velocity(), [0.5, -0.2]);
+    let x = f.position();
+    assert!((x[0] - 0.8 * DT.0).abs() < 1e-15 && (x[1] + 0.3 * DT.0).abs() < 1e-15);
+}
