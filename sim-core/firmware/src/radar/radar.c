@@ -56,6 +56,17 @@ volatile int32_t radar_max_ms = 40000;
 /* This drone's send phase in the period, ms (-1: by its id, phase_ms()). */
 volatile int32_t radar_phase_ms = -1;
 volatile int32_t radar_core_hz = 250000000;
+/* Beacons leave at a pseudo-random time in [0, radar_tx_spread_us) into
+ * the PID iteration that follows the send (the radio's TX_DELAY), instead
+ * of at its start (0: off, as before). On the Crazyflie the P2P packets
+ * leave when the application task calls the radio, at no common time; here
+ * a flying drone's frames would otherwise all leave on the 32 ms grid of
+ * the iterations, shared by all drones (iteration() below), so that two
+ * drones sending in one iteration always collide. The nRF51 has no delayed
+ * send: the delay only puts the frame at the time the real firmware's call
+ * could have sent it. At most ITER_MS: the frame leaves within the
+ * iteration. */
+__attribute__((section(".data"))) volatile int32_t radar_tx_spread_us = 0;
 
 enum { PKT_BEACON = 0xA5, PKT_LAND = 0x1D };
 #define LAND_REPEATS 3
@@ -66,6 +77,18 @@ enum { PKT_BEACON = 0xA5, PKT_LAND = 0x1D };
 
 static radio_t p2p;
 static uint32_t id, sent, received;
+static uint32_t rng_state;
+
+/* xorshift32 (Marsaglia 2003): the beacons' send delays, seeded by the
+ * drone's id, so every run of a scenario is the same. */
+static uint32_t rng_next(void)
+{
+    uint32_t x = rng_state;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    return rng_state = x;
+}
 
 static void perform(uint8_t op)
 {
@@ -128,7 +151,7 @@ static int32_t mm(double m) { return (int32_t)lround(m * 1000.0); }
  * duplex, do not hear each other; 50 ms apart, A and B never share one (a
  * 32 ms grid cannot put two times 50 ms apart into one bin). Four drones
  * cannot share 100 ms on that grid without collisions: the cluster
- * scenario gives each its own 32 ms slot of a 128 ms period. */
+ * scenario spreads its beacons within the iteration (radar_tx_spread_us). */
 static uint32_t phase_ms(uint32_t period)
 {
     if (radar_phase_ms >= 0)
@@ -143,7 +166,14 @@ static int send(uint8_t kind, uint16_t seq)
     if (REG8(p2p.base + RADIO_STATE_OFFSET) == RADIO_STATE_TX)
         return 0;
     uint8_t pkt[4] = {kind, (uint8_t)id, (uint8_t)seq, (uint8_t)(seq >> 8)};
-    radio_send(&p2p, pkt, sizeof pkt);
+    int32_t spread_us = radar_tx_spread_us;
+    if (kind == PKT_BEACON && spread_us > 0) {
+        if (spread_us > ITER_MS * 1000)
+            spread_us = ITER_MS * 1000;
+        radio_send_delayed(&p2p, pkt, sizeof pkt, (rng_next() % (uint32_t)spread_us) * 1000u);
+    } else {
+        radio_send(&p2p, pkt, sizeof pkt);
+    }
     sent++;
     return 1;
 }
@@ -171,9 +201,14 @@ int main(void)
     radio_init(&p2p);
     radio_rx_on(&p2p);
     id = (uint32_t)radio_eui(&p2p);
+    rng_state = 0x9E3779B9u ^ (id * 2654435761u);
+    if (rng_state == 0)
+        rng_state = 1;
     printf("RADAR start id=%lu height_mm=%ld vx_mm_s=%ld vy_mm_s=%ld watch=%ld\n",
            (unsigned long)id, (long)radar_height_mm, (long)radar_vx_mm_s, (long)radar_vy_mm_s,
            (long)radar_watch_id);
+    if (radar_tx_spread_us > 0)
+        printf("RADAR tx_spread_us=%ld\n", (long)radar_tx_spread_us);
 
     REGF64(STM32_CMD_HEIGHT_OFFSET) = radar_height_mm / 1000.0;
     if (ext(EXT_TAKEOFF) != EXT_TAKEOFF) {
