@@ -158,7 +158,7 @@ pub const RUN_KEYS: [(&str, &str); 16] = [
     ),
     (
         "stm32.position_source",
-        "the STM32's position estimate: gps (thesis) | flow (dead reckoning on FLOW_VX/VY)",
+        "the STM32's position estimate: gps (thesis) | flow (dead reckoning on FLOW_VX/VY through the flow filter)",
     ),
     (
         "stm32.range_max_m",
