@@ -28,7 +28,19 @@ pub const ERROR_PNG: &str = "position_error.png";
 
 /// The firmware's clock starts when its radio's INIT_DONE comes: at the end
 /// of the world's warm-up (docs/SWARM.md §2, §4), 2.000 s of world time.
+/// A carried drone's core clock is the world's, so its estimate at firmware
+/// time t is at world time 2 s + t.
 pub const FIRMWARE_T0_MS: u64 = 2000;
+
+/// World time (ms) of an estimate: the STM32's last sensor read when the
+/// firmware prints it (flying drones: their core clock runs ahead of the
+/// world's, docs/SWARM_RESULTS.md §5), else [`FIRMWARE_T0_MS`] + its time.
+pub fn world_ms(e: &console::Estimates) -> f64 {
+    match e.world_us {
+        Some(us) => us as f64 / 1000.0,
+        None => (FIRMWARE_T0_MS + e.t_ms) as f64,
+    }
+}
 
 /// The scenario's `[positioning]` table.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -44,6 +56,24 @@ pub struct PositioningSpec {
     /// one pair of plots each, named after the drone.
     #[serde(default)]
     pub plot: Vec<String>,
+    /// Seconds of start-up transient after each plotted observer's first
+    /// estimate: with it, the estimation error after them is summarised per
+    /// drone (mean, p95, max) in `positioning.md` and drawn on its own in a
+    /// second panel of the error plot. None: neither.
+    #[serde(default)]
+    pub settle_s: Option<f64>,
+}
+
+impl PositioningSpec {
+    /// Checks what serde cannot: `settle_s` finite and ≥ 0.
+    pub fn validate(&self) -> Result<(), String> {
+        match self.settle_s {
+            Some(v) if !(v.is_finite() && v >= 0.0) => Err(format!(
+                "positioning.settle_s = {v}: expected a finite number of seconds >= 0"
+            )),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// One table (seed 003 Tables 7.1–7.4).
@@ -188,7 +218,7 @@ pub fn position_rows(
             if refs.len() < 3 && !refs.contains(&e.id) {
                 refs.push(e.id);
             }
-            let world_ms = (FIRMWARE_T0_MS + e.t_ms) as f64;
+            let world_ms = world_ms(e);
             let pts: Option<Vec<[f64; 3]>> = refs
                 .iter()
                 .map(|id| at(tracks.get(names.get(id)?)?, world_ms))
@@ -343,33 +373,108 @@ pub fn tables_markdown(tables: &[Table]) -> String {
     s
 }
 
+/// One drone's estimation error (3D, m) after the start-up transient, as
+/// one observer estimates it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ErrorRow {
+    pub drone: String,
+    pub samples: usize,
+    pub mean: f64,
+    /// Nearest-rank 95th percentile.
+    pub p95: f64,
+    pub max: f64,
+}
+
+/// The errors of `obs`'s estimates, per drone in platform order, from its
+/// first estimate + `settle_s` on; also that start time (s).
+pub fn error_summary(
+    scenario: &Scenario,
+    obs: &str,
+    rows: &[PositionRow],
+    settle_s: f64,
+) -> Option<(f64, Vec<ErrorRow>)> {
+    let mine: Vec<&PositionRow> = rows.iter().filter(|r| r.observer == obs).collect();
+    let from = mine.iter().map(|r| r.time_s).reduce(f64::min)? + settle_s;
+    let errors = scenario
+        .platforms
+        .iter()
+        .filter_map(|p| {
+            let mut e: Vec<f64> = mine
+                .iter()
+                .filter(|r| r.drone == p.drone && r.time_s >= from)
+                .map(|r| r.error())
+                .collect();
+            if e.is_empty() {
+                return None;
+            }
+            e.sort_by(f64::total_cmp);
+            let n = e.len();
+            Some(ErrorRow {
+                drone: p.drone.clone(),
+                samples: n,
+                mean: e.iter().sum::<f64>() / n as f64,
+                p95: e[(n * 95).div_ceil(100) - 1],
+                max: e[n - 1],
+            })
+        })
+        .collect();
+    Some((from, errors))
+}
+
+/// The error summary as markdown.
+pub fn errors_markdown(obs: &str, from_s: f64, settle_s: f64, rows: &[ErrorRow]) -> String {
+    let mut s = format!(
+        "### estimation error of {obs}'s estimates from {from_s:.3} s of world time \
+         (its first estimate + {settle_s} s of start-up transient)\n\n\
+         | drone | samples | mean (m) | p95 (m) | max (m) |\n|---|---|---|---|---|\n"
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3} | {:.3} | {:.3} |",
+            r.drone, r.samples, r.mean, r.p95, r.max
+        );
+    }
+    s.push('\n');
+    s
+}
+
 /// The estimates of one observer over time (x and y of every drone, the
-/// truth beside each), and every drone's error.
+/// truth beside each), and every drone's error (with `settle_s`, a second
+/// panel from the observer's first estimate + `settle_s` on).
 pub fn draw_plots(
     out: &Path,
     scenario: &Scenario,
     obs: &str,
     rows: &[PositionRow],
     names: (&str, &str),
+    settle_s: Option<f64>,
 ) -> Result<Vec<PathBuf>, PlotError> {
     let mine: Vec<&PositionRow> = rows.iter().filter(|r| r.observer == obs).collect();
     if mine.is_empty() {
         return Ok(Vec::new());
     }
-    let series = |drone: &str, label: String, f: &dyn Fn(&PositionRow) -> f64| Series {
-        label,
-        points: crate::plot::decimate(
-            &mine
-                .iter()
-                .filter(|r| r.drone == drone)
-                .map(|r| (r.time_s, f(r)))
-                .collect::<Vec<_>>(),
-            4000,
-        ),
+    let settled_from =
+        settle_s.map(|s| mine.iter().map(|r| r.time_s).fold(f64::INFINITY, f64::min) + s);
+    let series_from =
+        |from: f64, drone: &str, label: String, f: &dyn Fn(&PositionRow) -> f64| Series {
+            label,
+            points: crate::plot::decimate(
+                &mine
+                    .iter()
+                    .filter(|r| r.drone == drone && r.time_s >= from)
+                    .map(|r| (r.time_s, f(r)))
+                    .collect::<Vec<_>>(),
+                4000,
+            ),
+        };
+    let series = |drone: &str, label: String, f: &dyn Fn(&PositionRow) -> f64| {
+        series_from(f64::NEG_INFINITY, drone, label, f)
     };
     let mut xs = Vec::new();
     let mut ys = Vec::new();
     let mut errs = Vec::new();
+    let mut settled = Vec::new();
     let seen: std::collections::BTreeSet<&str> = mine.iter().map(|r| r.drone.as_str()).collect();
     for p in scenario
         .platforms
@@ -382,6 +487,9 @@ pub fn draw_plots(
         ys.push(series(d, format!("{d} estimated"), &|r| r.est_y));
         ys.push(series(d, format!("{d} true"), &|r| r.true_y));
         errs.push(series(d, d.to_string(), &|r| r.error()));
+        if let Some(from) = settled_from {
+            settled.push(series_from(from, d, d.to_string(), &|r| r.error()));
+        }
     }
     let pos = out.join(names.0);
     panels(
@@ -405,19 +513,22 @@ pub fn draw_plots(
         false,
     )?;
     let err = out.join(names.1);
-    panels(
-        &err,
-        "world time (s)",
-        &[(
-            format!(
-                "{}: position error of each drone as estimated by {obs}",
-                scenario.name
-            ),
+    let mut charts = vec![(
+        format!(
+            "{}: position error of each drone as estimated by {obs}",
+            scenario.name
+        ),
+        "|estimate − truth| (m)".to_string(),
+        errs,
+    )];
+    if let (Some(from), Some(s)) = (settled_from, settle_s) {
+        charts.push((
+            format!("the same from {from:.2} s (after {s} s of start-up transient)"),
             "|estimate − truth| (m)".into(),
-            errs,
-        )],
-        false,
-    )?;
+            settled,
+        ));
+    }
+    panels(&err, "world time (s)", &charts, false)?;
     Ok(vec![pos, err])
 }
 
@@ -426,6 +537,8 @@ pub fn draw_plots(
 pub struct Positioning {
     pub rows: usize,
     pub tables: Vec<Table>,
+    /// Per plotted observer, with `settle_s`: the error summary.
+    pub errors: Vec<(String, Vec<ErrorRow>)>,
     pub plots: Vec<PathBuf>,
     pub consoles: BTreeMap<String, SwarmConsole>,
     /// Text for the run's report.
@@ -470,12 +583,31 @@ pub fn analyse(
         rows.len(),
         csv_path.display()
     );
-    if !tables.is_empty() {
-        let md = format!(
-            "# {}: estimated positions (real, mean estimate, std; seed 003 §7.1)\n\n{}",
-            scenario.name,
-            tables_markdown(&tables)
-        );
+    let plotted = if spec.plot.is_empty() {
+        observer(scenario, Some(&spec)).into_iter().collect()
+    } else {
+        spec.plot.clone()
+    };
+    let mut errors = Vec::new();
+    let mut errors_md = String::new();
+    if let Some(settle) = spec.settle_s {
+        for obs in &plotted {
+            if let Some((from, e)) = error_summary(scenario, obs, &rows, settle) {
+                errors_md.push_str(&errors_markdown(obs, from, settle, &e));
+                errors.push((obs.clone(), e));
+            }
+        }
+    }
+    if !tables.is_empty() || !errors_md.is_empty() {
+        let md = if tables.is_empty() {
+            format!("# {}: estimation error\n\n{errors_md}", scenario.name)
+        } else {
+            format!(
+                "# {}: estimated positions (real, mean estimate, std; seed 003 §7.1)\n\n{}{errors_md}",
+                scenario.name,
+                tables_markdown(&tables)
+            )
+        };
         let p = out.join(POSITIONING_MD);
         std::fs::write(&p, &md).map_err(|e| format!("{}: {e}", p.display()))?;
         text.push_str(&format!("   tables         {}\n\n{md}", p.display()));
@@ -502,13 +634,8 @@ pub fn analyse(
     }
     let mut plots = Vec::new();
     if draw {
-        let observers = if spec.plot.is_empty() {
-            observer(scenario, Some(&spec)).into_iter().collect()
-        } else {
-            spec.plot.clone()
-        };
-        for obs in &observers {
-            let names = if observers.len() == 1 {
+        for obs in &plotted {
+            let names = if plotted.len() == 1 {
                 (POSITIONS_PNG.to_string(), ERROR_PNG.to_string())
             } else {
                 (
@@ -517,14 +644,22 @@ pub fn analyse(
                 )
             };
             plots.extend(
-                draw_plots(out, scenario, obs, &rows, (&names.0, &names.1))
-                    .map_err(|e| e.to_string())?,
+                draw_plots(
+                    out,
+                    scenario,
+                    obs,
+                    &rows,
+                    (&names.0, &names.1),
+                    spec.settle_s,
+                )
+                .map_err(|e| e.to_string())?,
             );
         }
     }
     Ok(Some(Positioning {
         rows: rows.len(),
         tables,
+        errors,
         plots,
         consoles,
         text,
@@ -564,5 +699,62 @@ mod tests {
         };
         assert_eq!(at(&t, 5.0), Some([0.5, 1.0, 0.0]));
         assert_eq!(at(&t, 20.0), Some([1.0, 2.0, 0.0]));
+    }
+
+    #[test]
+    fn the_error_summary_leaves_the_transient_out() {
+        let scenario: Scenario = {
+            let dir = tempfile::tempdir().unwrap();
+            let p = dir.path().join("s.toml");
+            std::fs::write(
+                &p,
+                "world = \"w.toml\"\nfirmware = \"f.elf\"\n[[platform]]\ndrone = \"a\"\n\
+                 [[platform]]\ndrone = \"b\"\n[positioning]\nsettle_s = 1.0\n",
+            )
+            .unwrap();
+            Scenario::load(&p).unwrap()
+        };
+        assert_eq!(scenario.positioning.as_ref().unwrap().settle_s, Some(1.0));
+        // b's errors 0.01 .. 1.00 m at 5 s + k·10 ms; a's 5 m at first.
+        let row = |t: f64, drone: &str, e: f64| PositionRow {
+            time_s: t,
+            observer: "a".into(),
+            drone: drone.into(),
+            est_x: e,
+            est_y: 0.0,
+            est_z: 0.0,
+            sigma_m: 0.1,
+            stable: 1,
+            true_x: 0.0,
+            true_y: 0.0,
+            true_z: 0.0,
+        };
+        let mut rows = vec![row(4.0, "a", 5.0), row(4.5, "b", 7.0)];
+        rows.extend((1..=100).map(|k| row(5.0 + k as f64 / 100.0, "b", k as f64 / 100.0)));
+        let (from, e) = error_summary(&scenario, "a", &rows, 1.0).unwrap();
+        assert_eq!(from, 5.0);
+        assert_eq!(e.len(), 1, "a has no estimate after 5 s");
+        let b = &e[0];
+        assert_eq!((b.drone.as_str(), b.samples), ("b", 100));
+        assert!((b.mean - 0.505).abs() < 1e-12, "{b:?}");
+        assert_eq!((b.p95, b.max), (0.95, 1.0));
+        assert!(errors_markdown("a", from, 1.0, &e).contains("| b | 100 | 0.505 | 0.950 | 1.000 |"));
+        assert!(error_summary(&scenario, "b", &rows, 1.0).is_none());
+        // A negative or non-finite settle_s is refused.
+        let bad = PositioningSpec {
+            settle_s: Some(-1.0),
+            ..PositioningSpec::default()
+        };
+        assert!(bad.validate().unwrap_err().contains("settle_s = -1"));
+    }
+
+    #[test]
+    fn an_estimate_is_at_its_printed_world_time_else_two_seconds_after_its_own() {
+        let c = console::parse(
+            "swarm t=1850 id=4 frame=built n=0 4=0,0,0,5,s world_us=9004000\n\
+             swarm t=1850 id=4 frame=built n=0 4=0,0,0,5,s\n",
+        );
+        assert_eq!(world_ms(&c.estimates[0]), 9004.0);
+        assert_eq!(world_ms(&c.estimates[1]), 3850.0);
     }
 }

@@ -22,9 +22,12 @@
  * step here), so the packet goes at the same fraction of the world's step;
  * a delay as long as the core's step would end past the world's step,
  * TX_DONE would come a step later and the next packet would go late. The
- * estimates' times are the core's (mtime), which in the
- * thesis's bookkeeping runs ahead of the world by the core time between
- * steps.
+ * estimates' times (t=) are the core's (mtime), which in the thesis's
+ * bookkeeping runs ahead of the world by the core time between steps, so
+ * this build (-DAPP_WORLD_TIME) also prints world_us=, the world time of the
+ * STM32's last sensor read (EST_TIME): the estimate is made between two
+ * steps, from what the radio saw up to the end of the last one, at most one
+ * step (STEP_MS of world time) after that read.
  */
 #include <stdint.h>
 #include <stdio.h>
