@@ -93,8 +93,8 @@ pub struct TableSpec {
     pub seed: BTreeMap<String, [f64; 6]>,
 }
 
-/// One row of `positions.csv`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// One row of `positions.csv` (read back by the end-to-end tests).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PositionRow {
     /// World time (s).
     pub time_s: f64,

@@ -55,6 +55,11 @@
 
 static const double corner[4][2] = {{0, 0}, {SIDE, 0}, {SIDE, SIDE}, {0, SIDE}};
 
+/* Legs flown: LAPS laps, or the run key firmware.swarm_fly_legs = N
+ * (sim-core/src/kernel/firmware_params.rs writes it by its symbol; the
+ * end-to-end test flies one leg). */
+volatile int32_t swarm_fly_legs = 4 * LAPS;
+
 /* Listing 4.6. */
 static void perform(uint8_t op)
 {
@@ -95,7 +100,7 @@ int main(void)
     uint64_t step = 0; /* mtime length of the last PID step */
     const int first = (int)((eui > 0 ? eui - 1 : 0) % 4);
     int low = 0;
-    for (int leg = 1; leg <= 4 * LAPS && !low; leg++) {
+    for (int leg = 1; leg <= swarm_fly_legs && !low; leg++) {
         const int k = (first + leg) % 4;
         stm32_x = corner[k][0];
         stm32_y = corner[k][1];
