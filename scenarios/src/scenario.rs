@@ -282,6 +282,9 @@ impl Scenario {
             s.set_scenario_key("max_time_s", &t.to_string())
                 .map_err(|e| invalid(e.to_string()))?;
         }
+        if let Some(p) = &s.positioning {
+            p.validate().map_err(invalid)?;
+        }
         for (key, _) in &s.sweep {
             let key = s.platform_key(key).map_or(key.as_str(), |(_, k)| k);
             if !is_run_key(key) && !SCENARIO_KEYS.iter().any(|(k, _)| *k == key) {

@@ -2,7 +2,9 @@
 //! positioning on the ISS), read back from a drone's `console.log`:
 //!
 //! - `swarm t=2501 id=1 frame=built n=2 1=1000,500,0,57,s 2=0,0,0,8,s …` —
-//!   the 100 Hz estimates (mm in this drone's frame, σ in mm, state);
+//!   the 100 Hz estimates (mm in this drone's frame, σ in mm, state); a
+//!   flying drone (`swarm_fly.elf`) ends it with `world_us=…`, the world
+//!   time of the STM32's last sensor read (EST_TIME, docs/SWARM_RESULTS.md §5);
 //! - `swarm frame t=… id=… built refs=2,3,1` — the frame's references
 //!   (origin, +X, XY plane, +Z side) whenever they change;
 //! - `swarm load t=… id=… n=… tx=… rx=… …` — one line per second;
@@ -27,6 +29,9 @@ pub struct NodeEstimate {
 pub struct Estimates {
     /// Firmware time (ms since its radio's INIT_DONE).
     pub t_ms: u64,
+    /// World time (µs) of the STM32's last sensor read, when the firmware
+    /// prints it (`world_us=`, flying drones only).
+    pub world_us: Option<u64>,
     /// The observer's identifier.
     pub id: u32,
     /// The frame is built (§5.3.2).
@@ -95,13 +100,19 @@ fn estimates(words: &[&str]) -> Option<Estimates> {
             .iter()
             .find_map(|w| w.strip_prefix(k).and_then(|v| v.strip_prefix('=')))
     };
+    let world_us = match kv("world_us") {
+        Some(v) => Some(v.parse().ok()?),
+        None => None,
+    };
     let nodes = words
         .iter()
         .skip(5)
+        .filter(|w| !w.starts_with("world_us="))
         .map(|w| node(w))
         .collect::<Option<Vec<_>>>()?;
     Some(Estimates {
         t_ms: kv("t")?.parse().ok()?,
+        world_us,
         id: kv("id")?.parse().ok()?,
         built: kv("frame")? == "built",
         nodes,
@@ -175,6 +186,20 @@ mod tests {
         assert_eq!(c.refs_at(5), None);
         assert_eq!(c.load[0]["rx"], 150);
         assert_eq!(c.end.as_ref().unwrap()["tx_built"], 5200);
+        assert_eq!(e.world_us, None, "a carried drone's line");
+    }
+
+    #[test]
+    fn a_flying_drones_line_carries_the_world_time() {
+        let c = parse(
+            "swarm t=1850 id=4 frame=built n=3 4=0,0,0,5,s 1=2000,0,0,9,s world_us=9004000\n\
+             swarm t=1860 id=4 frame=built n=3 4=0,0,0,5,s world_us=x\n",
+        );
+        assert_eq!(c.estimates.len(), 1, "a malformed world time is skipped");
+        let e = &c.estimates[0];
+        assert_eq!((e.t_ms, e.world_us), (1850, Some(9_004_000)));
+        assert_eq!(e.nodes.len(), 2);
+        assert_eq!(e.nodes[1].pos, [2.0, 0.0, 0.0]);
     }
 
     #[test]

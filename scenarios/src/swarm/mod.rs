@@ -9,6 +9,7 @@
 //! - [`plot`]: the top view with every drone and the radio links.
 //! - [`bench`]: `cosim bench swarm` (real-time factor against the swarm's size).
 
+pub mod accuracy;
 pub mod bench;
 pub mod console;
 pub mod launch;

@@ -5,15 +5,18 @@
 //! second, the XY plane through the third with it on +Y, +Z toward the
 //! fourth), written to `positions.csv`; with a `[positioning]` table in
 //! the scenario, the tables of §7.1 (real, mean estimate, standard
-//! deviation per window) beside the seed's, in `positioning.md`; and the
-//! plots of the estimates and their errors over time.
+//! deviation per window) beside the seed's, in `positioning.md`; with
+//! `settle_s`, each drone's error (mean, p95, max) after the start-up
+//! transient there too; and the plots of the estimates and their errors
+//! over time. An estimate's world time is the one the firmware printed
+//! (`world_us=`, flying drones) or 2 s + its core time (carried drones).
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::accuracy::{error_summary, errors_markdown, tables, tables_markdown, ErrorRow, Table};
 use super::console::{self, SwarmConsole};
 use super::report::DroneTrack;
 use crate::launch::files;
@@ -28,7 +31,19 @@ pub const ERROR_PNG: &str = "position_error.png";
 
 /// The firmware's clock starts when its radio's INIT_DONE comes: at the end
 /// of the world's warm-up (docs/SWARM.md §2, §4), 2.000 s of world time.
+/// A carried drone's core clock is the world's, so its estimate at firmware
+/// time t is at world time 2 s + t.
 pub const FIRMWARE_T0_MS: u64 = 2000;
+
+/// World time (ms) of an estimate: the STM32's last sensor read when the
+/// firmware prints it (flying drones: their core clock runs ahead of the
+/// world's, docs/SWARM_RESULTS.md §5), else [`FIRMWARE_T0_MS`] + its time.
+pub fn world_ms(e: &console::Estimates) -> f64 {
+    match e.world_us {
+        Some(us) => us as f64 / 1000.0,
+        None => (FIRMWARE_T0_MS + e.t_ms) as f64,
+    }
+}
 
 /// The scenario's `[positioning]` table.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -44,6 +59,24 @@ pub struct PositioningSpec {
     /// one pair of plots each, named after the drone.
     #[serde(default)]
     pub plot: Vec<String>,
+    /// Seconds of start-up transient after each plotted observer's first
+    /// estimate: with it, the estimation error after them is summarised per
+    /// drone (mean, p95, max) in `positioning.md` and drawn on its own in a
+    /// second panel of the error plot. None: neither.
+    #[serde(default)]
+    pub settle_s: Option<f64>,
+}
+
+impl PositioningSpec {
+    /// Checks what serde cannot: `settle_s` finite and ≥ 0.
+    pub fn validate(&self) -> Result<(), String> {
+        match self.settle_s {
+            Some(v) if !(v.is_finite() && v >= 0.0) => Err(format!(
+                "positioning.settle_s = {v}: expected a finite number of seconds >= 0"
+            )),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// One table (seed 003 Tables 7.1–7.4).
@@ -63,8 +96,8 @@ pub struct TableSpec {
     pub seed: BTreeMap<String, [f64; 6]>,
 }
 
-/// One row of `positions.csv`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// One row of `positions.csv` (read back by the end-to-end tests).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PositionRow {
     /// World time (s).
     pub time_s: f64,
@@ -188,7 +221,7 @@ pub fn position_rows(
             if refs.len() < 3 && !refs.contains(&e.id) {
                 refs.push(e.id);
             }
-            let world_ms = (FIRMWARE_T0_MS + e.t_ms) as f64;
+            let world_ms = world_ms(e);
             let pts: Option<Vec<[f64; 3]>> = refs
                 .iter()
                 .map(|id| at(tracks.get(names.get(id)?)?, world_ms))
@@ -224,152 +257,48 @@ pub fn position_rows(
     rows
 }
 
-/// Mean and (population) standard deviation.
-fn mean_sd(v: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
-    let n = v.clone().count().max(1) as f64;
-    let m = v.clone().sum::<f64>() / n;
-    let var = v.map(|x| (x - m).powi(2)).sum::<f64>() / n;
-    (m, var.sqrt())
-}
-
-/// One drone's line of a table.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TableRow {
-    pub drone: String,
-    pub samples: usize,
-    pub x_real: f64,
-    pub x_est: f64,
-    pub y_real: f64,
-    pub y_est: f64,
-    pub x_sd: f64,
-    pub y_sd: f64,
-    /// The seed's [x real, x est, y real, y est, x std, y std].
-    pub seed: Option<[f64; 6]>,
-}
-
-/// A table of §7.1 for one window.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Table {
-    pub name: String,
-    pub observer: String,
-    pub rows: Vec<TableRow>,
-}
-
 /// The observer whose estimates the tables and plots show.
 pub fn observer(scenario: &Scenario, spec: Option<&PositioningSpec>) -> Option<String> {
     spec.and_then(|s| s.observer.clone())
         .or_else(|| scenario.platforms.first().map(|p| p.drone.clone()))
 }
 
-pub fn tables(scenario: &Scenario, spec: &PositioningSpec, rows: &[PositionRow]) -> Vec<Table> {
-    let Some(default_obs) = observer(scenario, Some(spec)) else {
-        return Vec::new();
-    };
-    spec.table
-        .iter()
-        .map(|t| {
-            let obs = t.observer.clone().unwrap_or_else(|| default_obs.clone());
-            let rows = scenario
-                .platforms
-                .iter()
-                .map(|p| {
-                    let sel: Vec<&PositionRow> = rows
-                        .iter()
-                        .filter(|r| {
-                            r.observer == obs
-                                && r.drone == p.drone
-                                && r.time_s >= t.from_s
-                                && r.time_s < t.to_s
-                        })
-                        .collect();
-                    let (x_est, x_sd) = mean_sd(sel.iter().map(|r| r.est_x));
-                    let (y_est, y_sd) = mean_sd(sel.iter().map(|r| r.est_y));
-                    TableRow {
-                        drone: p.drone.clone(),
-                        samples: sel.len(),
-                        x_real: mean_sd(sel.iter().map(|r| r.true_x)).0,
-                        x_est,
-                        y_real: mean_sd(sel.iter().map(|r| r.true_y)).0,
-                        y_est,
-                        x_sd,
-                        y_sd,
-                        seed: t.seed.get(&p.drone).copied(),
-                    }
-                })
-                .filter(|r| r.samples > 0)
-                .collect();
-            Table {
-                name: t.name.clone(),
-                observer: obs.clone(),
-                rows,
-            }
-        })
-        .collect()
-}
-
-/// The tables as markdown, ours beside the seed's.
-pub fn tables_markdown(tables: &[Table]) -> String {
-    let mut s = String::new();
-    let f = |v: f64| format!("{v:.3}");
-    let seed = |r: &TableRow, i: usize| r.seed.map_or("–".into(), |v| f(v[i]));
-    for t in tables {
-        let _ = writeln!(s, "### {} (estimates of {})\n", t.name, t.observer);
-        let _ = writeln!(
-            s,
-            "| drone | x real | x est. | x est. (seed) | y real | y est. | y est. (seed) | \
-             x std | x std (seed) | y std | y std (seed) | samples |"
-        );
-        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
-        for r in &t.rows {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
-                r.drone,
-                f(r.x_real),
-                f(r.x_est),
-                seed(r, 1),
-                f(r.y_real),
-                f(r.y_est),
-                seed(r, 3),
-                f(r.x_sd),
-                seed(r, 4),
-                f(r.y_sd),
-                seed(r, 5),
-                r.samples
-            );
-        }
-        s.push('\n');
-    }
-    s
-}
-
 /// The estimates of one observer over time (x and y of every drone, the
-/// truth beside each), and every drone's error.
+/// truth beside each), and every drone's error (with `settle_s`, a second
+/// panel from the observer's first estimate + `settle_s` on).
 pub fn draw_plots(
     out: &Path,
     scenario: &Scenario,
     obs: &str,
     rows: &[PositionRow],
     names: (&str, &str),
+    settle_s: Option<f64>,
 ) -> Result<Vec<PathBuf>, PlotError> {
     let mine: Vec<&PositionRow> = rows.iter().filter(|r| r.observer == obs).collect();
     if mine.is_empty() {
         return Ok(Vec::new());
     }
-    let series = |drone: &str, label: String, f: &dyn Fn(&PositionRow) -> f64| Series {
-        label,
-        points: crate::plot::decimate(
-            &mine
-                .iter()
-                .filter(|r| r.drone == drone)
-                .map(|r| (r.time_s, f(r)))
-                .collect::<Vec<_>>(),
-            4000,
-        ),
+    let settled_from =
+        settle_s.map(|s| mine.iter().map(|r| r.time_s).fold(f64::INFINITY, f64::min) + s);
+    let series_from =
+        |from: f64, drone: &str, label: String, f: &dyn Fn(&PositionRow) -> f64| Series {
+            label,
+            points: crate::plot::decimate(
+                &mine
+                    .iter()
+                    .filter(|r| r.drone == drone && r.time_s >= from)
+                    .map(|r| (r.time_s, f(r)))
+                    .collect::<Vec<_>>(),
+                4000,
+            ),
+        };
+    let series = |drone: &str, label: String, f: &dyn Fn(&PositionRow) -> f64| {
+        series_from(f64::NEG_INFINITY, drone, label, f)
     };
     let mut xs = Vec::new();
     let mut ys = Vec::new();
     let mut errs = Vec::new();
+    let mut settled = Vec::new();
     let seen: std::collections::BTreeSet<&str> = mine.iter().map(|r| r.drone.as_str()).collect();
     for p in scenario
         .platforms
@@ -382,6 +311,9 @@ pub fn draw_plots(
         ys.push(series(d, format!("{d} estimated"), &|r| r.est_y));
         ys.push(series(d, format!("{d} true"), &|r| r.true_y));
         errs.push(series(d, d.to_string(), &|r| r.error()));
+        if let Some(from) = settled_from {
+            settled.push(series_from(from, d, d.to_string(), &|r| r.error()));
+        }
     }
     let pos = out.join(names.0);
     panels(
@@ -405,19 +337,22 @@ pub fn draw_plots(
         false,
     )?;
     let err = out.join(names.1);
-    panels(
-        &err,
-        "world time (s)",
-        &[(
-            format!(
-                "{}: position error of each drone as estimated by {obs}",
-                scenario.name
-            ),
+    let mut charts = vec![(
+        format!(
+            "{}: position error of each drone as estimated by {obs}",
+            scenario.name
+        ),
+        "|estimate − truth| (m)".to_string(),
+        errs,
+    )];
+    if let (Some(from), Some(s)) = (settled_from, settle_s) {
+        charts.push((
+            format!("the same from {from:.2} s (after {s} s of start-up transient)"),
             "|estimate − truth| (m)".into(),
-            errs,
-        )],
-        false,
-    )?;
+            settled,
+        ));
+    }
+    panels(&err, "world time (s)", &charts, false)?;
     Ok(vec![pos, err])
 }
 
@@ -426,6 +361,8 @@ pub fn draw_plots(
 pub struct Positioning {
     pub rows: usize,
     pub tables: Vec<Table>,
+    /// Per plotted observer, with `settle_s`: the error summary.
+    pub errors: Vec<(String, Vec<ErrorRow>)>,
     pub plots: Vec<PathBuf>,
     pub consoles: BTreeMap<String, SwarmConsole>,
     /// Text for the run's report.
@@ -470,12 +407,31 @@ pub fn analyse(
         rows.len(),
         csv_path.display()
     );
-    if !tables.is_empty() {
-        let md = format!(
-            "# {}: estimated positions (real, mean estimate, std; seed 003 §7.1)\n\n{}",
-            scenario.name,
-            tables_markdown(&tables)
-        );
+    let plotted = if spec.plot.is_empty() {
+        observer(scenario, Some(&spec)).into_iter().collect()
+    } else {
+        spec.plot.clone()
+    };
+    let mut errors = Vec::new();
+    let mut errors_md = String::new();
+    if let Some(settle) = spec.settle_s {
+        for obs in &plotted {
+            if let Some((from, e)) = error_summary(scenario, obs, &rows, settle) {
+                errors_md.push_str(&errors_markdown(obs, from, settle, &e));
+                errors.push((obs.clone(), e));
+            }
+        }
+    }
+    if !tables.is_empty() || !errors_md.is_empty() {
+        let md = if tables.is_empty() {
+            format!("# {}: estimation error\n\n{errors_md}", scenario.name)
+        } else {
+            format!(
+                "# {}: estimated positions (real, mean estimate, std; seed 003 §7.1)\n\n{}{errors_md}",
+                scenario.name,
+                tables_markdown(&tables)
+            )
+        };
         let p = out.join(POSITIONING_MD);
         std::fs::write(&p, &md).map_err(|e| format!("{}: {e}", p.display()))?;
         text.push_str(&format!("   tables         {}\n\n{md}", p.display()));
@@ -502,13 +458,8 @@ pub fn analyse(
     }
     let mut plots = Vec::new();
     if draw {
-        let observers = if spec.plot.is_empty() {
-            observer(scenario, Some(&spec)).into_iter().collect()
-        } else {
-            spec.plot.clone()
-        };
-        for obs in &observers {
-            let names = if observers.len() == 1 {
+        for obs in &plotted {
+            let names = if plotted.len() == 1 {
                 (POSITIONS_PNG.to_string(), ERROR_PNG.to_string())
             } else {
                 (
@@ -517,14 +468,22 @@ pub fn analyse(
                 )
             };
             plots.extend(
-                draw_plots(out, scenario, obs, &rows, (&names.0, &names.1))
-                    .map_err(|e| e.to_string())?,
+                draw_plots(
+                    out,
+                    scenario,
+                    obs,
+                    &rows,
+                    (&names.0, &names.1),
+                    spec.settle_s,
+                )
+                .map_err(|e| e.to_string())?,
             );
         }
     }
     Ok(Some(Positioning {
         rows: rows.len(),
         tables,
+        errors,
         plots,
         consoles,
         text,
@@ -564,5 +523,15 @@ mod tests {
         };
         assert_eq!(at(&t, 5.0), Some([0.5, 1.0, 0.0]));
         assert_eq!(at(&t, 20.0), Some([1.0, 2.0, 0.0]));
+    }
+
+    #[test]
+    fn an_estimate_is_at_its_printed_world_time_else_two_seconds_after_its_own() {
+        let c = console::parse(
+            "swarm t=1850 id=4 frame=built n=0 4=0,0,0,5,s world_us=9004000\n\
+             swarm t=1850 id=4 frame=built n=0 4=0,0,0,5,s\n",
+        );
+        assert_eq!(world_ms(&c.estimates[0]), 9004.0);
+        assert_eq!(world_ms(&c.estimates[1]), 3850.0);
     }
 }

@@ -74,7 +74,13 @@
  * (docs/VISION.md, "What the flight integration needs" 3). */
 #define STM32_EST_ROLL_OFFSET 102608
 #define STM32_EST_PITCH_OFFSET 102616
-#define STM32_EXT_END 102624
+/* World time (R, s) of the same sensor read: the time_s the world returned
+ * with the state (issue 11). The core's mtime does not follow the world's
+ * clock in flight (the thesis's bookkeeping adds the core time between the
+ * STM32's steps), so a flying firmware stamps what it derives from the
+ * state, or does between two steps, with this (docs/SWARM_RESULTS.md §5). */
+#define STM32_EST_TIME_OFFSET 102624
+#define STM32_EXT_END 102632
 
 /* Bytes STM32_EXT_END to 0x1A000 are reserved for future STM32 registers:
  * any access faults (as do 102428-102431). */

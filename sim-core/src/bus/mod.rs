@@ -389,7 +389,7 @@ mod tests {
         // extension (cosim_regs.h, 102428-102431) and everything after it.
         assert!((102_428..102_432).all(|o| route(o).is_none()));
         assert_eq!(route(102_432), Some(Target::Stm32(stm32::motion::EXT_CTRL)));
-        assert_eq!(route(102_623), Some(Target::Stm32(221)));
-        assert!((102_624..0x1A000).all(|o| route(o).is_none()));
+        assert_eq!(route(102_631), Some(Target::Stm32(229)));
+        assert!((102_632..0x1A000).all(|o| route(o).is_none()));
     }
 }

@@ -171,6 +171,22 @@ void app_poll(void)
         const uint32_t now_ms = (uint32_t)((now - t0) / (APP_CORE_HZ / 1000));
         report_frame(now_ms);
         size_t n = swarm_format_estimates(&ctx, now_ms, line, sizeof line);
+#ifdef APP_WORLD_TIME
+        /* Only in the flying firmware's build (Makefile: -DAPP_WORLD_TIME):
+         * the world time of the STM32's last sensor read (EST_TIME, µs),
+         * appended as " world_us=…" before the newline. In flight mtime
+         * does not follow the world's clock (the thesis's bookkeeping adds
+         * the core time between the STM32's steps), so the report takes the
+         * estimate's instant from this; polled between two steps, the
+         * estimate holds what the radio saw up to the end of the last step,
+         * at most one step (4 ms) after this time (docs/SWARM_RESULTS.md §5). */
+        if (n > 0 && line[n - 1] == '\n') {
+            const double world_s = REGF64(STM32_EST_TIME_OFFSET);
+            n--;
+            n += (size_t)snprintf(line + n, sizeof line - n, " world_us=%llu\n",
+                                  (unsigned long long)(world_s * 1e6 + 0.5));
+        }
+#endif
         put(line, n);
         cyc_output += mcycle() - c2;
         next_out += tick;

@@ -22,9 +22,12 @@
  * step here), so the packet goes at the same fraction of the world's step;
  * a delay as long as the core's step would end past the world's step,
  * TX_DONE would come a step later and the next packet would go late. The
- * estimates' times are the core's (mtime), which in the
- * thesis's bookkeeping runs ahead of the world by the core time between
- * steps.
+ * estimates' times (t=) are the core's (mtime), which in the thesis's
+ * bookkeeping runs ahead of the world by the core time between steps, so
+ * this build (-DAPP_WORLD_TIME) also prints world_us=, the world time of the
+ * STM32's last sensor read (EST_TIME): the estimate is made between two
+ * steps, from what the radio saw up to the end of the last one, at most one
+ * step (STEP_MS of world time) after that read.
  */
 #include <stdint.h>
 #include <stdio.h>
@@ -51,6 +54,11 @@
 #define stm32_z REGF64(STM32_TARGET_POS_Z_OFFSET)
 
 static const double corner[4][2] = {{0, 0}, {SIDE, 0}, {SIDE, SIDE}, {0, SIDE}};
+
+/* Legs flown: LAPS laps, or the run key firmware.swarm_fly_legs = N
+ * (sim-core/src/kernel/firmware_params.rs writes it by its symbol; the
+ * end-to-end test flies one leg). */
+volatile int32_t swarm_fly_legs = 4 * LAPS;
 
 /* Listing 4.6. */
 static void perform(uint8_t op)
@@ -92,7 +100,7 @@ int main(void)
     uint64_t step = 0; /* mtime length of the last PID step */
     const int first = (int)((eui > 0 ? eui - 1 : 0) % 4);
     int low = 0;
-    for (int leg = 1; leg <= 4 * LAPS && !low; leg++) {
+    for (int leg = 1; leg <= swarm_fly_legs && !low; leg++) {
         const int k = (first + leg) % 4;
         stm32_x = corner[k][0];
         stm32_y = corner[k][1];

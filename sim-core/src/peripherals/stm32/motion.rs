@@ -7,7 +7,11 @@
 //!
 //! Beyond the map agreed with issue 12, EST_ROLL and EST_PITCH (+206, +214)
 //! give the InertialUnit's roll and pitch of the same sensor read: the
-//! vision firmware levels the camera's view of a gate with them.
+//! vision firmware levels the camera's view of a gate with them. EST_TIME
+//! (+222, issue 11) is the world time (s) of that sensor read, the `time_s`
+//! the world returned with the state: a flying swarm firmware stamps its
+//! estimates with it (docs/SWARM_RESULTS.md §5), since its core clock does
+//! not run with the world's between the STM32's steps.
 //!
 //! Commands are written as one 32-bit word to EXT_CTRL (the command starts
 //! when its last byte is written); EXT_STAT is 0 from then until the command
@@ -71,8 +75,11 @@ pub const CMD_SPEED_LIMIT: u32 = 198;
 /// for the vision firmware, which levels the camera's view).
 pub const EST_ROLL: u32 = 206;
 pub const EST_PITCH: u32 = 214;
+/// World time (s) of the last sensor read (issue 11; agreed with issue 12,
+/// which adds nothing before EXT_END).
+pub const EST_TIME: u32 = 222;
 /// End of the extension (and of the STM32's register file).
-pub const EXT_END: u32 = 222;
+pub const EXT_END: u32 = 230;
 /// The bytes between the race's registers and EXT_CTRL fault.
 pub const GAP: std::ops::Range<u32> = 26..EXT_CTRL;
 
@@ -155,8 +162,9 @@ pub(super) struct Motion {
     /// EST_X .. FLOW_VY as f64 values, in register order.
     est: [f64; 15],
     args: [u8; (EST_ROLL - CMD_VX) as usize],
-    /// Roll, pitch.
-    attitude: [f64; 2],
+    /// Roll, pitch and the world time (s) of the last sensor read
+    /// (EST_ROLL, EST_PITCH, EST_TIME).
+    tail: [f64; 3],
     pub(super) mode: Mode,
     heading: Option<f64>,
     speed_limit: f64,
@@ -184,7 +192,7 @@ impl Motion {
             stat: TimedReg::default(),
             est: [0.0; 15],
             args: [0; (EST_ROLL - CMD_VX) as usize],
-            attitude: [0.0; 2],
+            tail: [0.0; 3],
             mode: Mode::Position,
             heading: None,
             speed_limit: DEFAULT_SPEED_LIMIT,
@@ -210,7 +218,7 @@ impl Motion {
             CMD_VX..EST_ROLL => self.args[(offset - CMD_VX) as usize],
             _ => {
                 let i = (offset - EST_ROLL) as usize;
-                self.attitude[i / 8].to_le_bytes()[i % 8]
+                self.tail[i / 8].to_le_bytes()[i % 8]
             }
         }
     }
@@ -239,6 +247,7 @@ impl Motion {
         self.start = pos;
         self.dead = FlowFilter::new(self.filter_params, [pos[0], pos[1]]);
         self.last = Some((time_s, pos));
+        self.tail[2] = time_s;
         self.est[0..3].copy_from_slice(&pos);
         // GET_INIT_DATA has no attitude, velocities or ranges: yaw and
         // velocities 0, ranges "nothing seen" until the first sensor read.
@@ -311,7 +320,7 @@ impl Motion {
             [self.est[4], self.est[5], self.est[6]]
         };
         self.last = Some((s.time_s, pos));
-        self.attitude = [s.roll, s.pitch];
+        self.tail = [s.roll, s.pitch, s.time_s];
         let range = |mm: f64| {
             if mm.is_finite() && mm >= 0.0 && mm < self.range_max_mm {
                 mm / 1000.0
@@ -405,7 +414,7 @@ impl Stm32 {
                 self.motion.args[(offset - CMD_VX) as usize] = value;
                 Ok(())
             }
-            // EXT_STAT, the estimate, ranges, flow and attitude are
+            // EXT_STAT, the estimate, ranges, flow, attitude and time are
             // read-only: a write is ignored, as a write to a read-only
             // register of the STM32.
             _ => Ok(()),

@@ -2,7 +2,7 @@ use std::f64::consts::FRAC_PI_2;
 
 use protocol::Sensors;
 
-use super::super::{is_register, Stm32, Stm32Config, CTRL, INIT_PID};
+use super::super::{is_register, Stm32, Stm32Config, CTRL, INIT_PID, RUN_SINGLE_STEP_PID};
 use super::*;
 use crate::peripherals::{DeviceCtx, DevicePower, Motors, SoloWorld, WorldSession};
 use crate::sync::{SyncMode, TimeKeeper};
@@ -15,6 +15,38 @@ fn write_bytes(stm32: &mut Stm32, offset: u32, bytes: &[u8], now: Picos, ctx: &m
     }
 }
 
+/// What a device context borrows besides the world and the console.
+struct Rig {
+    session: WorldSession,
+    time: TimeKeeper,
+    motors: Motors,
+}
+
+impl Rig {
+    fn new() -> Self {
+        Rig {
+            session: WorldSession::new(None, protocol::ImageEncoding::Array),
+            time: TimeKeeper::new(SyncMode::Thesis),
+            motors: Motors::default(),
+        }
+    }
+
+    fn ctx<'a>(
+        &'a mut self,
+        world: &'a mut dyn crate::peripherals::WorldLink,
+        console: &'a mut dyn FnMut(&str),
+    ) -> DeviceCtx<'a> {
+        DeviceCtx {
+            world,
+            session: &mut self.session,
+            time: &mut self.time,
+            motors: &mut self.motors,
+            battery_low: false,
+            console,
+        }
+    }
+}
+
 fn stat(stm32: &Stm32, now: Picos) -> u32 {
     u32::from_le_bytes(std::array::from_fn(|i| {
         stm32.read(EXT_STAT + i as u32, now)
@@ -24,19 +56,10 @@ fn stat(stm32: &Stm32, now: Picos) -> u32 {
 #[test]
 fn commands_complete_with_their_code_and_bad_ones_with_ext_error() {
     let mut world = SoloWorld::new([-2.6, 0.0, 0.015], Millis(32));
-    let mut session = WorldSession::new(None, protocol::ImageEncoding::Array);
-    let mut time = TimeKeeper::new(SyncMode::Thesis);
-    let mut motors = Motors::default();
     let mut printed = String::new();
     let mut sink = |s: &str| printed.push_str(s);
-    let mut ctx = DeviceCtx {
-        world: &mut world,
-        session: &mut session,
-        time: &mut time,
-        motors: &mut motors,
-        battery_low: false,
-        console: &mut sink,
-    };
+    let mut rig = Rig::new();
+    let mut ctx = rig.ctx(&mut world, &mut sink);
     let mut stm32 = Stm32::new(Stm32Config::default(), DevicePower::new(Picos::ZERO));
     let t = Picos::from_ms(1);
     // Before INIT_PID: refused.
@@ -181,9 +204,112 @@ fn the_register_file_has_a_faulting_gap_before_the_extension() {
     // The firmware's offsets (cosim_regs.h) minus the STM32's base 102402.
     assert_eq!((EXT_CTRL, EST_X, RANGE_FRONT, FLOW_VX), (30, 38, 94, 142));
     assert_eq!(
-        (CMD_VX, CMD_SPEED_LIMIT, EST_PITCH, EXT_END),
-        (158, 198, 214, 222)
+        (CMD_VX, CMD_SPEED_LIMIT, EST_PITCH, EST_TIME, EXT_END),
+        (158, 198, 214, 222, 230)
     );
+}
+
+fn est_time(stm32: &Stm32, now: Picos) -> f64 {
+    f64::from_le_bytes(std::array::from_fn(|i| {
+        stm32.read(EST_TIME + i as u32, now)
+    }))
+}
+
+/// A [`SoloWorld`] that also answers GET_SENSORS (and GET_DATA_2/3): the
+/// drone at rest on its start, at the world's clock.
+struct Resting(SoloWorld);
+
+impl crate::peripherals::WorldLink for Resting {
+    fn call(
+        &mut self,
+        request: &protocol::Request,
+        now: Picos,
+    ) -> Result<protocol::Reply, crate::peripherals::LinkError> {
+        // At rest: no speed for the motor power models.
+        match request {
+            protocol::Request::GetData2 => {
+                return Ok(protocol::Reply::Data2 {
+                    velocity: 0.0,
+                    velocity_x: 0.0,
+                    velocity_y: 0.0,
+                })
+            }
+            protocol::Request::GetData3 => {
+                return Ok(protocol::Reply::Data3 {
+                    velocity: 0.0,
+                    velocity_z: 0.0,
+                    pitch: 0.0,
+                })
+            }
+            _ => {}
+        }
+        if let protocol::Request::GetSensors = request {
+            self.0.log.push(crate::peripherals::solo_world::Logged {
+                clock: self.0.clock(),
+                platform: now,
+                request: request.clone(),
+            });
+            let [x, y, z] = self.0.start;
+            return Ok(protocol::Reply::Sensors(Sensors {
+                time_s: self.0.clock().0 as f64 / 1000.0,
+                x,
+                y,
+                z,
+                altitude: z,
+                ..Sensors::default()
+            }));
+        }
+        self.0.call(request, now)
+    }
+    fn send(
+        &mut self,
+        request: &protocol::Request,
+        now: Picos,
+    ) -> Result<(), crate::peripherals::LinkError> {
+        self.0.send(request, now)
+    }
+    fn stats(&self) -> crate::peripherals::LinkStats {
+        self.0.stats()
+    }
+}
+
+#[test]
+fn est_time_is_the_world_time_of_the_last_sensor_read() {
+    let mut world = Resting(SoloWorld::new([0.0, 0.0, 0.015], Millis(4)));
+    let mut sink = |_: &str| {};
+    let mut rig = Rig::new();
+    let mut ctx = rig.ctx(&mut world, &mut sink);
+    let mut stm32 = Stm32::new(Stm32Config::default(), DevicePower::new(Picos::ZERO));
+    let t = Picos::from_ms(1);
+    assert_eq!(est_time(&stm32, t), 0.0, "no sensor read yet");
+    stm32.write(CTRL, INIT_PID, t, &mut ctx).unwrap();
+    // GET_INIT_DATA's time: the end of the world's 2000 ms warm-up.
+    assert_eq!(est_time(&stm32, Picos::from_ms(2001)), 2.0);
+    // Each step reads the sensors (at the world's clock then), then the
+    // world advances one 4 ms timestep: EST_TIME is the read's time, one
+    // step behind the world's clock when the step completes. The core's
+    // time (`now`, 10 ms per step here) does not enter.
+    let mut seen = Vec::new();
+    for k in 1..=3u64 {
+        let now = Picos::from_ms(2001 + 10 * k);
+        stm32
+            .write(CTRL, RUN_SINGLE_STEP_PID, now, &mut ctx)
+            .unwrap();
+        seen.push(est_time(&stm32, now + Picos::from_ms(8)));
+        stm32
+            .write(CTRL, 0, now + Picos::from_ms(8), &mut ctx)
+            .unwrap();
+    }
+    let reads: Vec<f64> = world
+        .0
+        .log
+        .iter()
+        .filter(|l| matches!(l.request, protocol::Request::GetSensors))
+        .map(|l| l.clock.0 as f64 / 1000.0)
+        .collect();
+    assert_eq!(seen, reads, "the world's clock at each GET_SENSORS");
+    assert_eq!(seen, [2.0, 2.004, 2.008]);
+    assert_eq!(world.0.clock(), Millis(2012));
 }
 
 #[test]
