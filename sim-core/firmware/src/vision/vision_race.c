@@ -42,7 +42,7 @@
  * target moves by centimetres between looks; it keeps the ISS's work, and
  * the run's wall time, within twice the race's). */
 #ifndef LOOK_EVERY
-#define LOOK_EVERY 3
+#define LOOK_EVERY 5
 #endif
 /* The target moves only when the seen gate is this far from it (mm): each
  * SET_TARGET restarts the STM32's TARGET_CYCLES count. */
