@@ -101,7 +101,7 @@ static uint32_t seen_n;
 static uint32_t cycles_per_ms;
 
 /* Per-frame figures. */
-static uint32_t captured, frames, frames_found, frames_used, retargets, infer_ms_sum;
+static uint32_t captured, frames, frames_found, frames_used, retargets, standoffs, infer_ms_sum;
 static uint64_t cycles_sum;
 static uint32_t cycles_max;
 
@@ -371,6 +371,7 @@ int main(void)
                 int32_t standoff[3] = {target[0] - (int32_t)(dx * back / leg),
                                        target[1] - (int32_t)(dy * back / leg), target[2]};
                 set_target(standoff);
+                standoffs++;
                 while (!low_battery && !frame_step(wp, target, 0)) {
                     estimate(p, &yaw);
                     if (dist2(p, standoff) <= (int64_t)STANDOFF_DONE_MM * STANDOFF_DONE_MM)
@@ -394,6 +395,10 @@ int main(void)
     printf("[vision] captured %u, detector frames %u, gate found in %u, used in %u, retargets %u, inference %u ms\n",
            (unsigned)captured, (unsigned)frames, (unsigned)frames_found, (unsigned)frames_used, (unsigned)retargets,
            (unsigned)infer_ms_sum);
+    /* SET_TARGETs: one per waypoint, one per standoff point, one per
+     * retarget (the STM32 counts the last two as replaced). */
+    printf("[vision] waypoints %d, standoff points %u, target moves %u\n", WAYPOINTS, (unsigned)standoffs,
+           (unsigned)retargets);
     printf("[vision] cycles per frame (copy + detect): mean %u, max %u; clock %u cycles/ms\n",
            (unsigned)mean, (unsigned)cycles_max, (unsigned)cycles_per_ms);
     stm32_control = PRINT_SIMUL_TIME;
