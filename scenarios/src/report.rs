@@ -215,8 +215,16 @@ pub fn summary_text(
         "   setup          {} ms timestep, {} model, battery {}, sync {}\n",
         s.timestep_ms, s.power_model, s.battery.model, s.sync
     );
+    // Counts of the firmware's SET_TARGETs; a firmware that moves its
+    // target before reaching it (vision_race: standoff points, the seen
+    // gate) has them counted as replaced, so the four add up to the total.
+    let replaced = if s.targets_replaced > 0 {
+        format!(", {} replaced before reached", s.targets_replaced)
+    } else {
+        String::new()
+    };
     t += &format!(
-        "   targets        {}/{} reached, {} bypassed (UNLOCK_CYCLES), {} skipped (low battery)\n",
+        "   targets        {}/{} reached, {} bypassed (UNLOCK_CYCLES){replaced}, {} skipped (low battery)\n",
         s.targets_reached, s.targets_total, s.targets_bypassed, s.targets_skipped_low_battery
     );
     if let Some(total) = s.gates_total {

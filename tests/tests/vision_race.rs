@@ -80,6 +80,21 @@ fn the_race_misses_a_displaced_gate_and_the_vision_race_passes_it() {
     let err =
         ((mm[0] + 2150.0).powi(2) + (mm[1] - 2000.0).powi(2) + (mm[2] - 1000.0).powi(2)).sqrt();
     assert!(err < 50.0, "target {mm:?} is {err:.0} mm from the gate");
+    // The target counts (docs/VISION.md, "Target counts"): the two
+    // waypoints reached, every target move of the firmware ("retargets N"
+    // on its console) counted as replaced, and the counts add up.
+    let retargets: u64 = console
+        .lines()
+        .find_map(|l| l.split("retargets ").nth(1))
+        .and_then(|r| r.split(',').next())
+        .unwrap_or_else(|| panic!("{console}"))
+        .parse()
+        .unwrap();
+    assert!(retargets >= 1, "the target never moved to the seen gate");
+    assert_eq!(s["targets_reached"], 2, "{s:#}");
+    assert_eq!(s["targets_replaced"], retargets, "{s:#}");
+    assert_eq!(s["targets_total"], 2 + retargets, "{s:#}");
+    assert_eq!(s["targets_bypassed"], 0, "{s:#}");
 
     // Deterministic: a second run gives the same bytes.
     let b = dir.path().join("vision-b");

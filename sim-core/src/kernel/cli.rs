@@ -130,11 +130,12 @@ pub fn run_platform(args: &PlatformArgs, run: RunConfig) -> anyhow::Result<i32> 
     let outcome = simulate(&firmware, &cfg, world);
     let s = &outcome.summary;
     eprintln!(
-        "sim-core: {} | targets {}/{} reached, {} bypassed, {} skipped | platform {:.3} s, world {} | estimate error {} | SOC {:.1} % | {:.2} s wall, {:.1}x real time",
+        "sim-core: {} | targets {}/{} reached, {} bypassed, {} replaced, {} skipped | platform {:.3} s, world {} | estimate error {} | SOC {:.1} % | {:.2} s wall, {:.1}x real time",
         if s.completed { "completed" } else { "did not complete" },
         s.targets_reached,
         s.targets_total,
         s.targets_bypassed,
+        s.targets_replaced,
         s.targets_skipped_low_battery,
         s.platform_time_s,
         s.world_time_s.map_or("n/a".into(), |w| format!("{w:.3} s")),

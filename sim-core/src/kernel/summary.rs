@@ -65,6 +65,10 @@ pub struct Summary {
     pub targets_total: u32,
     pub targets_reached: u32,
     pub targets_bypassed: u32,
+    /// SET_TARGETs replaced by the next one before reached or bypassed
+    /// (`Stm32Stats::targets_replaced`); absent in older summaries.
+    #[serde(default)]
+    pub targets_replaced: u32,
     pub targets_skipped_low_battery: u32,
     pub platform_time_s: f64,
     /// The world's time at STOP (null when the run did not get there).
@@ -129,6 +133,7 @@ impl Summary {
             targets_total: 0,
             targets_reached: 0,
             targets_bypassed: 0,
+            targets_replaced: 0,
             targets_skipped_low_battery: 0,
             platform_time_s: 0.0,
             world_time_s: None,
@@ -205,6 +210,7 @@ impl Summary {
         s.targets_total = stats.targets_total;
         s.targets_reached = stats.targets_reached;
         s.targets_bypassed = stats.targets_bypassed;
+        s.targets_replaced = stats.targets_replaced;
         s.targets_skipped_low_battery = stats.targets_skipped_low_battery;
         s.platform_time_s = platform_time_s;
         s.world_time_s = world_time_s;

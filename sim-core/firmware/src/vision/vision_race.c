@@ -42,7 +42,7 @@
  * target moves by centimetres between looks; it keeps the ISS's work, and
  * the run's wall time, within twice the race's). */
 #ifndef LOOK_EVERY
-#define LOOK_EVERY 3
+#define LOOK_EVERY 5
 #endif
 /* The target moves only when the seen gate is this far from it (mm): each
  * SET_TARGET restarts the STM32's TARGET_CYCLES count. */
@@ -51,6 +51,21 @@
  * up after this many frames (the race controller then turns on the way). */
 #define TURN_DONE_MRAD 100
 #define TURN_FRAMES_MAX 150
+/* A leg that climbs or descends more than LEVEL_DZ_MM first flies to a
+ * standoff point on the leg, STANDOFF_MM before the waypoint (at most
+ * STANDOFF_PCT % of the leg), at the waypoint's height: from there the
+ * gate is approached level, at the camera's height, and seen whole from
+ * afar (a climbing approach sees it cut at the top until close, and the
+ * pitch of a climbing drone tilts the view). The climb to the standoff
+ * keeps at least SLOPE_RUN_PCT % of the height change horizontally (at
+ * 25 MHz, a 1.5 m descent over 1.5 m with 38 ms detector frames crashed;
+ * docs/VISION.md); a leg too short for that has no standoff. The standoff
+ * counts as passed within STANDOFF_DONE_MM, without stopping there. */
+#define LEVEL_DZ_MM 500
+#define STANDOFF_MM 2500
+#define STANDOFF_PCT 60
+#define STANDOFF_DONE_MM 300
+#define SLOPE_RUN_PCT 150
 /* A seen gate is accepted only this far above or below its waypoint (mm):
  * a pitched camera moves the gate vertically first. */
 #define ACCEPT_DZ_MM 300
@@ -90,7 +105,7 @@ static uint32_t seen_n;
 static uint32_t cycles_per_ms;
 
 /* Per-frame figures. */
-static uint32_t captured, frames, frames_found, frames_used, retargets, infer_ms_sum;
+static uint32_t captured, frames, frames_found, frames_used, retargets, standoffs, infer_ms_sum;
 static uint64_t cycles_sum;
 static uint32_t cycles_max;
 
@@ -204,8 +219,10 @@ static int64_t dist2(const int32_t a[3], const int32_t b[3])
 }
 
 /* One frame: capture, detect, maybe move the target; returns 1 when the
- * STM32 reports the target reached. */
-static int frame_step(int wp, int32_t target[3])
+ * STM32 reports the target reached. With steer == 0 (on the way to a
+ * standoff point), sightings of gate wp are collected but the target is
+ * left alone. */
+static int frame_step(int wp, int32_t target[3], int steer)
 {
     uint32_t t0 = mcycle();
     get_image();
@@ -274,7 +291,7 @@ static int frame_step(int wp, int32_t target[3])
                     seen_sum[k] += seen[k];
                     mean[k] = (int32_t)(seen_sum[k] / (int32_t)seen_n);
                 }
-                if (dist2(mean, target) > (int64_t)RETARGET_MM * RETARGET_MM) {
+                if (steer && dist2(mean, target) > (int64_t)RETARGET_MM * RETARGET_MM) {
                     target[0] = mean[0];
                     target[1] = mean[1];
                     target[2] = mean[2];
@@ -342,13 +359,39 @@ int main(void)
                 err += 2 * PI_MRAD;
             if (err < TURN_DONE_MRAD && err > -TURN_DONE_MRAD)
                 break;
-            frame_step(-1, target);
+            frame_step(-1, target, 0);
             estimate(p, &yaw);
         }
-        set_target(target);
         seen_sum[0] = seen_sum[1] = seen_sum[2] = 0;
         seen_n = 0;
-        while (!frame_step(wp, target) && !low_battery)
+        int32_t dz = target[2] - p[2];
+        if (dz > LEVEL_DZ_MM || dz < -LEVEL_DZ_MM) {
+            int64_t dx = target[0] - p[0], dy = target[1] - p[1];
+            int64_t leg = gate_isqrt64((uint64_t)(dx * dx + dy * dy));
+            int64_t back = leg * STANDOFF_PCT / 100;
+            if (back > STANDOFF_MM)
+                back = STANDOFF_MM;
+            if (back > leg - (int64_t)(dz < 0 ? -dz : dz) * SLOPE_RUN_PCT / 100)
+                back = leg - (int64_t)(dz < 0 ? -dz : dz) * SLOPE_RUN_PCT / 100;
+            if (back > 0) {
+                int32_t standoff[3] = {target[0] - (int32_t)(dx * back / leg),
+                                       target[1] - (int32_t)(dy * back / leg), target[2]};
+                set_target(standoff);
+                standoffs++;
+                while (!low_battery && !frame_step(wp, target, 0)) {
+                    estimate(p, &yaw);
+                    if (dist2(p, standoff) <= (int64_t)STANDOFF_DONE_MM * STANDOFF_DONE_MM)
+                        break;
+                }
+            }
+            /* The sightings on the way to the standoff point are the
+             * target's first estimate. */
+            if (seen_n > 0)
+                for (int k = 0; k < 3; k++)
+                    target[k] = (int32_t)(seen_sum[k] / (int32_t)seen_n);
+        }
+        set_target(target);
+        while (!frame_step(wp, target, 1) && !low_battery)
             ;
         printf("[vision] waypoint %d reached at %d %d %d mm\n", wp + 1, (int)target[0],
                (int)target[1], (int)target[2]);
@@ -358,6 +401,10 @@ int main(void)
     printf("[vision] captured %u, detector frames %u, gate found in %u, used in %u, retargets %u, inference %u ms\n",
            (unsigned)captured, (unsigned)frames, (unsigned)frames_found, (unsigned)frames_used, (unsigned)retargets,
            (unsigned)infer_ms_sum);
+    /* SET_TARGETs: one per waypoint, one per standoff point, one per
+     * retarget (the STM32 counts the last two as replaced). */
+    printf("[vision] waypoints %d, standoff points %u, target moves %u\n", WAYPOINTS, (unsigned)standoffs,
+           (unsigned)retargets);
     printf("[vision] cycles per frame (copy + detect): mean %u, max %u; clock %u cycles/ms\n",
            (unsigned)mean, (unsigned)cycles_max, (unsigned)cycles_per_ms);
     stm32_control = PRINT_SIMUL_TIME;

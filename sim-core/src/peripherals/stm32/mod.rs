@@ -119,6 +119,11 @@ pub struct Stm32Stats {
     pub targets_total: u32,
     pub targets_reached: u32,
     pub targets_bypassed: u32,
+    /// Targets the firmware replaced by a new SET_TARGET before they were
+    /// reached or bypassed (a vision firmware moving its target to the gate
+    /// it sees, docs/VISION.md): total = reached + bypassed + replaced +
+    /// skipped, plus the last target if the run ended before it.
+    pub targets_replaced: u32,
     pub targets_skipped_low_battery: u32,
     pub pid_iterations: u64,
 }
@@ -289,6 +294,14 @@ impl Stm32 {
                     return Err(invalid(format!(
                         "SET_TARGET with a non-finite target {target:?}"
                     )));
+                }
+                let s = &mut self.stats;
+                let done = s.targets_reached
+                    + s.targets_bypassed
+                    + s.targets_replaced
+                    + s.targets_skipped_low_battery;
+                if s.targets_total > done {
+                    s.targets_replaced += 1;
                 }
                 self.new_target(target);
                 self.stats.targets_total += 1;
