@@ -24,6 +24,7 @@
 #include <stdio.h>
 
 #include "../cosim_regs.h"
+#include "../stm32.h"
 #include "explore.h"
 
 /* Run parameters (the platform may patch them; volatile so the compiler
@@ -56,29 +57,11 @@ volatile int32_t explore_param_max_tilt_mrad = 0;
  * scenario's max_time_s). */
 volatile int32_t explore_param_max_steps = 20000;
 
-#define ext_ctrl REG32(STM32_EXT_CTRL_OFFSET)
-#define ext_stat REG32(STM32_EXT_STAT_OFFSET)
-#define stm32_control REG8(STM32_CTRL_REG_OFFSET)
-#define stm32_status REG8(STM32_STAT_REG_OFFSET)
-
-/* Listing 4.6. */
-static void perform(uint8_t op)
-{
-    stm32_control = op;
-    while (stm32_status != op)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-}
-
-/* An extension command: EXT_STAT is 0 from the write until it completes,
- * then shows the code, or EXT_ERROR. Returns 0 on success. */
+/* An extension command (stm32_ext), refused ones reported. Returns 0 on
+ * success. */
 static int ext_perform(uint32_t cmd)
 {
-    uint32_t st;
-    ext_ctrl = cmd;
-    while ((st = ext_stat) == 0)
-        ;
+    uint32_t st = stm32_ext(cmd);
     if (st != cmd) {
         printf("EXPLORE error the STM32 refused extension command %lu (status %lu)\n",
                (unsigned long)cmd, (unsigned long)st);
@@ -167,7 +150,7 @@ int main(void)
 {
     uint16_t max_mm = (uint16_t)explore_param_max_range_mm;
     uint32_t period = (uint32_t)explore_param_period_ms;
-    perform(INIT_PID);
+    stm32_perform(INIT_PID);
     explore_input in;
     read_input(&in, max_mm);
 

@@ -13,35 +13,11 @@
 #include <stdio.h>
 
 #include "../cosim_regs.h"
-
-#define stm32_control REG8(STM32_CTRL_REG_OFFSET)
-#define stm32_status REG8(STM32_STAT_REG_OFFSET)
-#define ext_ctrl REG32(STM32_EXT_CTRL_OFFSET)
-#define ext_stat REG32(STM32_EXT_STAT_OFFSET)
+#include "../stm32.h"
 
 #ifndef VELOCITY_ITERS
 #define VELOCITY_ITERS 156 /* 156 x 32 ms = 4.992 s */
 #endif
-
-/* Listing 4.6. */
-static void perform(uint8_t op)
-{
-    stm32_control = op;
-    while (stm32_status != op)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-}
-
-/* An extension command: EXT_STAT is 0 from the write until it completes. */
-static uint32_t ext(uint32_t cmd)
-{
-    uint32_t s;
-    ext_ctrl = cmd;
-    while ((s = ext_stat) == 0)
-        ;
-    return s;
-}
 
 /* One 32 ms iteration: ITER_ADVANCE + 25 ms, then the PID's 7 ms (at a
  * 32 ms basicTimeStep the world steps once). Returns the status. */
@@ -73,19 +49,19 @@ static void print_estimate(const char *what)
 
 int main(void)
 {
-    perform(INIT_PID);
+    stm32_perform(INIT_PID);
     print_estimate("start");
 #if defined(MOTION_VELOCITY)
-    if (ext(99) == EXT_ERROR)
+    if (stm32_ext(99) == EXT_ERROR)
         printf("[motion] bad command -> EXT_ERROR\n");
     REGF64(STM32_CMD_HEIGHT_OFFSET) = 1.0;
-    if (ext(EXT_TAKEOFF) != EXT_TAKEOFF)
+    if (stm32_ext(EXT_TAKEOFF) != EXT_TAKEOFF)
         return 1;
     print_estimate("took off");
     REGF64(STM32_CMD_VX_OFFSET) = 0.2;
     REGF64(STM32_CMD_VY_OFFSET) = 0.0;
     REGF64(STM32_CMD_YAW_RATE_OFFSET) = 0.0;
-    if (ext(EXT_SET_VELOCITY) != EXT_SET_VELOCITY)
+    if (stm32_ext(EXT_SET_VELOCITY) != EXT_SET_VELOCITY)
         return 2;
     print_estimate("velocity start");
     for (int i = 0; i < VELOCITY_ITERS; i++)
@@ -93,30 +69,30 @@ int main(void)
             return 3;
     print_estimate("velocity end");
     REGF64(STM32_CMD_VX_OFFSET) = 0.0;
-    if (ext(EXT_SET_VELOCITY) != EXT_SET_VELOCITY)
+    if (stm32_ext(EXT_SET_VELOCITY) != EXT_SET_VELOCITY)
         return 4;
     for (int i = 0; i < 60; i++)
         if (iteration() != RUN_SINGLE_STEP_PID)
             return 5;
     print_estimate("hover");
-    if (ext(EXT_LAND) != EXT_LAND)
+    if (stm32_ext(EXT_LAND) != EXT_LAND)
         return 6;
     print_estimate("landed");
 #elif defined(MOTION_HEADING)
-    perform(GET_STABLE);
+    stm32_perform(GET_STABLE);
     REGF64(STM32_CMD_YAW_OFFSET) = 0.0;
-    if (ext(EXT_SET_HEADING) != EXT_SET_HEADING)
+    if (stm32_ext(EXT_SET_HEADING) != EXT_SET_HEADING)
         return 1;
     REGF64(STM32_TARGET_POS_X_OFFSET) = -1.6;
     REGF64(STM32_TARGET_POS_Y_OFFSET) = 0.0;
     REGF64(STM32_TARGET_POS_Z_OFFSET) = 1.0;
-    perform(SET_TARGET);
+    stm32_perform(SET_TARGET);
     int n = 0;
     while (iteration() != TARGET_REACHED)
         n++;
     printf("[motion] target reached after %d iterations\n", n);
     print_estimate("at target");
-    perform(GO_DOWN);
+    stm32_perform(GO_DOWN);
 #endif
     printf("[motion] done\n");
     return 0;

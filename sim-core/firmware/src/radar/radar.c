@@ -34,11 +34,7 @@
 #include <stdio.h>
 
 #include "../radio/radio.h"
-
-#define stm32_control REG8(STM32_CTRL_REG_OFFSET)
-#define stm32_status REG8(STM32_STAT_REG_OFFSET)
-#define ext_ctrl REG32(STM32_EXT_CTRL_OFFSET)
-#define ext_stat REG32(STM32_EXT_STAT_OFFSET)
+#include "../stm32.h"
 
 /* Run parameters (the platform may patch them before the core starts;
  * initialised, so they live in .data). */
@@ -88,24 +84,6 @@ static uint32_t rng_next(void)
     x ^= x >> 17;
     x ^= x << 5;
     return rng_state = x;
-}
-
-static void perform(uint8_t op)
-{
-    stm32_control = op;
-    while (stm32_status != op)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-}
-
-static uint32_t ext(uint32_t cmd)
-{
-    uint32_t s;
-    ext_ctrl = cmd;
-    while ((s = ext_stat) == 0)
-        ;
-    return s;
 }
 
 static void advance_ms(uint32_t ms)
@@ -187,7 +165,7 @@ static int land(void)
         iteration();
     }
     uint32_t t = now_ms();
-    uint32_t s = ext(EXT_LAND);
+    uint32_t s = stm32_ext(EXT_LAND);
     printf("RADAR end t_ms=%lu id=%lu sent=%lu received=%lu lost=%lu\n", (unsigned long)t,
            (unsigned long)id, (unsigned long)sent, (unsigned long)received,
            (unsigned long)radio_rx_lost(&p2p));
@@ -197,7 +175,7 @@ static int land(void)
 int main(void)
 {
     p2p = RADIO_P2P;
-    perform(INIT_PID);
+    stm32_perform(INIT_PID);
     radio_init(&p2p);
     radio_rx_on(&p2p);
     id = (uint32_t)radio_eui(&p2p);
@@ -211,7 +189,7 @@ int main(void)
         printf("RADAR tx_spread_us=%ld\n", (long)radar_tx_spread_us);
 
     REGF64(STM32_CMD_HEIGHT_OFFSET) = radar_height_mm / 1000.0;
-    if (ext(EXT_TAKEOFF) != EXT_TAKEOFF) {
+    if (stm32_ext(EXT_TAKEOFF) != EXT_TAKEOFF) {
         printf("RADAR error take-off refused\n");
         return 1;
     }
@@ -220,12 +198,12 @@ int main(void)
     double speed = sqrt(vx * vx + vy * vy);
     if (speed > 0.2) {
         REGF64(STM32_CMD_SPEED_LIMIT_OFFSET) = speed;
-        ext(EXT_SET_SPEED_LIMIT);
+        stm32_ext(EXT_SET_SPEED_LIMIT);
     }
     REGF64(STM32_CMD_VX_OFFSET) = vx;
     REGF64(STM32_CMD_VY_OFFSET) = vy;
     REGF64(STM32_CMD_YAW_RATE_OFFSET) = 0.0;
-    if (ext(EXT_SET_VELOCITY) != EXT_SET_VELOCITY) {
+    if (stm32_ext(EXT_SET_VELOCITY) != EXT_SET_VELOCITY) {
         printf("RADAR error velocity set-point refused\n");
         return 2;
     }

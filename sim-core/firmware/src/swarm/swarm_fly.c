@@ -34,6 +34,7 @@
 
 #include "../cosim_regs.h"
 #include "../radio/radio.h"
+#include "../stm32.h"
 #include "swarm_app.h"
 
 #ifndef LAPS
@@ -47,8 +48,6 @@
 #define SIDE 2.0
 #define HEIGHT 1.0
 
-#define stm32_control REG8(STM32_CTRL_REG_OFFSET)
-#define stm32_status REG8(STM32_STAT_REG_OFFSET)
 #define stm32_x REGF64(STM32_TARGET_POS_X_OFFSET)
 #define stm32_y REGF64(STM32_TARGET_POS_Y_OFFSET)
 #define stm32_z REGF64(STM32_TARGET_POS_Z_OFFSET)
@@ -59,16 +58,6 @@ static const double corner[4][2] = {{0, 0}, {SIDE, 0}, {SIDE, SIDE}, {0, SIDE}};
  * (sim-core/src/kernel/firmware_params.rs writes it by its symbol; the
  * end-to-end test flies one leg). */
 volatile int32_t swarm_fly_legs = 4 * LAPS;
-
-/* Listing 4.6. */
-static void perform(uint8_t op)
-{
-    stm32_control = op;
-    while (stm32_status != op)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-}
 
 /* One PID step; returns its status (RUN_SINGLE_STEP_PID, TARGET_REACHED
  * or BATTERY_LOW). */
@@ -85,8 +74,8 @@ static uint8_t pid_step(void)
 
 int main(void)
 {
-    perform(INIT_PID);
-    perform(GET_STABLE);
+    stm32_perform(INIT_PID);
+    stm32_perform(GET_STABLE);
     radio_t uwb = RADIO_UWB;
     radio_init(&uwb); /* after INIT_PID: only switches the radio on */
     const uint64_t eui = radio_eui(&uwb);
@@ -105,7 +94,7 @@ int main(void)
         stm32_x = corner[k][0];
         stm32_y = corner[k][1];
         stm32_z = HEIGHT;
-        perform(SET_TARGET);
+        stm32_perform(SET_TARGET);
         for (;;) {
             /* A transmission due within the coming step leaves at its time. */
             app_poll_ahead(step, (uint64_t)STEP_MS * 1000000u);
@@ -119,6 +108,6 @@ int main(void)
         }
     }
     app_end();
-    perform(GO_DOWN);
+    stm32_perform(GO_DOWN);
     return 0;
 }
