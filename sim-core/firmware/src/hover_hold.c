@@ -18,6 +18,7 @@
 #include <stdio.h>
 
 #include "cosim_regs.h"
+#include "stm32.h"
 
 #ifndef HOVER_SECONDS
 #define HOVER_SECONDS 60
@@ -29,19 +30,6 @@
 #ifndef CORE_HZ
 #define CORE_HZ 250000000ull
 #endif
-
-#define stm32_control REG8(STM32_CTRL_REG_OFFSET)
-#define stm32_status REG8(STM32_STAT_REG_OFFSET)
-
-/* Listing 4.6: write the opcode, poll until the status shows it, clear both. */
-static void perform(uint8_t op)
-{
-    stm32_control = op;
-    while (stm32_status != op)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-}
 
 /* The 64-bit cycle counter read as two halves; the high half is read again
  * so a carry between the two reads is never missed. */
@@ -59,8 +47,8 @@ static uint64_t cycles(void)
 int main(void)
 {
     printf("[hover] Hello from the virtual GAP8! Hovering for %d s\n", HOVER_SECONDS);
-    perform(INIT_PID);
-    perform(GET_STABLE);
+    stm32_perform(INIT_PID);
+    stm32_perform(GET_STABLE);
     printf("[hover] Drone stable at 1 m\n");
 
     const uint64_t start = cycles();
@@ -85,7 +73,7 @@ int main(void)
            (unsigned)((cycles() - start) / (CORE_HZ / 1000u)));
 
     printf("[hover] Making the drone descend ... ");
-    perform(GO_DOWN);
+    stm32_perform(GO_DOWN);
     printf("ground reached!\n");
     stm32_control = PRINT_SIMUL_TIME;
     while (stm32_status != PRINT_SIMUL_TIME)

@@ -22,6 +22,7 @@
 #include <stdio.h>
 
 #include "../cosim_regs.h"
+#include "../stm32.h"
 #include "gate_detect.h"
 
 /* A detection is the next gate when it lies within this of its nominal
@@ -72,10 +73,6 @@
 
 #define camera_control REG8(CAMERA_CTRL_REG_OFFSET)
 #define camera_status REG8(CAMERA_STAT_REG_OFFSET)
-#define stm32_control REG8(STM32_CTRL_REG_OFFSET)
-#define stm32_status REG8(STM32_STAT_REG_OFFSET)
-#define ext_ctrl REG32(STM32_EXT_CTRL_OFFSET)
-#define ext_stat REG32(STM32_EXT_STAT_OFFSET)
 #define stm32_x REGF64(STM32_TARGET_POS_X_OFFSET)
 #define stm32_y REGF64(STM32_TARGET_POS_Y_OFFSET)
 #define stm32_z REGF64(STM32_TARGET_POS_Z_OFFSET)
@@ -114,23 +111,6 @@ static inline uint32_t mcycle(void)
     uint32_t c;
     __asm__ volatile("csrr %0, mcycle" : "=r"(c));
     return c;
-}
-
-/* Listing 4.6. */
-static void perform(uint8_t op)
-{
-    stm32_control = op;
-    while (stm32_status != op)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-}
-
-static void ext(uint32_t cmd)
-{
-    ext_ctrl = cmd;
-    while (ext_stat == 0)
-        ;
 }
 
 static void get_image(void)
@@ -203,13 +183,13 @@ static void set_target(const int32_t t[3])
     stm32_x = t[0] / 1000.0;
     stm32_y = t[1] / 1000.0;
     stm32_z = t[2] / 1000.0;
-    perform(SET_TARGET);
+    stm32_perform(SET_TARGET);
 }
 
 static void set_heading(int32_t yaw_mrad)
 {
     REGF64(STM32_CMD_YAW_OFFSET) = yaw_mrad / 1000.0;
-    ext(EXT_SET_HEADING);
+    (void)stm32_ext(EXT_SET_HEADING);
 }
 
 static int64_t dist2(const int32_t a[3], const int32_t b[3])
@@ -340,8 +320,8 @@ static int frame_step(int wp, int32_t target[3], int steer)
 int main(void)
 {
     printf("[vision] race with the gate detector in the loop\n");
-    perform(INIT_PID);
-    perform(GET_STABLE);
+    stm32_perform(INIT_PID);
+    stm32_perform(GET_STABLE);
     for (int wp = 0; wp < WAYPOINTS && !low_battery; wp++) {
         int32_t p[3], yaw, target[3] = {waypoint[wp][0], waypoint[wp][1], waypoint[wp][2]};
         estimate(p, &yaw);
@@ -396,7 +376,7 @@ int main(void)
         printf("[vision] waypoint %d reached at %d %d %d mm\n", wp + 1, (int)target[0],
                (int)target[1], (int)target[2]);
     }
-    perform(GO_DOWN);
+    stm32_perform(GO_DOWN);
     uint32_t mean = frames ? (uint32_t)(cycles_sum / frames) : 0;
     printf("[vision] captured %u, detector frames %u, gate found in %u, used in %u, retargets %u, inference %u ms\n",
            (unsigned)captured, (unsigned)frames, (unsigned)frames_found, (unsigned)frames_used, (unsigned)retargets,
