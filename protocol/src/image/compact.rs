@@ -289,7 +289,9 @@ unsafe fn gather_ssse3(
 ///
 /// With AVX-512 (BW and VBMI2) a block is one register: the classes are
 /// compares straight into mask registers and the numbers are packed by one
-/// `vpcompressb` ([`avx512`]).
+/// `vpcompressb` ([`avx512`]). `cargo bench -p protocol -- image_array/decode`
+/// on the 2026-11-23 host (a Xeon with AVX-512 VBMI2): SSSE3 2.70 GB/s,
+/// AVX-512 7.40 GB/s of CPU time.
 #[inline(never)] // own register allocation: inlined into the caller it spills
 pub(super) fn parse_compact_array(s: &[u8], open: usize) -> Fast {
     #[cfg(target_arch = "x86_64")]
