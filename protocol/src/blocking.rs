@@ -353,10 +353,12 @@ impl Connection {
     /// [`Connection::request`] for a request with a reply, its reply
     /// decoded later: returns once the frame is read whole, and
     /// [`PendingReply::wait`] gives what `request` would have given. The
-    /// frame is decoded when this connection is about to read its next
-    /// frame (after the next requests were written, so while the world
-    /// works on them), or by `wait` if that comes first: a camera image's
-    /// ~380 KB of JSON are parsed while the platform would otherwise wait.
+    /// frame is decoded by the next `request_deferred`, once its request is
+    /// written (so while the world works on it: in the race the next
+    /// `GET_IMAGE`, which the world renders), or by `wait` if that comes
+    /// first: a camera image's ~380 KB of JSON are parsed while the
+    /// platform would otherwise wait. (Other requests in between leave it
+    /// undecoded: their answers are the world's quick ones.)
     ///
     /// The observer sees the frame when it is read, without the decoded
     /// image (`image: None`) and with `valid: true` (not yet known): use
@@ -469,9 +471,9 @@ impl Connection {
 
     /// Receives one reply; `None` on a clean close.
     pub fn recv_reply(&mut self) -> Result<Option<Reply>> {
-        // The requests before this read are written: decode a deferred
-        // frame now, while the world works on them.
-        self.settle_deferred();
+        // A deferred frame stays undecoded here: the next deferred request
+        // (in the race the next GET_IMAGE, the world's longest answer)
+        // decodes it while the world works, or `wait` does.
         if !read_frame(&mut self.io, &mut self.rbuf, self.max_frame)? {
             return Ok(None);
         }

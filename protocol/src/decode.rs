@@ -30,13 +30,42 @@ pub(crate) struct Parsed {
 }
 
 pub(crate) fn parse_message(body: &[u8]) -> Result<Parsed> {
-    // One up-front check gives the InvalidUtf8 variant its own clear message
-    // (and lets the fast paths below treat the body as text).
-    if let Err(e) = std::str::from_utf8(body) {
-        return Err(ProtocolError::InvalidUtf8 {
-            offset: e.valid_up_to(),
-        });
+    let mut ascii = None;
+    let parsed = parse_object(body, &mut ascii);
+    // Invalid UTF-8 is reported as such, before anything else the walk
+    // found (the walk itself never assumes valid UTF-8).
+    check_utf8(body, ascii)?;
+    parsed
+}
+
+/// Bytes `[start, end)` of a body that are known to be ASCII.
+type AsciiSpan = Option<(usize, usize)>;
+
+/// The body is UTF-8, or the `InvalidUtf8` error with the offset of the
+/// first bad byte. A span the walk proved ASCII (a pixel array: digits,
+/// commas, whitespace, brackets — 99 % of an image reply) is not checked
+/// again: ASCII bytes can neither end nor continue a multi-byte sequence,
+/// so the body is UTF-8 exactly when the parts before and after are.
+fn check_utf8(body: &[u8], ascii: AsciiSpan) -> Result<()> {
+    let valid = match ascii {
+        Some((start, end)) => {
+            std::str::from_utf8(&body[..start]).is_ok() && std::str::from_utf8(&body[end..]).is_ok()
+        }
+        None => std::str::from_utf8(body).is_ok(),
+    };
+    if valid {
+        return Ok(());
     }
+    let e = std::str::from_utf8(body)
+        .expect_err("UTF-8 on both sides of an ASCII span makes a UTF-8 body");
+    Err(ProtocolError::InvalidUtf8 {
+        offset: e.valid_up_to(),
+    })
+}
+
+/// The walk of [`parse_message`]; records in `ascii` the span of a pixel
+/// array it decoded (all ASCII).
+fn parse_object(body: &[u8], ascii: &mut AsciiSpan) -> Result<Parsed> {
     let mut pos = skip_ws(body, 0);
     if body.get(pos) != Some(&b'{') {
         // Distinguish "valid JSON, but not an object" from garbage.
@@ -62,7 +91,7 @@ pub(crate) fn parse_message(body: &[u8]) -> Result<Parsed> {
             }
             pos = skip_ws(body, pos + 1);
             if key == "camera" {
-                match parse_camera(body, pos) {
+                match parse_camera(body, pos, ascii) {
                     Ok((img, end)) => {
                         camera = Some(Ok(img));
                         pos = end;
@@ -126,8 +155,11 @@ fn parse_key(body: &[u8], pos: usize) -> Result<(String, usize)> {
         if body[end] == b'"' {
             let raw = &body[pos + 1..end];
             if !raw.iter().any(|&c| c < 0x20) {
-                let s = std::str::from_utf8(raw).expect("body checked as UTF-8");
-                return Ok((s.to_owned(), end + 1));
+                // Not UTF-8: serde_json below says why (and check_utf8
+                // reports it first anyway).
+                if let Ok(s) = std::str::from_utf8(raw) {
+                    return Ok((s.to_owned(), end + 1));
+                }
             }
         }
     }
@@ -139,7 +171,11 @@ fn parse_key(body: &[u8], pos: usize) -> Result<(String, usize)> {
 
 /// The camera object by hand. `Err` carries why it is not an image; the
 /// caller then re-parses it with serde_json to tell bad JSON from a bad image.
-fn parse_camera(body: &[u8], mut pos: usize) -> std::result::Result<(Camera, usize), String> {
+fn parse_camera(
+    body: &[u8],
+    mut pos: usize,
+    ascii: &mut AsciiSpan,
+) -> std::result::Result<(Camera, usize), String> {
     if body.get(pos) != Some(&b'{') {
         return Err("camera must be an object".into());
     }
@@ -159,6 +195,8 @@ fn parse_camera(body: &[u8], mut pos: usize) -> std::result::Result<(Camera, usi
             match (key.as_str(), body.get(pos)) {
                 ("data", Some(b'[')) => {
                     let (px, end) = parse_pixel_array(body, pos)?;
+                    // A decoded array has only ASCII bytes.
+                    *ascii = Some((pos, end));
                     data = Some((px, ImageEncoding::Array));
                     pos = end;
                 }

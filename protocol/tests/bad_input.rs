@@ -118,6 +118,50 @@ fn invalid_utf8() {
     assert!(e.to_string().contains("UTF-8"));
 }
 
+/// Invalid UTF-8 anywhere in an image reply (before, after or inside the
+/// pixel array, in a key) is reported as such, at the first bad byte, even
+/// though the decoder skips checking the array it decoded.
+#[test]
+fn invalid_utf8_around_an_image() {
+    let good: &[u8] =
+        b"{\"command\":\"GET_IMAGE\",\"camera\":{\"width\":2,\"height\":1,\"data\":[7,255]},\"k\":\"v\"}";
+    assert!(decode_reply(good).is_ok());
+    let array = good
+        .windows(7)
+        .position(|w| w == b"[7,255]")
+        .expect("array");
+    for at in [
+        1,
+        12,
+        array - 3,
+        array + 1,
+        array + 3,
+        array + 7,
+        good.len() - 4,
+        good.len() - 2,
+    ] {
+        for bad in [&b"\xff"[..], b"\xc3", b"\xe2\x82", b"\x80"] {
+            let mut body = good.to_vec();
+            body.splice(at..at, bad.iter().copied());
+            let offset = std::str::from_utf8(&body).unwrap_err().valid_up_to();
+            let e = decode_reply(&body).unwrap_err();
+            assert!(
+                matches!(e, ProtocolError::InvalidUtf8 { offset: o } if o == offset),
+                "{at} {bad:?}: {e}"
+            );
+        }
+    }
+    // Valid multi-byte text right next to the array is fine.
+    let mut body = good.to_vec();
+    let end = array + 7;
+    body.splice(end + 2..end + 3, "\"é\":1,\"".bytes());
+    assert!(
+        decode_reply(&body).is_ok(),
+        "{}",
+        String::from_utf8_lossy(&body)
+    );
+}
+
 #[test]
 fn invalid_json() {
     for (body, offset) in [

@@ -1,5 +1,5 @@
-//! `Connection::request_deferred`: a reply read whole, decoded at the next
-//! receive or at `wait`, gives exactly what `request` gives for the same
+//! `Connection::request_deferred`: a reply read whole, decoded by the next
+//! deferred request or at `wait`, gives exactly what `request` gives for the same
 //! frame: the same image, the same errors.
 
 use std::thread;
@@ -81,8 +81,8 @@ fn a_deferred_reply_is_the_reply_or_the_error_request_gives() {
     drop(conn);
     w.join().unwrap();
 
-    // Waited late: each decoded when the next request's reply is read (or
-    // by the next deferred request), the error kept for `wait`.
+    // Waited late: each decoded by the next deferred request (the last
+    // by `wait`), the error kept for `wait`.
     let (_dir, ep, w) = world(bodies.iter().map(|s| s.to_string()).collect());
     let mut conn = Client::connect(&ep).unwrap();
     let pending: Vec<_> = bodies.iter().map(|_| deferred(&mut conn)).collect();
@@ -98,7 +98,7 @@ fn a_deferred_reply_survives_other_exchanges_and_a_refusal_is_remote() {
     let (_dir, ep, w) = world(vec![BAD.into(), OTHER.into(), REFUSED.into()]);
     let mut conn = Client::connect(&ep).unwrap();
     let bad = deferred(&mut conn);
-    // This receive decodes the image first; its error waits for `wait`.
+    // This exchange leaves the image undecoded; `wait` decodes it.
     let r = conn.request(&Request::GetData2).unwrap().unwrap();
     assert_eq!(r.command(), "GET_DATA_2");
     let e = bad.wait().unwrap_err();

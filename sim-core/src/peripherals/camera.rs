@@ -9,8 +9,8 @@
 //! (§4.2.4 "Adapting the simulation to the use-case scenario").
 //!
 //! Over a socket without a trace the reply is decoded later
-//! ([`super::WorldLink::call_deferred`]): by the link before it reads its
-//! next frame, i.e. after the next GET_IMAGE is sent, so the ~380 KB of JSON
+//! ([`super::WorldLink::call_deferred`]): by the link once the next
+//! GET_IMAGE is sent (before its reply is read), so the ~380 KB of JSON
 //! are parsed while the world renders the next frame instead of the world
 //! waiting for the parse. The pixels enter the image registers when these
 //! are read, at the next capture, or at the end of the session. A bad image

@@ -296,8 +296,8 @@ impl WorldLink for SocketWorld {
         }
     }
 
-    /// Without a trace, a reply is decoded on the connection's decoder
-    /// thread while the platform goes on (a trace records an image's hash
+    /// Without a trace, a reply is decoded later, by the connection once
+    /// the next deferred request is sent (a trace records an image's hash
     /// in its reply's line, so with one the reply is decoded at once).
     fn call_deferred(&mut self, request: &Request, now: Picos) -> Result<DeferredReply, LinkError> {
         if self.trace.is_some() {
