@@ -9,15 +9,8 @@ use std::fmt::Write as _;
 use serde::Serialize;
 
 use super::positioning::{observer, PositionRow, PositioningSpec};
+use super::report::mean_sd_population;
 use crate::scenario::Scenario;
-
-/// Mean and (population) standard deviation.
-fn mean_sd(v: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
-    let n = v.clone().count().max(1) as f64;
-    let m = v.clone().sum::<f64>() / n;
-    let var = v.map(|x| (x - m).powi(2)).sum::<f64>() / n;
-    (m, var.sqrt())
-}
 
 /// One drone's line of a table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -63,14 +56,19 @@ pub fn tables(scenario: &Scenario, spec: &PositioningSpec, rows: &[PositionRow])
                                 && r.time_s < t.to_s
                         })
                         .collect();
-                    let (x_est, x_sd) = mean_sd(sel.iter().map(|r| r.est_x));
-                    let (y_est, y_sd) = mean_sd(sel.iter().map(|r| r.est_y));
+                    // An empty window gives zeros; its row is dropped below.
+                    let mean_sd = |f: fn(&PositionRow) -> f64| {
+                        let v: Vec<f64> = sel.iter().map(|r| f(r)).collect();
+                        mean_sd_population(&v).unwrap_or_default()
+                    };
+                    let (x_est, x_sd) = mean_sd(|r| r.est_x);
+                    let (y_est, y_sd) = mean_sd(|r| r.est_y);
                     TableRow {
                         drone: p.drone.clone(),
                         samples: sel.len(),
-                        x_real: mean_sd(sel.iter().map(|r| r.true_x)).0,
+                        x_real: mean_sd(|r| r.true_x).0,
                         x_est,
-                        y_real: mean_sd(sel.iter().map(|r| r.true_y)).0,
+                        y_real: mean_sd(|r| r.true_y).0,
                         y_est,
                         x_sd,
                         y_sd,

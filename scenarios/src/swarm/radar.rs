@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::report::DroneTrack;
+use super::report::{mean_sd_population, DroneTrack};
 
 /// The file a radar run leaves in its directory.
 pub const RADAR_JSON: &str = "radar.json";
@@ -169,18 +169,6 @@ pub fn read_run(
     }))
 }
 
-/// Mean and population standard deviation (divided by n: the seed's
-/// 117.88 ± 65.02 cm of Table 7 is that; n − 1 would give 69.51 cm).
-pub fn mean_std(v: &[f64]) -> Option<(f64, f64)> {
-    if v.is_empty() {
-        return None;
-    }
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
-    Some((mean, var.sqrt()))
-}
-
 /// The sweep's Table 7/8: one row per run directory holding a radar.json.
 pub fn sweep_table(runs: &[(String, PathBuf)]) -> Option<String> {
     let mut rows = Vec::new();
@@ -212,7 +200,7 @@ pub fn sweep_table(runs: &[(String, PathBuf)]) -> Option<String> {
         .filter_map(|(_, r)| r.landed_distance_m)
         .collect();
     let ms = |v: &[f64]| {
-        mean_std(v).map_or("-".into(), |(m, s)| {
+        mean_sd_population(v).map_or("-".into(), |(m, s)| {
             format!("{:.1} ± {:.1}", m * 100.0, s * 100.0)
         })
     };
@@ -238,7 +226,7 @@ mod tests {
     fn mean_std_is_the_population_deviation_of_seed_004_tables_7_and_8() {
         // Table 7's eight distances: 117.88 ± 65.02 cm.
         let v = [156.0, 90.0, 195.0, 54.0, 170.0, 197.0, 58.0, 23.0];
-        let (m, s) = mean_std(&v).unwrap();
+        let (m, s) = mean_sd_population(&v).unwrap();
         assert!(
             (m - 117.875).abs() < 1e-9 && (s - 65.02).abs() < 0.01,
             "{m} {s}"

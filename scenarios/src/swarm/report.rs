@@ -256,6 +256,19 @@ pub fn parse_measured(console: &str, me: &str, others: &[(String, Option<u64>)])
     m
 }
 
+/// Mean and population standard deviation (divided by n: the seed's
+/// 117.88 ± 65.02 cm of seed 004's Table 7 is that; n − 1 would give
+/// 69.51 cm).
+pub fn mean_sd_population(v: &[f64]) -> Option<(f64, f64)> {
+    if v.is_empty() {
+        return None;
+    }
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
+    Some((mean, var.sqrt()))
+}
+
 /// Mean and sample standard deviation.
 pub fn mean_sd(v: &[f64]) -> Option<(f64, f64)> {
     if v.is_empty() {
