@@ -149,3 +149,10 @@ pub fn assert_same_files<S: AsRef<str>>(a: &Path, b: &Path, files: &[S], what: &
         assert!(read(a) == read(b), "{f} differs {what}");
     }
 }
+
+/// A run's `summary.json` in `dir`, parsed.
+pub fn summary(dir: &Path) -> serde_json::Value {
+    let path = dir.join("summary.json");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}

@@ -8,12 +8,8 @@
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use e2e_tests::{assert_same_files, output_text as text, repo_root, CosimBins as Bins};
+use e2e_tests::{assert_same_files, output_text as text, repo_root, summary, CosimBins as Bins};
 use serde_json::Value;
-
-fn summary(dir: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
-}
 
 /// The summary without the figures that depend on the machine's speed.
 fn deterministic(mut s: Value) -> Value {

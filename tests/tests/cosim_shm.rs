@@ -9,12 +9,8 @@
 
 use std::path::Path;
 
-use e2e_tests::{assert_same_files, output_text as text, CosimBins as Bins};
+use e2e_tests::{assert_same_files, output_text as text, summary, CosimBins as Bins};
 use serde_json::Value;
-
-fn summary(dir: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
-}
 
 /// The trace's lines with `len` of image replies and GET_INIT_DATA lines
 /// left out (they name or reflect the encoding); everything else verbatim.

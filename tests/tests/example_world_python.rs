@@ -3,11 +3,9 @@
 //! the short firmware against it to the end. Skipped, with a message, when
 //! `python3` is not installed.
 
-use std::path::Path;
 use std::process::{Command, Stdio};
 
-use e2e_tests::{binary, repo_root};
-use serde_json::Value;
+use e2e_tests::{binary, repo_root, summary};
 
 fn python3() -> bool {
     Command::new("python3")
@@ -16,10 +14,6 @@ fn python3() -> bool {
         .stderr(Stdio::null())
         .status()
         .is_ok_and(|s| s.success())
-}
-
-fn summary(dir: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
 }
 
 #[test]

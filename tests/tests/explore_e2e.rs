@@ -13,12 +13,7 @@
 
 use std::path::Path;
 
-use e2e_tests::{assert_same_files, output_text as text, repo_root, CosimBins as Bins};
-use serde_json::Value;
-
-fn summary(dir: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
-}
+use e2e_tests::{assert_same_files, output_text as text, repo_root, summary, CosimBins as Bins};
 
 /// The L room's explorable area around its take-off point (3.4, 0.6) m:
 /// the room is x in [0, 4], y in [0, 3.5]; 0.5 m of margin.

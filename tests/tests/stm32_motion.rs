@@ -7,8 +7,7 @@
 
 use std::path::Path;
 
-use e2e_tests::{output_text as text, CosimBins};
-use serde_json::Value;
+use e2e_tests::{output_text as text, summary, CosimBins};
 
 /// Runs `cosim run short-hop` with `firmware`; returns the output directory.
 fn run(bins: &CosimBins, firmware: &str) -> tempfile::TempDir {
@@ -41,10 +40,6 @@ fn run_with(
     }
     let o = bins.cosim(&args);
     (dir, o)
-}
-
-fn summary(dir: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
 }
 
 /// "[motion] WHAT: est X Y Z mm yaw R mrad, ..." → (x, y, z) in m, yaw in rad.

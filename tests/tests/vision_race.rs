@@ -8,8 +8,7 @@
 
 use std::path::Path;
 
-use e2e_tests::{assert_same_files, output_text as text, CosimBins};
-use serde_json::Value;
+use e2e_tests::{assert_same_files, output_text as text, summary, CosimBins};
 
 fn run(bins: &CosimBins, firmware: &str, out: &Path) -> std::process::Output {
     let fw = format!("firmware=sim-core/firmware/bin/{firmware}.elf");
@@ -38,10 +37,6 @@ fn last_counts(dir: &Path) -> (u64, u64) {
         last[i].parse::<u64>().unwrap()
     };
     (col("collisions"), col("gates_passed"))
-}
-
-fn summary(dir: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
 }
 
 #[test]
