@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::accuracy::{error_summary, errors_markdown, tables, tables_markdown, ErrorRow, Table};
+use super::accuracy::{error_summary, errors_markdown, tables, tables_markdown};
 use super::console::{self, SwarmConsole};
 use super::report::DroneTrack;
 use crate::launch::files;
@@ -359,12 +359,7 @@ pub fn draw_plots(
 /// What [`analyse`] found.
 #[derive(Debug, Clone, Default)]
 pub struct Positioning {
-    pub rows: usize,
-    pub tables: Vec<Table>,
-    /// Per plotted observer, with `settle_s`: the error summary.
-    pub errors: Vec<(String, Vec<ErrorRow>)>,
     pub plots: Vec<PathBuf>,
-    pub consoles: BTreeMap<String, SwarmConsole>,
     /// Text for the run's report.
     pub text: String,
 }
@@ -412,13 +407,11 @@ pub fn analyse(
     } else {
         spec.plot.clone()
     };
-    let mut errors = Vec::new();
     let mut errors_md = String::new();
     if let Some(settle) = spec.settle_s {
         for obs in &plotted {
             if let Some((from, e)) = error_summary(scenario, obs, &rows, settle) {
                 errors_md.push_str(&errors_markdown(obs, from, settle, &e));
-                errors.push((obs.clone(), e));
             }
         }
     }
@@ -480,14 +473,7 @@ pub fn analyse(
             );
         }
     }
-    Ok(Some(Positioning {
-        rows: rows.len(),
-        tables,
-        errors,
-        plots,
-        consoles,
-        text,
-    }))
+    Ok(Some(Positioning { plots, text }))
 }
 
 #[cfg(test)]
