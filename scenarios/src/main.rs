@@ -87,6 +87,31 @@ struct RunArgs {
     world_cmd: Option<String>,
 }
 
+/// `cosim perturb` / `cosim world perturb`.
+#[derive(Args, Debug)]
+struct PerturbArgs {
+    /// The world file to start from (default: the thesis course).
+    #[arg(long, value_name = "FILE")]
+    from: Option<PathBuf>,
+    /// Seed of the draw (ChaCha8).
+    #[arg(long, value_name = "S")]
+    seed: u64,
+    /// Largest sideways offset in m (sideways offsets are drawn in
+    /// [M/2, M], vertical ones in [-M/2, M/2]).
+    #[arg(long, value_name = "M")]
+    max_offset: f64,
+    /// Where to write the new world file.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+}
+
+#[derive(Subcommand, Debug)]
+enum WorldCmd {
+    /// Writes a world file whose gates are displaced (seeded) from the
+    /// course's nominal positions (the same as `cosim perturb`).
+    Perturb(PerturbArgs),
+}
+
 #[derive(Subcommand, Debug)]
 enum Cmd {
     /// Runs one scenario (default: the thesis race) and reports it.
@@ -113,32 +138,23 @@ enum Cmd {
     /// Writes a world file whose gates are displaced (seeded) from the
     /// course's nominal positions: sideways in each gate's plane and
     /// vertically (`cosim world perturb ...` is the same command).
-    Perturb {
-        /// The world file to start from (default: the thesis course).
-        #[arg(long, value_name = "FILE")]
-        from: Option<PathBuf>,
-        /// Seed of the draw (ChaCha8).
-        #[arg(long, value_name = "S")]
-        seed: u64,
-        /// Largest sideways offset in m (sideways offsets are drawn in
-        /// [M/2, M], vertical ones in [-M/2, M/2]).
-        #[arg(long, value_name = "M")]
-        max_offset: f64,
-        /// Where to write the new world file.
-        #[arg(long, value_name = "FILE")]
-        out: PathBuf,
-    },
+    Perturb(PerturbArgs),
     /// Serves the world of a scenario on an endpoint, for one platform run
     /// elsewhere with `cosim run SCENARIO --world-endpoint ...`; exits after
     /// the run's STOP.
+    #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
     World {
+        /// `cosim world perturb ...`: the same as `cosim perturb ...` (a
+        /// scenario named "perturb" cannot be served).
+        #[command(subcommand)]
+        action: Option<WorldCmd>,
         /// A scenario file or a name in scenarios/ (default: thesis-race).
         scenario: Option<String>,
         /// Where to listen: tcp:HOST:PORT (tcp:0.0.0.0:7000 for any
         /// interface; the protocol has no authentication: a trusted network
         /// only) or unix:PATH.
-        #[arg(long, value_name = "ENDPOINT")]
-        listen: protocol::Endpoint,
+        #[arg(long, value_name = "ENDPOINT", required = true)]
+        listen: Option<protocol::Endpoint>,
         /// Output directory for trajectory.csv and world.trace (default: out/<scenario>-world).
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
@@ -298,11 +314,14 @@ impl RunArgs {
 }
 
 fn cmd_perturb(
-    from: Option<PathBuf>,
-    seed: u64,
-    max_offset: f64,
-    out: &Path,
+    PerturbArgs {
+        from,
+        seed,
+        max_offset,
+        out,
+    }: PerturbArgs,
 ) -> anyhow::Result<ExitCode> {
+    let out = out.as_path();
     let from = match from {
         Some(p) => p,
         None => scenarios::scenario::find_repo_file("scenarios/worlds/thesis-course.toml")
@@ -761,20 +780,7 @@ fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    // `cosim world perturb ...` is `cosim perturb ...` (`cosim world
-    // SCENARIO` serves a world; a scenario named "perturb" cannot exist).
-    // The subcommand is the first argument that is neither a global option
-    // nor the value of one (`cosim --no-build world perturb ...`).
-    let mut args: Vec<std::ffi::OsString> = std::env::args_os().collect();
-    let mut i = 1;
-    while i < args.len() && args[i].to_string_lossy().starts_with('-') {
-        let takes_value = args[i] == "--sim-core" || args[i] == "--world-server";
-        i += if takes_value { 2 } else { 1 };
-    }
-    if i + 1 < args.len() && args[i] == "world" && args[i + 1] == "perturb" {
-        args.remove(i);
-    }
-    let cli = Cli::parse_from(args);
+    let cli = Cli::parse();
     let bins = cli.bins;
     let result = match cli.command {
         Cmd::Run {
@@ -785,15 +791,15 @@ fn main() -> ExitCode {
             quiet,
             world_endpoint,
         } => cmd_run(scenario, out, run, no_plots, quiet, world_endpoint, bins),
-        Cmd::Perturb {
-            from,
-            seed,
-            max_offset,
-            out,
-        } => cmd_perturb(from, seed, max_offset, &out),
+        Cmd::Perturb(p)
+        | Cmd::World {
+            action: Some(WorldCmd::Perturb(p)),
+            ..
+        } => cmd_perturb(p),
         Cmd::World {
+            action: None,
             scenario,
-            listen,
+            listen: Some(listen),
             out,
             set,
             no_trace,
@@ -811,6 +817,9 @@ fn main() -> ExitCode {
             },
             bins,
         ),
+        Cmd::World { listen: None, .. } => {
+            unreachable!("clap requires --listen without a subcommand")
+        }
         Cmd::Sweep {
             scenario,
             param,
