@@ -169,7 +169,8 @@ pub fn read_run(
     }))
 }
 
-/// The sweep's Table 7/8: one row per run directory holding a radar.json.
+/// The sweep's Table 7/8: one row per run; None unless every run directory
+/// holds a readable radar.json (a sweep with a failed run gets no table).
 pub fn sweep_table(runs: &[(String, PathBuf)]) -> Option<String> {
     let mut rows = Vec::new();
     for (label, dir) in runs {
