@@ -31,6 +31,27 @@ static inline void stm32_perform(uint8_t op)
 }
 
 /*
+ * One iteration of the single-step mode: ITER_ADVANCE + advance_ms (the
+ * simulations advance that long), then RUN_SINGLE_STEP_PID (the STM32's
+ * PID and one world step). Returns the PID step's status
+ * (RUN_SINGLE_STEP_PID, TARGET_REACHED or BATTERY_LOW).
+ */
+static inline uint8_t stm32_iteration(uint8_t advance_ms)
+{
+    uint8_t s;
+    stm32_control = (uint8_t)(ITER_ADVANCE + advance_ms);
+    while (stm32_status != ITER_ADVANCE)
+        ;
+    stm32_status = 0;
+    stm32_control = RUN_SINGLE_STEP_PID;
+    while ((s = stm32_status) == 0)
+        ;
+    stm32_status = 0;
+    stm32_control = 0;
+    return s;
+}
+
+/*
  * An extension command (sim-core/src/peripherals/stm32/motion.rs): write
  * the code to EXT_CTRL as one 32-bit word (the command starts when its
  * last byte is written); EXT_STAT is 0 from then until the command
