@@ -13,6 +13,10 @@
 
 #define stm32_control REG8(STM32_CTRL_REG_OFFSET)
 #define stm32_status REG8(STM32_STAT_REG_OFFSET)
+/* SET_TARGET's position (m, Table 4.2). */
+#define stm32_x REGF64(STM32_TARGET_POS_X_OFFSET)
+#define stm32_y REGF64(STM32_TARGET_POS_Y_OFFSET)
+#define stm32_z REGF64(STM32_TARGET_POS_Z_OFFSET)
 #define stm32_ext_ctrl REG32(STM32_EXT_CTRL_OFFSET)
 #define stm32_ext_stat REG32(STM32_EXT_STAT_OFFSET)
 
