@@ -322,4 +322,16 @@ fn the_default_configuration_survives_toml() {
     let back = RunConfig::from_toml_str(&c.to_toml(), "default round trip").unwrap();
     assert_eq!(back, c);
     assert!(back.platform.is_none());
+    // A single drone's file without the extension's settings is the file
+    // from before the radios and the STM32 extension: no radio_id, no
+    // stm32.* keys at their defaults; one set key comes back alone.
+    let text = c.to_toml();
+    assert!(
+        !text.contains("radio_id") && !text.contains("stm32"),
+        "{text}"
+    );
+    let mut flow = RunConfig::default();
+    flow.set("stm32.position_source", "flow").unwrap();
+    let text = flow.to_toml();
+    assert_eq!(text.matches("stm32").count(), 1, "{text}");
 }

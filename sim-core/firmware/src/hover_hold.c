@@ -18,6 +18,7 @@
 #include <stdio.h>
 
 #include "cosim_regs.h"
+#include "cycles.h"
 #include "stm32.h"
 
 #ifndef HOVER_SECONDS
@@ -31,19 +32,6 @@
 #define CORE_HZ 250000000ull
 #endif
 
-/* The 64-bit cycle counter read as two halves; the high half is read again
- * so a carry between the two reads is never missed. */
-static uint64_t cycles(void)
-{
-    uint32_t hi, lo, hi2;
-    do {
-        __asm__ volatile("csrr %0, mcycleh" : "=r"(hi));
-        __asm__ volatile("csrr %0, mcycle" : "=r"(lo));
-        __asm__ volatile("csrr %0, mcycleh" : "=r"(hi2));
-    } while (hi != hi2);
-    return ((uint64_t)hi << 32) | lo;
-}
-
 int main(void)
 {
     printf("[hover] Hello from the virtual GAP8! Hovering for %d s\n", HOVER_SECONDS);
@@ -51,10 +39,10 @@ int main(void)
     stm32_perform(GET_STABLE);
     printf("[hover] Drone stable at 1 m\n");
 
-    const uint64_t start = cycles();
+    const uint64_t start = csr_mcycle64();
     const uint64_t span = (uint64_t)HOVER_SECONDS * CORE_HZ;
     int low_battery = 0;
-    while (!low_battery && cycles() - start < span) {
+    while (!low_battery && csr_mcycle64() - start < span) {
         stm32_control = RUN_PID;
         for (;;) {
             uint8_t status = stm32_status;
@@ -70,7 +58,7 @@ int main(void)
         stm32_control = 0;
     }
     printf("[hover] Held for %u ms of platform time\n",
-           (unsigned)((cycles() - start) / (CORE_HZ / 1000u)));
+           (unsigned)((csr_mcycle64() - start) / (CORE_HZ / 1000u)));
 
     printf("[hover] Making the drone descend ... ");
     stm32_perform(GO_DOWN);

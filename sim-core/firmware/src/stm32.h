@@ -13,6 +13,10 @@
 
 #define stm32_control REG8(STM32_CTRL_REG_OFFSET)
 #define stm32_status REG8(STM32_STAT_REG_OFFSET)
+/* SET_TARGET's position (m, Table 4.2). */
+#define stm32_x REGF64(STM32_TARGET_POS_X_OFFSET)
+#define stm32_y REGF64(STM32_TARGET_POS_Y_OFFSET)
+#define stm32_z REGF64(STM32_TARGET_POS_Z_OFFSET)
 #define stm32_ext_ctrl REG32(STM32_EXT_CTRL_OFFSET)
 #define stm32_ext_stat REG32(STM32_EXT_STAT_OFFSET)
 
@@ -28,6 +32,27 @@ static inline void stm32_perform(uint8_t op)
         ;
     stm32_status = 0;
     stm32_control = 0;
+}
+
+/*
+ * One iteration of the single-step mode: ITER_ADVANCE + advance_ms (the
+ * simulations advance that long), then RUN_SINGLE_STEP_PID (the STM32's
+ * PID and one world step). Returns the PID step's status
+ * (RUN_SINGLE_STEP_PID, TARGET_REACHED or BATTERY_LOW).
+ */
+static inline uint8_t stm32_iteration(uint8_t advance_ms)
+{
+    uint8_t s;
+    stm32_control = (uint8_t)(ITER_ADVANCE + advance_ms);
+    while (stm32_status != ITER_ADVANCE)
+        ;
+    stm32_status = 0;
+    stm32_control = RUN_SINGLE_STEP_PID;
+    while ((s = stm32_status) == 0)
+        ;
+    stm32_status = 0;
+    stm32_control = 0;
+    return s;
 }
 
 /*

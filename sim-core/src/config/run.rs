@@ -461,6 +461,7 @@ impl RunConfig {
     /// The whole configuration as TOML (every key, `set`'s text form).
     pub fn to_toml(&self) -> String {
         let mut table = toml::Table::new();
+        let default = RunConfig::default();
         for (key, _) in RUN_KEYS {
             // The embedded default platform has no file to name: leave the
             // key out, so that reading the file back gives the same config.
@@ -472,15 +473,13 @@ impl RunConfig {
             if key == "radio_id" && self.radio_id == 0 {
                 continue;
             }
-            // Likewise the STM32 extension's settings at their defaults.
-            let default = RunConfig::default();
-            if (key == "stm32.position_source" && self.position_source == default.position_source)
-                || (key == "stm32.range_max_m" && self.range_max_m == default.range_max_m)
-                || (key == "stm32.flow_std_m_s" && self.flow_std_m_s == default.flow_std_m_s)
-            {
+            let text = self.get(key).expect("RUN_KEYS are known keys");
+            // Likewise the STM32 extension's settings at their defaults (a
+            // value's text is its shortest round-trip form, so equal texts
+            // are equal values).
+            if key.starts_with("stm32.") && default.get(key).is_ok_and(|d| d == text) {
                 continue;
             }
-            let text = self.get(key).expect("RUN_KEYS are known keys");
             let value = match key {
                 "tolerance"
                 | "dandrea_efficiency"

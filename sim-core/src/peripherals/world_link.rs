@@ -237,6 +237,17 @@ impl SocketWorld {
         }
     }
 
+    /// Before `requests` requests go out at platform time `now`: the
+    /// test-only pause (one per request) and the time the trace stamps.
+    fn before_send(&self, requests: usize, now: Picos) {
+        if let Some(d) = self.slow {
+            std::thread::sleep(d * requests as u32);
+        }
+        self.counters
+            .now_ps
+            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+    }
+
     fn map(request: &'static str, e: protocol::ProtocolError) -> LinkError {
         match e {
             protocol::ProtocolError::Remote(message) => LinkError::Remote { request, message },
@@ -256,12 +267,7 @@ impl Drop for SocketWorld {
 
 impl WorldLink for SocketWorld {
     fn call(&mut self, request: &Request, now: Picos) -> Result<Reply, LinkError> {
-        if let Some(d) = self.slow {
-            std::thread::sleep(d);
-        }
-        self.counters
-            .now_ps
-            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+        self.before_send(1, now);
         match self.conn.request(request) {
             Ok(Some(reply)) => Ok(reply),
             Ok(None) => Err(LinkError::Unexpected {
@@ -273,12 +279,7 @@ impl WorldLink for SocketWorld {
     }
 
     fn send(&mut self, request: &Request, now: Picos) -> Result<(), LinkError> {
-        if let Some(d) = self.slow {
-            std::thread::sleep(d);
-        }
-        self.counters
-            .now_ps
-            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+        self.before_send(1, now);
         match self.conn.send(request) {
             Ok(()) => Ok(()),
             Err(e) => {
@@ -303,12 +304,7 @@ impl WorldLink for SocketWorld {
         if self.trace.is_some() {
             return Ok(DeferredReply::ready(self.call(request, now)));
         }
-        if let Some(d) = self.slow {
-            std::thread::sleep(d);
-        }
-        self.counters
-            .now_ps
-            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+        self.before_send(1, now);
         let command = request.command();
         Ok(match self.conn.request_deferred(request) {
             Ok(p) => DeferredReply {
@@ -322,12 +318,7 @@ impl WorldLink for SocketWorld {
     /// One write for all of `requests`, then their replies
     /// ([`protocol::blocking::Connection::pipeline`]).
     fn exchange(&mut self, requests: &[Request], now: Picos) -> Result<Vec<Reply>, LinkError> {
-        if let Some(d) = self.slow {
-            std::thread::sleep(d * requests.len() as u32);
-        }
-        self.counters
-            .now_ps
-            .store(now.0, std::sync::atomic::Ordering::Relaxed);
+        self.before_send(requests.len(), now);
         self.conn
             .pipeline(requests)
             .map_err(|(i, e)| Self::map(requests[i].command(), e))

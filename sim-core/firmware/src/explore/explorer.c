@@ -14,6 +14,10 @@
 #include "plan.h"
 #include "wallfollow.h"
 
+#if defined(__riscv)
+#include "../cycles.h"
+#endif
+
 /* Visited and failed goals: frontier cells near them are skipped. A ring:
  * with more goals than this the oldest zones lapse (the time budget still
  * ends the run). */
@@ -113,13 +117,7 @@ const uint8_t *explore_map_export(uint32_t *len) { return og_export(&explorer.g,
 uint64_t explore_cycles(void)
 {
 #if defined(__riscv)
-    uint32_t hi, lo, hi2;
-    do {
-        __asm__ volatile("csrr %0, mcycleh" : "=r"(hi));
-        __asm__ volatile("csrr %0, mcycle" : "=r"(lo));
-        __asm__ volatile("csrr %0, mcycleh" : "=r"(hi2));
-    } while (hi != hi2);
-    return ((uint64_t)hi << 32) | lo;
+    return csr_mcycle64();
 #else
     return 0;
 #endif

@@ -21,20 +21,7 @@
 
 /* One 32 ms iteration: ITER_ADVANCE + 25 ms, then the PID's 7 ms (at a
  * 32 ms basicTimeStep the world steps once). Returns the status. */
-static uint8_t iteration(void)
-{
-    uint8_t s;
-    stm32_control = ITER_ADVANCE + 25;
-    while (stm32_status != ITER_ADVANCE)
-        ;
-    stm32_status = 0;
-    stm32_control = RUN_SINGLE_STEP_PID;
-    while ((s = stm32_status) == 0)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-    return s;
-}
+static uint8_t iteration(void) { return stm32_iteration(25); }
 
 static int mm(double v) { return (int)(v * 1000.0 + (v < 0 ? -0.5 : 0.5)); }
 

@@ -86,23 +86,6 @@ static uint32_t rng_next(void)
     return rng_state = x;
 }
 
-static void advance_ms(uint32_t ms)
-{
-    stm32_control = (uint8_t)(ITER_ADVANCE + ms);
-    while (stm32_status != ITER_ADVANCE)
-        ;
-    stm32_status = 0;
-}
-
-static void pid_step(void)
-{
-    stm32_control = RUN_SINGLE_STEP_PID;
-    while (stm32_status == 0)
-        ;
-    stm32_status = 0;
-    stm32_control = 0;
-}
-
 /* One PID iteration. A frame started between iterations leaves at the
  * world time the drone's clock has reached (docs/SWARM.md §4.2): the STM32
  * sends its ITER_ADVANCE to the world together with the PID step, so every
@@ -110,8 +93,7 @@ static void pid_step(void)
  * iterations, common to all drones (they start together). */
 static void iteration(void)
 {
-    advance_ms(ITER_MS - PID_MS);
-    pid_step();
+    stm32_iteration(ITER_MS - PID_MS);
 }
 
 

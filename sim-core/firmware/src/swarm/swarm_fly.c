@@ -48,10 +48,6 @@
 #define SIDE 2.0
 #define HEIGHT 1.0
 
-#define stm32_x REGF64(STM32_TARGET_POS_X_OFFSET)
-#define stm32_y REGF64(STM32_TARGET_POS_Y_OFFSET)
-#define stm32_z REGF64(STM32_TARGET_POS_Z_OFFSET)
-
 static const double corner[4][2] = {{0, 0}, {SIDE, 0}, {SIDE, SIDE}, {0, SIDE}};
 
 /* Legs flown: LAPS laps, or the run key firmware.swarm_fly_legs = N

@@ -73,9 +73,6 @@
 
 #define camera_control REG8(CAMERA_CTRL_REG_OFFSET)
 #define camera_status REG8(CAMERA_STAT_REG_OFFSET)
-#define stm32_x REGF64(STM32_TARGET_POS_X_OFFSET)
-#define stm32_y REGF64(STM32_TARGET_POS_Y_OFFSET)
-#define stm32_z REGF64(STM32_TARGET_POS_Z_OFFSET)
 
 /* Appendix D's waypoints (race.c), mm; the last one is the start (no gate).
  * -DSHORT_COURSE (tests): one gate's waypoint 2 m ahead of the start, then

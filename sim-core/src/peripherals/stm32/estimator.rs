@@ -40,8 +40,8 @@
 
 use std::f64::consts::PI;
 
-/// Standard gravity (m/s²), as the world's (DESIGN.md §5).
-pub const G: f64 = 9.81;
+// Gravity (m/s²): the power models' (Table 4.4), the world's too.
+use crate::power::models::G;
 
 /// A speed or its standard deviation (m/s).
 #[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]

@@ -430,20 +430,13 @@ impl Stm32 {
                 self.process = Process::Landing { stage: 2 };
             }
             Process::Landing { .. } => {
-                self.next_iteration = None;
-                self.process = Process::Idle;
                 let done = self.stop_world(end, ctx)?;
-                self.complete(done, GO_DOWN);
+                self.finish(done, GO_DOWN);
             }
-            Process::TakingOff => {
-                self.finish_ext(end, motion::EXT_TAKEOFF);
-            }
+            Process::TakingOff => self.finish_ext(end, motion::EXT_TAKEOFF),
             Process::ExtLanding => {
-                self.next_iteration = None;
-                self.process = Process::Idle;
                 let done = self.stop_world(end, ctx)?;
-                self.power.busy_reading(done);
-                self.motion.complete(done, motion::EXT_LAND);
+                self.finish_ext(done, motion::EXT_LAND);
             }
             Process::Idle => unreachable!("an idle STM32 has no iteration scheduled"),
         }

@@ -42,7 +42,7 @@
 use protocol::{Reply, Request, Sensors};
 
 use super::estimator::{Attitude, Drift, FlowFilter, FlowFilterParams, Seconds};
-use super::pid::{DesiredState, MotorCommands};
+use super::pid::{to_body, DesiredState, MotorCommands};
 use super::{invalid, world_err, Outcome, Process, Stm32};
 use crate::peripherals::{DeviceCtx, DeviceError, LinkError, TimedReg};
 use crate::units::Picos;
@@ -265,10 +265,8 @@ impl Motion {
             return (forward, sideways, 0.0);
         };
         // Appendix C at yaw +π/2: body y = −world x, body x = world y.
-        let (vx_w, vy_w) = (-sideways, forward);
-        let (s, c) = yaw.sin_cos();
         let yaw_rate = (K_HEADING * wrap_angle(heading - yaw)).clamp(-MAX_YAW_RATE, MAX_YAW_RATE);
-        let (vx, vy) = (vx_w * c + vy_w * s, -vx_w * s + vy_w * c);
+        let (vx, vy) = to_body(-sideways, forward, yaw);
         // Listing 4.3 demands at most 0.5 m/s per body axis; a rotated
         // diagonal demand would exceed it (0.71 m/s at 45°): scale it back,
         // direction kept, so the velocity loop sees what the race tuned it for.

@@ -213,13 +213,13 @@ pub fn mix(c: &ControlCommands) -> MotorCommands {
 /// Body-frame velocities from two GPS fixes `dt` seconds apart and the yaw
 /// (Appendix C lines 5–13): the global finite difference rotated by −yaw.
 pub fn body_velocity(dx: f64, dy: f64, dt: f64, yaw: f64) -> (f64, f64) {
-    let vx_global = dx / dt;
-    let vy_global = dy / dt;
+    to_body(dx / dt, dy / dt, yaw)
+}
+
+/// A world-frame horizontal vector in the body (yaw) frame: rotated by −yaw.
+pub fn to_body(x: f64, y: f64, yaw: f64) -> (f64, f64) {
     let (s, c) = yaw.sin_cos();
-    (
-        vx_global * c + vy_global * s,
-        -vx_global * s + vy_global * c,
-    )
+    (x * c + y * s, -x * s + y * c)
 }
 
 #[cfg(test)]

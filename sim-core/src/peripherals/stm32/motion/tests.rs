@@ -15,6 +15,17 @@ fn write_bytes(stm32: &mut Stm32, offset: u32, bytes: &[u8], now: Picos, ctx: &m
     }
 }
 
+/// Writes an extension command to EXT_CTRL (a whole word: it fires at the
+/// last byte).
+fn command(stm32: &mut Stm32, code: u32, now: Picos, ctx: &mut DeviceCtx<'_>) {
+    write_bytes(stm32, EXT_CTRL, &code.to_le_bytes(), now, ctx);
+}
+
+/// Writes a command argument (f64) at `offset`.
+fn set_arg(stm32: &mut Stm32, offset: u32, value: f64, now: Picos, ctx: &mut DeviceCtx<'_>) {
+    write_bytes(stm32, offset, &value.to_le_bytes(), now, ctx);
+}
+
 /// What a device context borrows besides the world and the console.
 struct Rig {
     session: WorldSession,
@@ -63,13 +74,7 @@ fn commands_complete_with_their_code_and_bad_ones_with_ext_error() {
     let mut stm32 = Stm32::new(Stm32Config::default(), DevicePower::new(Picos::ZERO));
     let t = Picos::from_ms(1);
     // Before INIT_PID: refused.
-    write_bytes(
-        &mut stm32,
-        EXT_CTRL,
-        &EXT_SET_HEADING.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
+    command(&mut stm32, EXT_SET_HEADING, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_ERROR);
 
     stm32.write(CTRL, INIT_PID, t, &mut ctx).unwrap();
@@ -81,78 +86,30 @@ fn commands_complete_with_their_code_and_bad_ones_with_ext_error() {
     // A command fires at its last byte only.
     write_bytes(&mut stm32, EXT_CTRL, &[99, 0, 0], t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_ERROR, "still the earlier refusal");
-    write_bytes(&mut stm32, CMD_YAW, &0.5f64.to_le_bytes(), t, &mut ctx);
-    write_bytes(
-        &mut stm32,
-        EXT_CTRL,
-        &EXT_SET_HEADING.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
+    set_arg(&mut stm32, CMD_YAW, 0.5, t, &mut ctx);
+    command(&mut stm32, EXT_SET_HEADING, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_SET_HEADING);
     assert_eq!(stm32.motion.heading, Some(0.5));
 
     // Unknown command, non-finite and non-positive arguments: EXT_ERROR.
-    write_bytes(&mut stm32, EXT_CTRL, &99u32.to_le_bytes(), t, &mut ctx);
+    command(&mut stm32, 99, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_ERROR);
-    write_bytes(
-        &mut stm32,
-        CMD_SPEED_LIMIT,
-        &f64::NAN.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
-    write_bytes(
-        &mut stm32,
-        EXT_CTRL,
-        &EXT_SET_SPEED_LIMIT.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
+    set_arg(&mut stm32, CMD_SPEED_LIMIT, f64::NAN, t, &mut ctx);
+    command(&mut stm32, EXT_SET_SPEED_LIMIT, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_ERROR);
-    write_bytes(
-        &mut stm32,
-        CMD_SPEED_LIMIT,
-        &0.0f64.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
-    write_bytes(
-        &mut stm32,
-        EXT_CTRL,
-        &EXT_SET_SPEED_LIMIT.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
+    set_arg(&mut stm32, CMD_SPEED_LIMIT, 0.0, t, &mut ctx);
+    command(&mut stm32, EXT_SET_SPEED_LIMIT, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_ERROR);
-    write_bytes(
-        &mut stm32,
-        CMD_SPEED_LIMIT,
-        &0.5f64.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
-    write_bytes(
-        &mut stm32,
-        EXT_CTRL,
-        &EXT_SET_SPEED_LIMIT.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
+    set_arg(&mut stm32, CMD_SPEED_LIMIT, 0.5, t, &mut ctx);
+    command(&mut stm32, EXT_SET_SPEED_LIMIT, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_SET_SPEED_LIMIT);
 
     // Velocity set-point: clamped to the speed limit, direction kept.
-    write_bytes(&mut stm32, CMD_VX, &3.0f64.to_le_bytes(), t, &mut ctx);
-    write_bytes(&mut stm32, CMD_VY, &4.0f64.to_le_bytes(), t, &mut ctx);
-    write_bytes(&mut stm32, CMD_HEIGHT, &1.0f64.to_le_bytes(), t, &mut ctx);
-    write_bytes(&mut stm32, CMD_YAW_RATE, &0.0f64.to_le_bytes(), t, &mut ctx);
-    write_bytes(
-        &mut stm32,
-        EXT_CTRL,
-        &EXT_SET_VELOCITY.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
+    set_arg(&mut stm32, CMD_VX, 3.0, t, &mut ctx);
+    set_arg(&mut stm32, CMD_VY, 4.0, t, &mut ctx);
+    set_arg(&mut stm32, CMD_HEIGHT, 1.0, t, &mut ctx);
+    set_arg(&mut stm32, CMD_YAW_RATE, 0.0, t, &mut ctx);
+    command(&mut stm32, EXT_SET_VELOCITY, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_SET_VELOCITY);
     let Mode::Velocity(sp) = stm32.motion.mode else {
         panic!("velocity mode expected")
@@ -162,33 +119,15 @@ fn commands_complete_with_their_code_and_bad_ones_with_ext_error() {
         "{sp:?}"
     );
     // A height below the ground is refused and keeps the set-point.
-    write_bytes(
-        &mut stm32,
-        CMD_HEIGHT,
-        &(-1.0f64).to_le_bytes(),
-        t,
-        &mut ctx,
-    );
-    write_bytes(
-        &mut stm32,
-        EXT_CTRL,
-        &EXT_SET_VELOCITY.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
+    set_arg(&mut stm32, CMD_HEIGHT, -1.0, t, &mut ctx);
+    command(&mut stm32, EXT_SET_VELOCITY, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_ERROR);
     assert_eq!(stm32.motion.mode, Mode::Velocity(sp));
     // RUN_PID would never end in velocity mode: a device error.
     assert!(stm32
         .write(CTRL, super::super::RUN_PID, t, &mut ctx)
         .is_err());
-    write_bytes(
-        &mut stm32,
-        EXT_CTRL,
-        &EXT_POSITION_MODE.to_le_bytes(),
-        t,
-        &mut ctx,
-    );
+    command(&mut stm32, EXT_POSITION_MODE, t, &mut ctx);
     assert_eq!(stat(&stm32, t), EXT_POSITION_MODE);
     assert_eq!(stm32.motion.mode, Mode::Position);
     assert_eq!(stm32.target(), [-2.6, 0.0, 0.015]);
