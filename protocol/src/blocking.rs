@@ -154,6 +154,7 @@ pub struct PendingReply {
 
 #[derive(Debug)]
 enum Pending {
+    /// What [`Connection::request`] gave (already checked).
     Ready(Result<Reply>),
     Deferred(Arc<Mutex<Slot>>),
 }
@@ -162,15 +163,15 @@ impl PendingReply {
     /// The reply, with exactly the result [`Connection::request`] would
     /// have given for the same frame (the same errors, by the same code).
     pub fn wait(self) -> Result<Reply> {
-        let decoded = match self.state {
+        match self.state {
             Pending::Ready(r) => r,
             Pending::Deferred(slot) => {
                 let mut s = lock(&slot);
                 s.decode();
-                s.reply.take().expect("decoded above")
+                let decoded = s.reply.take().expect("decoded above");
+                check_reply(self.command, decoded?)
             }
-        };
-        check_reply(self.command, decoded?)
+        }
     }
 }
 

@@ -169,7 +169,6 @@ impl Drop for ShmWriter {
 #[derive(Debug, Default)]
 pub struct ShmReader {
     open: Option<(String, File)>,
-    buf: Vec<u8>,
 }
 
 impl ShmReader {
@@ -177,7 +176,10 @@ impl ShmReader {
         ShmReader::default()
     }
 
-    /// Reads the frame `frame` announces, checking the file's header.
+    /// Reads the frame `frame` announces, checking the file's header. The
+    /// header and the pixels are read apart, the pixels straight into the
+    /// image's buffer (no copy of a frame per image); the lockstep keeps
+    /// the world from writing in between.
     pub fn read(&mut self, frame: &ShmFrame) -> Result<Image, ShmError> {
         let bad = |message: String| ShmError::Frame {
             path: frame.path.clone(),
@@ -193,12 +195,13 @@ impl ShmReader {
         let (_, file) = self.open.as_ref().expect("opened above");
         let len = u64::from(frame.width) * u64::from(frame.height);
         let len = usize::try_from(len).map_err(|_| bad(format!("{len} pixels")))?;
-        self.buf.resize(SHM_HEADER + len, 0);
-        file.read_exact_at(&mut self.buf, 0)
-            .map_err(|e| bad(format!("cannot read frame {}: {e}", frame.seq)))?;
-        let expected = header(frame.seq, frame.width, frame.height, len as u64);
-        if self.buf[..SHM_HEADER] != expected {
-            let got = &self.buf[..SHM_HEADER];
+        let read_at = |buf: &mut [u8], offset: u64| {
+            file.read_exact_at(buf, offset)
+                .map_err(|e| bad(format!("cannot read frame {}: {e}", frame.seq)))
+        };
+        let mut got = [0u8; SHM_HEADER];
+        read_at(&mut got, 0)?;
+        if got != header(frame.seq, frame.width, frame.height, len as u64) {
             return Err(bad(if &got[0..8] != SHM_MAGIC {
                 "not a cosim image file (bad magic)".into()
             } else {
@@ -213,10 +216,12 @@ impl ShmReader {
                 )
             }));
         }
+        let mut data = vec![0u8; len];
+        read_at(&mut data, SHM_HEADER as u64)?;
         Ok(Image {
             width: frame.width,
             height: frame.height,
-            data: self.buf[SHM_HEADER..].to_vec(),
+            data,
         })
     }
 }

@@ -30,54 +30,40 @@ pub(super) const LOOKBACK: usize = 4;
 /// A block and the bytes before it.
 pub(super) type Window = [u8; LOOKBACK + BLOCK];
 
-/// What one block holds, bit `i` / entry `i` for byte `i` of the block.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct Classes {
-    comma: u64,
-    close: u64,
-    digit: u64,
-    zero: u64,
-    /// The number made of the (up to 3) digits right before byte `i`:
-    /// `100·h + 10·t + u`, with `100·h` taken as 0 for `h` ≥ 3 (`big` then).
-    value: [u8; BLOCK],
-    /// Where that number is above 255.
-    big: u64,
-}
-
-/// The bit masks of [`Classes`], what the block loop checks.
+/// The bit masks of a block, bit `i` for byte `i`: what the block loop
+/// checks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) struct Masks {
     pub(super) comma: u64,
     pub(super) close: u64,
     pub(super) digit: u64,
     pub(super) zero: u64,
+    /// Where the number before the byte (see [`Classes::value`]) is above
+    /// 255.
     pub(super) big: u64,
+}
+
+/// What one block holds, bit `i` / entry `i` for byte `i` of the block.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Classes {
+    pub(super) masks: Masks,
+    /// The number made of the (up to 3) digits right before byte `i`:
+    /// `100·h + 10·t + u`, with `100·h` taken as 0 for `h` ≥ 3 (`big` then).
+    pub(super) value: [u8; BLOCK],
 }
 
 impl Classes {
     /// Nothing found (what the classifiers start from).
     const EMPTY: Classes = Classes {
-        comma: 0,
-        close: 0,
-        digit: 0,
-        zero: 0,
+        masks: Masks {
+            comma: 0,
+            close: 0,
+            digit: 0,
+            zero: 0,
+            big: 0,
+        },
         value: [0; BLOCK],
-        big: 0,
     };
-
-    pub(super) fn masks(&self) -> Masks {
-        Masks {
-            comma: self.comma,
-            close: self.close,
-            digit: self.digit,
-            zero: self.zero,
-            big: self.big,
-        }
-    }
-
-    pub(super) fn value(&self) -> [u8; BLOCK] {
-        self.value
-    }
 }
 
 /// SSE2 (part of the x86_64 baseline, so no run-time detection): 16 bytes
@@ -112,10 +98,10 @@ pub(super) fn classify(win: &Window) -> Classes {
             };
             let (_, is_digit) = digit(v);
             let bits = |m: __m128i| u64::from(_mm_movemask_epi8(m) as u16) << (16 * i);
-            c.comma |= bits(_mm_cmpeq_epi8(v, _mm_set1_epi8(b',' as i8)));
-            c.close |= bits(_mm_cmpeq_epi8(v, _mm_set1_epi8(b']' as i8)));
-            c.digit |= bits(is_digit);
-            c.zero |= bits(_mm_cmpeq_epi8(v, zero));
+            c.masks.comma |= bits(_mm_cmpeq_epi8(v, _mm_set1_epi8(b',' as i8)));
+            c.masks.close |= bits(_mm_cmpeq_epi8(v, _mm_set1_epi8(b']' as i8)));
+            c.masks.digit |= bits(is_digit);
+            c.masks.zero |= bits(_mm_cmpeq_epi8(v, zero));
             // Units, tens, hundreds: the digits before, while they last.
             let (d1, m1) = digit(v1);
             let (d2, m2) = digit(v2);
@@ -139,7 +125,7 @@ pub(super) fn classify(win: &Window) -> Classes {
                 _mm_cmpgt_epi8(h, _mm_set1_epi8(2)),
                 _mm_and_si128(is(2), _mm_cmpgt_epi8(tu, _mm_set1_epi8(55))),
             );
-            c.big |= bits(big);
+            c.masks.big |= bits(big);
             let mut lanes = [0u8; 16];
             _mm_storeu_si128(lanes.as_mut_ptr().cast(), value);
             c.value[16 * i..16 * i + 16].copy_from_slice(&lanes);
@@ -155,10 +141,10 @@ pub(super) fn classify_scalar(win: &Window) -> Classes {
     let digit = |b: u8| b.is_ascii_digit().then(|| b - b'0');
     for i in 0..BLOCK {
         let b = win[LOOKBACK + i];
-        c.comma |= u64::from(b == b',') << i;
-        c.close |= u64::from(b == b']') << i;
-        c.digit |= u64::from(b.is_ascii_digit()) << i;
-        c.zero |= u64::from(b == b'0') << i;
+        c.masks.comma |= u64::from(b == b',') << i;
+        c.masks.close |= u64::from(b == b']') << i;
+        c.masks.digit |= u64::from(b.is_ascii_digit()) << i;
+        c.masks.zero |= u64::from(b == b'0') << i;
         let (u, t, h) = match (digit(win[i + 3]), digit(win[i + 2]), digit(win[i + 1])) {
             (Some(u), Some(t), Some(h)) => (u, t, h),
             (Some(u), Some(t), None) => (u, t, 0),
@@ -171,7 +157,7 @@ pub(super) fn classify_scalar(win: &Window) -> Classes {
             2 => 200,
             _ => 0,
         });
-        c.big |= u64::from(h > 2 || (h == 2 && tu > 55)) << i;
+        c.masks.big |= u64::from(h > 2 || (h == 2 && tu > 55)) << i;
     }
     c
 }
@@ -326,7 +312,7 @@ pub(super) fn parse_compact_impl(s: &[u8], open: usize, ssse3: bool) -> Fast {
         open,
         |win| {
             let c = classify(win);
-            (c.masks(), c.value())
+            (c.masks, c.value)
         },
         |value, term, out| gather(value, term, out, ssse3),
     )

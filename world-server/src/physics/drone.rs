@@ -12,8 +12,8 @@ use crate::crazyflie::{
 use crate::radio::draw::sensor_normal;
 use crate::scene::ObjectId;
 use crate::sensors::{
-    inertial_unit_angles, range_to_mm, range_to_mm_within, DroneState, SensorReadings,
-    RANGE_DIRECTIONS, UP_DOWN_DIRECTIONS,
+    inertial_unit_angles, range_to_mm_within, DroneState, SensorReadings, RANGE_DIRECTIONS,
+    UP_DOWN_DIRECTIONS,
 };
 use crate::time::Millis;
 use crate::world_file::{CarriedPath, DroneDesc, PhysicsOptions, SensorConfig};
@@ -206,32 +206,16 @@ impl DroneBody {
         let origin = pos + rot * DVec3::from_array(RANGE_SENSOR_POSITION);
         let filter = QueryFilter::default().exclude_rigid_body(self.body);
         let query = phys.query_pipeline_with_filter(filter);
-        let ranges_mm = if cfg.is_race_rangers() {
-            // The race's DistanceSensors, exactly as before `[sensors]`.
-            RANGE_DIRECTIONS.map(|d| {
-                let ray = Ray::new(origin, rot * d);
-                range_to_mm(
-                    query
-                        .cast_ray(&ray, crazyflie::RANGE_MAX_M, true)
-                        .map(|(_, toi)| toi),
-                )
-            })
-        } else {
-            let angles = cfg.ray_angles();
-            let mut k = 0;
-            RANGE_DIRECTIONS.map(|d| {
-                k += 1;
-                ranger_mm(&query, origin, rot, d, &angles, cfg, (index, time, k - 1))
-            })
+        // Channels of the noise: the four rangers 0-3, then up and down 4-5.
+        // (The race's single 2 m ray without noise reads exactly the
+        // DistanceSensor lookup table, `range_to_mm`.)
+        let mut channel = 0..;
+        let mut ranger = |d: DVec3| {
+            let k = channel.next().expect("unbounded");
+            ranger_mm(&query, origin, rot, d, cfg, (index, time, k))
         };
-        let up_down_mm = cfg.up_down.then(|| {
-            let angles = cfg.ray_angles();
-            let mut k = 4;
-            UP_DOWN_DIRECTIONS.map(|d| {
-                k += 1;
-                ranger_mm(&query, origin, rot, d, &angles, cfg, (index, time, k - 1))
-            })
-        });
+        let ranges_mm = RANGE_DIRECTIONS.map(&mut ranger);
+        let up_down_mm = cfg.up_down.then(|| UP_DOWN_DIRECTIONS.map(&mut ranger));
         let flow = cfg.flow.then(|| {
             // The Flow deck's PMW3901 sees the floor move under the drone:
             // the velocity in the body frame, scaled and noisy.
@@ -258,22 +242,21 @@ impl DroneBody {
 }
 
 /// One ranger (mm): the nearest return of its rays, the sensor's axis `dir`
-/// (body frame) turned by each of `angles` about the body's z axis (about y
-/// for the up and down rangers), plus Gaussian noise keyed by (drone, time,
+/// (body frame) turned by each of the `[sensors]` ray angles about the
+/// body's z axis (about y for the up and down rangers), plus Gaussian noise keyed by (drone, time,
 /// channel); nothing within `range_max_m` reads the maximum.
 fn ranger_mm(
     query: &QueryPipeline<'_>,
     origin: DVec3,
     rot: DQuat,
     dir: DVec3,
-    angles: &[f64],
     cfg: &SensorConfig,
     (drone, time, channel): (usize, Millis, u64),
 ) -> f64 {
     let axis = if dir.z == 0.0 { DVec3::Z } else { DVec3::Y };
-    let nearest = angles
-        .iter()
-        .filter_map(|&a| {
+    let nearest = cfg
+        .ray_angles()
+        .filter_map(|a| {
             let d = if a == 0.0 {
                 dir
             } else {

@@ -73,16 +73,18 @@ impl SensorConfig {
     }
 
     /// The rays' angles (rad) about the sensor's axis, evenly spread over
-    /// the FOV, ends included (one ray: 0).
-    pub fn ray_angles(&self) -> Vec<f64> {
+    /// the FOV, ends included (one ray: 0). An iterator: asked for on every
+    /// GET_SENSORS, so nothing is allocated.
+    pub fn ray_angles(&self) -> impl Iterator<Item = f64> + Clone {
         let n = self.range_rays.max(1);
-        if n == 1 {
-            return vec![0.0];
-        }
         let half = self.range_fov_deg.to_radians() / 2.0;
-        (0..n)
-            .map(|i| -half + 2.0 * half * i as f64 / (n - 1) as f64)
-            .collect()
+        (0..n).map(move |i| {
+            if n == 1 {
+                0.0
+            } else {
+                -half + 2.0 * half * f64::from(i) / f64::from(n - 1)
+            }
+        })
     }
 }
 
