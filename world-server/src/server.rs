@@ -270,7 +270,6 @@ async fn send_outbox(
             match frames.next_if(|(next, _, _)| *next == d) {
                 Some((_, more, c)) => {
                     frame.extend_from_slice(&more);
-                    wire.spare[d] = more;
                     close = c;
                 }
                 None => break,
