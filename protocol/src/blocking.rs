@@ -15,6 +15,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use crate::busy_poll::BusyPoll;
 use crate::endpoint::{bind_unix, tcp_bind_error, unlink_if_ours, Endpoint};
 use crate::error::{ProtocolError, Result};
 use crate::frame::{read_frame, write_frame, DEFAULT_MAX_FRAME};
@@ -56,11 +57,38 @@ impl Stream {
     }
 }
 
+impl Stream {
+    fn raw_fd(&self) -> std::os::fd::RawFd {
+        use std::os::fd::AsRawFd;
+        match self {
+            Stream::Unix(s) => s.as_raw_fd(),
+            Stream::Tcp(s) => s.as_raw_fd(),
+        }
+    }
+}
+
 impl Read for Stream {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         match self {
             Stream::Unix(s) => s.read(buf),
             Stream::Tcp(s) => s.read(buf),
+        }
+    }
+}
+
+/// The stream as a connection reads it: polling for the peer's bytes for
+/// the busy-poll budget before blocking ([`BusyPoll`]).
+#[derive(Debug)]
+struct Polled {
+    stream: Stream,
+    poll: BusyPoll,
+}
+
+impl Read for Polled {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        match self.poll.recv(self.stream.raw_fd(), buf) {
+            Some(r) => r,
+            None => self.stream.read(buf),
         }
     }
 }
@@ -91,19 +119,23 @@ pub enum Role {
 pub struct Options {
     /// Largest frame body accepted or sent.
     pub max_frame: usize,
+    /// How long a read polls for the peer's bytes before it blocks
+    /// (default: off; the binaries poll for [`crate::busy_poll::DEFAULT_US`]).
+    pub busy_poll: BusyPoll,
 }
 
 impl Default for Options {
     fn default() -> Self {
         Options {
             max_frame: DEFAULT_MAX_FRAME,
+            busy_poll: BusyPoll::OFF,
         }
     }
 }
 
 /// One end of a connection.
 pub struct Connection {
-    io: BufReader<Stream>,
+    io: BufReader<Polled>,
     role: Role,
     max_frame: usize,
     rbuf: Vec<u8>,
@@ -190,7 +222,7 @@ fn check_reply(command: &'static str, reply: Reply) -> Result<Reply> {
 impl std::fmt::Debug for Connection {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Connection")
-            .field("stream", self.io.get_ref())
+            .field("stream", &self.io.get_ref().stream)
             .field("role", &self.role)
             .field("image_encoding", &self.image_encoding)
             .finish_non_exhaustive()
@@ -204,7 +236,13 @@ impl Connection {
     /// Wraps a connected stream.
     pub fn new(stream: Stream, role: Role, opts: Options) -> Self {
         Connection {
-            io: BufReader::with_capacity(READ_BUF, stream),
+            io: BufReader::with_capacity(
+                READ_BUF,
+                Polled {
+                    stream,
+                    poll: opts.busy_poll,
+                },
+            ),
             role,
             max_frame: opts.max_frame,
             rbuf: Vec::new(),
@@ -239,7 +277,7 @@ impl Connection {
     }
 
     pub fn stream(&self) -> &Stream {
-        self.io.get_ref()
+        &self.io.get_ref().stream
     }
 
     fn out_dir(&self) -> Direction {
@@ -259,7 +297,7 @@ impl Connection {
     ) -> Result<()> {
         self.wbuf.clear();
         write_frame(&mut self.wbuf, self.max_frame, body)?;
-        self.io.get_mut().write_all(&self.wbuf)?;
+        self.io.get_mut().stream.write_all(&self.wbuf)?;
         let ev = FrameEvent {
             dir: self.out_dir(),
             bytes: &self.wbuf[4..],
@@ -281,7 +319,7 @@ impl Connection {
         for b in bodies {
             write_frame(&mut self.wbuf, self.max_frame, |o| o.extend_from_slice(b))?;
         }
-        self.io.get_mut().write_all(&self.wbuf)?;
+        self.io.get_mut().stream.write_all(&self.wbuf)?;
         let dir = self.out_dir();
         for b in bodies {
             let ev = FrameEvent {
@@ -429,7 +467,7 @@ impl Connection {
                 .map_err(|e| (i, e))?;
             ends.push(self.wbuf.len());
         }
-        if let Err(e) = self.io.get_mut().write_all(&self.wbuf) {
+        if let Err(e) = self.io.get_mut().stream.write_all(&self.wbuf) {
             // As in `send`: a world that already closed left an ERROR frame.
             let first = reqs.iter().position(Request::expects_reply).unwrap_or(0);
             return Err((

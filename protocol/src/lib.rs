@@ -14,6 +14,8 @@
 //!   [`ImageEncoding::Base64`] or [`ImageEncoding::Shm`] (negotiated in
 //!   `GET_INIT_DATA`; [`shm`]: the pixels in a shared-memory file).
 //! - [`blocking`]: std sockets, for the lockstep platform.
+//! - [`busy_poll`]: waiting for the peer's frame by polling for a short
+//!   budget before sleeping (both transports).
 //! - [`tokio_transport`]: a `tokio_util` codec on `LengthDelimitedCodec`,
 //!   for the world server.
 //! - [`trace`]: JSON-lines traces, writer and reader.
@@ -36,6 +38,7 @@
 //! the encoding by itself.
 
 pub mod blocking;
+pub mod busy_poll;
 mod decode;
 pub mod dump;
 mod endpoint;

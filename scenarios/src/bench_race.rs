@@ -11,7 +11,10 @@
 //!    as in run 2 (run 1), fed the requests of run 1's world trace by a
 //!    trivial client (each request's bytes as recorded, the reply-less ones
 //!    written together with the next request, every reply read whole and
-//!    not decoded).
+//!    not decoded, waiting for it with the same busy polling as sim-core);
+//! 5. unless `busy_poll_us` is already 0: run 2 and the world alone without
+//!    traces again with busy polling off (`busy_poll_us = 0` on every side),
+//!    to show what polling changes on this host.
 //!
 //! It prints each run's real-time factor (platform time over the platform's
 //! wall time, from `summary.json`) and the overhead ratios: run 2's wall
@@ -68,6 +71,24 @@ pub struct RaceBench {
     pub world_alone_s: f64,
     pub world_alone_untraced_s: f64,
     pub world_alone_requests: usize,
+    /// The busy-poll budget of the runs above (µs, every process).
+    pub busy_poll_us: u64,
+    /// Run 2 and the world alone without traces with busy polling off
+    /// (measurement 5), when it was on above.
+    pub unpolled: Option<Unpolled>,
+}
+
+/// The thesis's defaults without traces and without busy polling.
+#[derive(Debug, Clone)]
+pub struct Unpolled {
+    pub defaults_untraced: RaceRun,
+    pub world_alone_untraced_s: f64,
+}
+
+impl Unpolled {
+    pub fn overhead(&self) -> f64 {
+        self.defaults_untraced.wall_s / self.world_alone_untraced_s.max(1e-9)
+    }
 }
 
 impl RaceBench {
@@ -87,7 +108,11 @@ impl RaceBench {
         let mut t = String::from(
             "| run | status | platform time (s) | wall (s) | real-time factor | messages | bytes to platform |\n|---|---|---|---|---|---|---|\n",
         );
-        for r in [&self.defaults, &self.defaults_untraced, &self.fast] {
+        let unpolled = self.unpolled.as_ref().map(|u| &u.defaults_untraced);
+        for r in [&self.defaults, &self.defaults_untraced, &self.fast]
+            .into_iter()
+            .chain(unpolled)
+        {
             t += &format!(
                 "| {} | {} | {:.3} | {:.3} | {:.1}x | {} | {} |\n",
                 r.label,
@@ -103,15 +128,25 @@ impl RaceBench {
             );
         }
         t += &format!(
-            "\nworld alone ({} requests): {:.3} s wall without traces, {:.3} s with\n\
+            "\nbusy polling: {} µs (sim-core, world-server and the world-alone client)\n\
+             world alone ({} requests): {:.3} s wall without traces, {:.3} s with\n\
              co-sim / world alone, thesis defaults (no traces): {:.2}\n\
              co-sim / world alone, with traces: {:.2}\n",
+            self.busy_poll_us,
             self.world_alone_requests,
             self.world_alone_untraced_s,
             self.world_alone_s,
             self.overhead(),
             self.overhead_traced()
         );
+        if let Some(u) = &self.unpolled {
+            t += &format!(
+                "without busy polling: world alone {:.3} s without traces; \
+                 co-sim / world alone, thesis defaults (no traces): {:.2}\n",
+                u.world_alone_untraced_s,
+                u.overhead()
+            );
+        }
         t
     }
 }
@@ -141,7 +176,7 @@ pub fn bench_race(
     out: &Path,
     sets: &[String],
     repeat: usize,
-    mut progress: impl FnMut(&str),
+    progress: impl FnMut(&str),
 ) -> Result<RaceBench, BenchError> {
     let repeat = repeat.max(1);
     let load = |extra: &[&str]| -> Result<Scenario, BenchError> {
@@ -167,12 +202,15 @@ pub fn bench_race(
         ..with_traces.clone()
     };
 
-    let mut co_sim = |label: &'static str, sc: &Scenario, dir: &str, o: &LaunchOptions| {
+    // Both closures report through `progress`, so it is shared, not captured.
+    let progress = std::cell::RefCell::new(progress);
+    let say = |m: &str| (progress.borrow_mut())(m);
+    let co_sim = |label: &'static str, sc: &Scenario, dir: &str, o: &LaunchOptions| {
         let mut best: Option<RaceRun> = None;
         for k in 0..repeat {
-            progress(&format!("{label}, run {} ...", k + 1));
+            say(&format!("{label}, run {} ...", k + 1));
             let r = run_row(label, &run_scenario(sc, bins, &out.join(dir), o, false)?);
-            progress(&format!("{label}: {:.1}x real time", r.realtime_factor));
+            say(&format!("{label}: {:.1}x real time", r.realtime_factor));
             let failed = !r.completed;
             if failed || best.as_ref().is_none_or(|b| r.wall_s < b.wall_s) {
                 best = Some(r);
@@ -194,7 +232,7 @@ pub fn bench_race(
 
     // The requests of run 1, fed to the world alone without and with traces.
     let requests = load_requests(&out.join("defaults").join(crate::launch::files::WORLD_TRACE))?;
-    let mut alone = |dir: &str, o: &LaunchOptions| -> Result<f64, BenchError> {
+    let alone = |sc: &Scenario, dir: &str, o: &LaunchOptions| -> Result<f64, BenchError> {
         let w_dir = out.join(dir);
         std::fs::create_dir_all(&w_dir).map_err(|e| io("create", &w_dir, e))?;
         let sock = w_dir.join("world.sock");
@@ -202,11 +240,12 @@ pub fn bench_race(
         let endpoint = Endpoint::Unix(sock);
         let mut best = f64::INFINITY;
         for _ in 0..repeat {
-            let mut world = world_command(&defaults, bins, &endpoint, &w_dir, o)?
+            let mut world = world_command(sc, bins, &endpoint, &w_dir, o)?
                 .stderr(std::process::Stdio::null())
                 .spawn()
                 .map_err(|e| BenchError::Output(format!("cannot start world-server: {e}")))?;
-            let wall = feed_world(&endpoint, &requests);
+            let poll = protocol::busy_poll::BusyPoll::from_micros(sc.busy_poll_us);
+            let wall = feed_world(&endpoint, &requests, poll);
             let status = world.wait();
             let wall = wall?;
             if !status.as_ref().is_ok_and(|s| s.success()) {
@@ -214,13 +253,27 @@ pub fn bench_race(
                     "the world-alone world-server failed ({status:?})"
                 )));
             }
-            progress(&format!("world alone ({dir}): {:.3} s", wall.as_secs_f64()));
+            say(&format!("world alone ({dir}): {:.3} s", wall.as_secs_f64()));
             best = best.min(wall.as_secs_f64());
         }
         Ok(best)
     };
-    let wu = alone("world-alone-untraced", &no_traces)?;
-    let wt = alone("world-alone", &with_traces)?;
+    let wu = alone(&defaults, "world-alone-untraced", &no_traces)?;
+    let wt = alone(&defaults, "world-alone", &with_traces)?;
+    let unpolled = if defaults.busy_poll_us > 0 {
+        let off = load(&["busy_poll_us=0"])?;
+        Some(Unpolled {
+            defaults_untraced: co_sim(
+                "defaults (no traces, no busy polling)",
+                &off,
+                "defaults-untraced-unpolled",
+                &no_traces,
+            )?,
+            world_alone_untraced_s: alone(&off, "world-alone-untraced-unpolled", &no_traces)?,
+        })
+    } else {
+        None
+    };
 
     let bench = RaceBench {
         defaults: d,
@@ -229,6 +282,8 @@ pub fn bench_race(
         world_alone_s: wt,
         world_alone_untraced_s: wu,
         world_alone_requests: requests.len(),
+        busy_poll_us: defaults.busy_poll_us,
+        unpolled,
     };
     std::fs::write(out.join("bench.md"), bench.markdown())
         .map_err(|e| io("write", &out.join("bench.md"), e))?;
@@ -282,9 +337,14 @@ pub fn load_requests(trace: &Path) -> Result<Vec<RecordedRequest>, BenchError> {
 pub fn feed_world(
     endpoint: &Endpoint,
     requests: &[RecordedRequest],
+    busy_poll: protocol::busy_poll::BusyPoll,
 ) -> Result<Duration, BenchError> {
     let err = |m: String| BenchError::Output(format!("world alone: {m}"));
-    let mut conn = Client::connect_retry(endpoint, Options::default(), Duration::from_secs(30))
+    let opts = Options {
+        busy_poll,
+        ..Options::default()
+    };
+    let mut conn = Client::connect_retry(endpoint, opts, Duration::from_secs(30))
         .map_err(|e| err(e.to_string()))?;
     let started = Instant::now();
     let mut batch: Vec<&[u8]> = Vec::new();

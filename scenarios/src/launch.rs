@@ -565,7 +565,9 @@ pub fn world_command(
         .arg("--substeps")
         .arg(scenario.substeps.to_string())
         .arg("--trajectory")
-        .arg(out.join(files::TRAJECTORY));
+        .arg(out.join(files::TRAJECTORY))
+        .arg("--busy-poll-us")
+        .arg(scenario.busy_poll_us.to_string());
     if opts.traces {
         cmd.arg("--trace").arg(out.join(files::WORLD_TRACE));
         if opts.trace_images {
@@ -604,6 +606,8 @@ pub fn sim_core_command(
         .arg(out)
         .arg("--image-encoding")
         .arg(scenario.image_encoding.as_str())
+        .arg("--busy-poll-us")
+        .arg(scenario.busy_poll_us.to_string())
         .arg("--no-progress");
     if let Some(t) = scenario.max_time_s {
         cmd.arg("--max-time").arg(t.to_string());

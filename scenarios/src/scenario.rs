@@ -110,7 +110,7 @@ fn default_encoding() -> String {
 }
 
 /// Keys `--set` accepts besides the run keys.
-pub const SCENARIO_KEYS: [(&str, &str); 8] = [
+pub const SCENARIO_KEYS: [(&str, &str); 9] = [
     ("world", "world file (TOML)"),
     ("firmware", "firmware ELF"),
     ("timestep_ms", "basicTimeStep in ms"),
@@ -118,6 +118,10 @@ pub const SCENARIO_KEYS: [(&str, &str); 8] = [
     ("platform", "platform file (MESSY JSON)"),
     ("max_time_s", "give up after this many simulated seconds"),
     ("image_encoding", "array | base64 | shm"),
+    (
+        "busy_poll_us",
+        "µs sim-core and world-server poll for the peer's frame before sleeping (0: off; same results)",
+    ),
     (
         "radio_seed",
         "the world's [radio] seed for this run (a copy of the world file in the run's directory)",
@@ -141,6 +145,9 @@ pub struct Scenario {
     /// trial of a sweep, e.g. seed 004's radar trials, docs/SWARM.md "Radar").
     pub radio_seed: Option<u64>,
     pub image_encoding: protocol::ImageEncoding,
+    /// `--busy-poll-us` of sim-core and our world-server: a host setting
+    /// (how the processes wait for each other), never a simulated one.
+    pub busy_poll_us: u64,
     pub targets: Vec<[f64; 3]>,
     /// The run configuration sim-core gets (written to `run.toml`).
     pub run: RunConfig,
@@ -267,6 +274,7 @@ impl Scenario {
             max_time_s: file.max_time_s,
             radio_seed: None,
             image_encoding: protocol::ImageEncoding::Array,
+            busy_poll_us: protocol::busy_poll::DEFAULT_US,
             targets: file.targets,
             run,
             overrides: Vec::new(),
@@ -380,6 +388,12 @@ impl Scenario {
             }
             "image_encoding" => {
                 self.image_encoding = value.parse().map_err(|_| bad("expected array or base64"))?
+            }
+            "busy_poll_us" => {
+                self.busy_poll_us = match value.parse::<u64>() {
+                    Ok(us) if us <= 1_000_000 => us,
+                    _ => return Err(bad("expected a whole number of µs in 0..=1000000")),
+                }
             }
             _ => return Err(unknown_key(key)),
         }

@@ -55,6 +55,11 @@ struct Cli {
     /// platform (wall time); then exit non-zero naming the unclaimed ones.
     #[arg(long, value_name = "S", default_value_t = 60.0)]
     connect_timeout: f64,
+    /// Microseconds to poll for the next request before sleeping (0: sleep
+    /// at once). Saves the cost of being woken on another core; gives the
+    /// core away while polling (docs/COSIM.md "Performance").
+    #[arg(long, value_name = "US", default_value_t = protocol::busy_poll::DEFAULT_US)]
+    busy_poll_us: u64,
     /// Answer the platform from a recorded trace (world.trace or
     /// platform.trace of a run) instead of simulating; report the first
     /// request that differs from the recording (exit 1).
@@ -136,6 +141,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         trajectory: cli.trajectory,
         radio_log: cli.radio_log,
         connect_timeout: Duration::from_secs_f64(cli.connect_timeout),
+        busy_poll: protocol::busy_poll::BusyPoll::from_micros(cli.busy_poll_us),
     };
     // One thread: the drones' requests are processed one at a time in the
     // lockstep's order anyway, and a single thread keeps the world off the

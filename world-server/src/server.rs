@@ -30,6 +30,7 @@ use std::time::Duration;
 
 use futures::stream::{self, FuturesUnordered, SelectAll};
 use futures::{FutureExt, Stream, StreamExt};
+use protocol::busy_poll::BusyPoll;
 use protocol::frame::{write_frame, DEFAULT_MAX_FRAME, HEADER_LEN};
 use protocol::shm::{ShmError, ShmFrame, ShmWriter};
 use protocol::tokio_transport::{FrameCodec, Listener};
@@ -65,6 +66,9 @@ pub struct ServerConfig {
     pub radio_log: Option<PathBuf>,
     /// How long to wait for every drone to be claimed (wall time).
     pub connect_timeout: Duration,
+    /// How long the world polls for the next request before it sleeps
+    /// (`--busy-poll-us`, protocol's `busy_poll`).
+    pub busy_poll: BusyPoll,
 }
 
 /// Why a run failed.
@@ -174,7 +178,15 @@ async fn serve_session(
         inputs.push(tagged(d, c.read));
     }
     let mut open = vec![true; n];
-    let outcome = run_loop(session, &mut wire, &mut writers, &mut inputs, &mut open).await;
+    let outcome = run_loop(
+        session,
+        &mut wire,
+        &mut writers,
+        &mut inputs,
+        &mut open,
+        cfg.busy_poll,
+    )
+    .await;
     match outcome {
         Ok(()) => Ok(()),
         Err(e) => {
@@ -208,6 +220,7 @@ async fn run_loop(
     writers: &mut [Option<WriteHalf>],
     inputs: &mut SelectAll<Inputs>,
     open: &mut [bool],
+    busy_poll: BusyPoll,
 ) -> Result<(), SessionError> {
     loop {
         let progress = session.run(wire)?;
@@ -221,7 +234,7 @@ async fn run_loop(
         if progress == Progress::Finished {
             return Ok(());
         }
-        match inputs.next().await {
+        match busy_poll.next(inputs).await {
             Some((d, input)) => accept_input(session, writers, open, d, input)?,
             None => unreachable!("every input stream ends with Closed, pushed above"),
         }

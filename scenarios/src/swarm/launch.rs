@@ -95,6 +95,8 @@ fn sim_command(
         .arg(&dir)
         .arg("--image-encoding")
         .arg(scenario.image_encoding.as_str())
+        .arg("--busy-poll-us")
+        .arg(scenario.busy_poll_us.to_string())
         .arg("--no-progress");
     if let Some(t) = scenario.max_time_s {
         cmd.arg("--max-time").arg(t.to_string());
@@ -139,7 +141,9 @@ fn world_command(
         .arg("--radio-log")
         .arg(out.join(swarm_files::RADIO_LOG))
         .arg("--connect-timeout")
-        .arg(CONNECT_TIMEOUT_S.to_string());
+        .arg(CONNECT_TIMEOUT_S.to_string())
+        .arg("--busy-poll-us")
+        .arg(scenario.busy_poll_us.to_string());
     if opts.traces {
         c.arg("--trace").arg(out.join(files::WORLD_TRACE));
         if opts.trace_images {

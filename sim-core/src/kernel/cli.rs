@@ -40,6 +40,11 @@ pub struct PlatformArgs {
     /// Keeps the image data in the trace (default: width, height, SHA-256).
     #[arg(long)]
     pub trace_images: bool,
+    /// Microseconds to poll for the world's reply before sleeping (0: sleep
+    /// at once). Saves the cost of being woken on another core; gives the
+    /// core away while polling (docs/COSIM.md "Performance").
+    #[arg(long, value_name = "US", default_value_t = protocol::busy_poll::DEFAULT_US)]
+    pub busy_poll_us: u64,
     /// Seconds to keep retrying the connection (the world may start second).
     #[arg(long, value_name = "S", default_value_t = 30.0)]
     pub connect_timeout: f64,
@@ -110,6 +115,7 @@ pub fn run_platform(args: &PlatformArgs, run: RunConfig) -> anyhow::Result<i32> 
     let world = SocketWorld::connect(
         &endpoint,
         Duration::from_secs_f64(args.connect_timeout),
+        protocol::busy_poll::BusyPoll::from_micros(args.busy_poll_us),
         args.trace.as_deref().map(|p| (p, args.trace_images)),
     )?;
     let cfg = KernelConfig {

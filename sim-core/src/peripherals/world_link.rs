@@ -161,13 +161,17 @@ impl SocketWorld {
     pub fn connect(
         endpoint: &protocol::Endpoint,
         patience: std::time::Duration,
+        busy_poll: protocol::busy_poll::BusyPoll,
         trace: Option<(&std::path::Path, bool)>,
     ) -> Result<SocketWorld, LinkError> {
         use std::sync::atomic::Ordering::Relaxed;
         use std::sync::{Arc, Mutex};
         let mut conn = protocol::blocking::Client::connect_retry(
             endpoint,
-            protocol::blocking::Options::default(),
+            protocol::blocking::Options {
+                busy_poll,
+                ..Default::default()
+            },
             patience,
         )?;
         let counters = Arc::new(Counters::default());
