@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use crate::busy_poll::BusyPoll;
+use crate::busy_poll::{BusyPoll, IdleWork};
 use crate::endpoint::{bind_unix, tcp_bind_error, unlink_if_ours, Endpoint};
 use crate::error::{ProtocolError, Result};
 use crate::frame::{read_frame, write_frame, DEFAULT_MAX_FRAME};
@@ -77,16 +77,18 @@ impl Read for Stream {
 }
 
 /// The stream as a connection reads it: polling for the peer's bytes for
-/// the busy-poll budget before blocking ([`BusyPoll`]).
-#[derive(Debug)]
+/// the busy-poll budget before blocking ([`BusyPoll`]), doing the idle work
+/// meanwhile.
 struct Polled {
     stream: Stream,
     poll: BusyPoll,
+    work: Option<IdleWork>,
 }
 
 impl Read for Polled {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        match self.poll.recv(self.stream.raw_fd(), buf) {
+        let fd = self.stream.raw_fd();
+        match self.poll.recv_or_work(fd, buf, self.work.as_mut()) {
             Some(r) => r,
             None => self.stream.read(buf),
         }
@@ -241,6 +243,7 @@ impl Connection {
                 Polled {
                     stream,
                     poll: opts.busy_poll,
+                    work: None,
                 },
             ),
             role,
@@ -263,6 +266,11 @@ impl Connection {
 
     pub fn role(&self) -> Role {
         self.role
+    }
+
+    /// Work to do while waiting for the peer's bytes ([`IdleWork`]).
+    pub fn set_idle_work(&mut self, work: IdleWork) {
+        self.io.get_mut().work = Some(work);
     }
 
     /// The image encoding `send_reply` uses.

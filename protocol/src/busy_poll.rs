@@ -19,6 +19,11 @@
 //! pinned to one core takes the same time with and without polling, and
 //! four races two at a time on two cores the same total.
 //!
+//! A reader can also be given work that nothing waits for ([`IdleWork`],
+//! e.g. the platform's CSV logs): it does a slice of it between polls
+//! instead of giving the core away, so that work leaves the lockstep's
+//! critical path.
+//!
 //! Polling never changes what is simulated: only when a process notices a
 //! frame, never which frame or what it holds.
 
@@ -33,6 +38,12 @@ use std::time::{Duration, Instant};
 /// the world's longest answer, a rendered and encoded image, takes
 /// about 150 µs.
 pub const DEFAULT_US: u64 = 200;
+
+/// Work a waiting reader does between polls: one short slice per call
+/// (a few µs: the frame waited for is noticed after the slice), returning
+/// whether more is left. It runs only while the peer's bytes have not
+/// arrived, whatever the budget; then the budget's polling starts.
+pub type IdleWork = Box<dyn FnMut() -> bool + Send>;
 
 /// How long a reader polls before it sleeps; zero: it sleeps at once (the
 /// library's default, and the plain blocking read).
@@ -67,10 +78,23 @@ impl BusyPoll {
     /// no per-call non-blocking read: switching the socket to non-blocking
     /// and back would cost two `fcntl` per read.
     pub fn recv(self, fd: RawFd, buf: &mut [u8]) -> Option<io::Result<usize>> {
-        if self.is_off() {
+        self.recv_or_work(fd, buf, None)
+    }
+
+    /// [`BusyPoll::recv`] that does slices of `work` between polls while it
+    /// lasts, and only then polls for the budget (even a zero budget does
+    /// the work first).
+    pub fn recv_or_work(
+        self,
+        fd: RawFd,
+        buf: &mut [u8],
+        mut work: Option<&mut IdleWork>,
+    ) -> Option<io::Result<usize>> {
+        if self.is_off() && work.is_none() {
             return None;
         }
-        let start = Instant::now();
+        // The budget starts when the work has run out.
+        let mut start: Option<Instant> = None;
         loop {
             // SAFETY: `buf` is valid for `buf.len()` writable bytes for the
             // whole call; `recv` writes at most that many.
@@ -85,7 +109,13 @@ impl BusyPoll {
                 io::ErrorKind::Interrupted => continue,
                 _ => return Some(Err(e)),
             }
-            if start.elapsed() >= self.0 {
+            if start.is_none() {
+                if work.as_mut().is_some_and(|w| w()) {
+                    continue;
+                }
+                start = Some(Instant::now());
+            }
+            if start.is_some_and(|s| s.elapsed() >= self.0) {
                 return None;
             }
             std::thread::yield_now();
@@ -176,6 +206,44 @@ mod tests {
         // SAFETY: F_GETFL on a descriptor we own.
         let flags = unsafe { libc::fcntl(a.as_raw_fd(), libc::F_GETFL) };
         assert_eq!(flags & libc::O_NONBLOCK, 0);
+    }
+
+    #[test]
+    fn idle_work_runs_while_waiting_and_stops_when_the_data_is_there() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        use std::sync::Arc;
+        // Nothing arrives: all the work is done, even with polling off,
+        // then the call gives up.
+        let (a, mut b) = UnixStream::pair().unwrap();
+        let done = Arc::new(AtomicUsize::new(0));
+        let d = Arc::clone(&done);
+        let mut work: IdleWork = Box::new(move || d.fetch_add(1, Ordering::Relaxed) + 1 < 5);
+        let mut buf = [0u8; 8];
+        assert!(BusyPoll::OFF
+            .recv_or_work(a.as_raw_fd(), &mut buf, Some(&mut work))
+            .is_none());
+        assert_eq!(done.load(Ordering::Relaxed), 5);
+        // Data already there: read before any work.
+        b.write_all(b"now").unwrap();
+        let n = BusyPoll::OFF
+            .recv_or_work(a.as_raw_fd(), &mut buf, Some(&mut work))
+            .unwrap()
+            .unwrap();
+        assert_eq!(&buf[..n], b"now");
+        assert_eq!(done.load(Ordering::Relaxed), 5);
+        // Endless work: the data that arrives meanwhile is still read.
+        let mut endless: IdleWork = Box::new(|| true);
+        let writer = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(2));
+            b.write_all(b"late").unwrap();
+            b
+        });
+        let n = BusyPoll::OFF
+            .recv_or_work(a.as_raw_fd(), &mut buf, Some(&mut endless))
+            .unwrap()
+            .unwrap();
+        assert_eq!(&buf[..n], b"late");
+        drop(writer.join().unwrap());
     }
 
     #[test]

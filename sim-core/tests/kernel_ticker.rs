@@ -29,6 +29,7 @@ fn config(out: &std::path::Path, drone: Option<&str>) -> KernelConfig {
         platform: PlatformConfig::default_crazyflie(),
         run: RunConfig::default(),
         image_encoding: ImageEncoding::Array,
+        busy_poll_us: 0,
         drone: drone.map(str::to_string),
         idle_skip: true,
         mmio_latency: 0,

@@ -207,6 +207,55 @@ fn logs_are_valid_csv_without_an_explicit_flush() {
 }
 
 #[test]
+fn logs_written_while_waiting_are_the_same_bytes() {
+    // One logger written only by flush, one by its idle work (as the socket
+    // link runs it between polls) after every 32 ms step: the same files.
+    let run = |idle: bool| {
+        let dir = tempfile::tempdir().unwrap();
+        let mut net =
+            PowerNetwork::new(&PlatformConfig::default_crazyflie(), &RunConfig::default()).unwrap();
+        let logger = PowerLogger::create(dir.path(), false).unwrap();
+        let mut work = logger.idle_work();
+        net.attach_logger(logger);
+        let mut slices = 0;
+        for step in 1..=40u64 {
+            let motor = MotorState {
+                omega: [40.0 + step as f64; 4],
+                ..hover_state()
+            };
+            net.advance_to(Picos::from_ms(32 * step), &flight_loads(), &motor)
+                .unwrap();
+            if idle {
+                loop {
+                    slices += 1;
+                    if !work() {
+                        break;
+                    }
+                }
+            }
+        }
+        net.flush().unwrap();
+        let files: Vec<Vec<u8>> = [
+            "power.csv",
+            "motor_empirical.csv",
+            "motor_dandrea.csv",
+            "motor_stolaroff.csv",
+        ]
+        .iter()
+        .map(|f| std::fs::read(dir.path().join(f)).unwrap())
+        .collect();
+        (files, slices)
+    };
+    let (by_flush, _) = run(false);
+    let (by_idle_work, slices) = run(true);
+    assert_eq!(by_flush, by_idle_work);
+    // 1280 samples, two per slice; the last slice of a step says "done".
+    assert_eq!(slices, 640);
+    let text = String::from_utf8(by_flush[0].clone()).unwrap();
+    assert_eq!(text.lines().count(), 1 + 1280);
+}
+
+#[test]
 fn a_panic_still_leaves_valid_logs() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().to_path_buf();

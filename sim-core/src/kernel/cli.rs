@@ -122,6 +122,7 @@ pub fn run_platform(args: &PlatformArgs, run: RunConfig) -> anyhow::Result<i32> 
         platform,
         run,
         image_encoding: args.image_encoding,
+        busy_poll_us: args.busy_poll_us,
         drone: args.drone.clone(),
         idle_skip: !args.no_idle_skip,
         mmio_latency: args.mmio_latency,

@@ -51,6 +51,9 @@ pub struct KernelConfig {
     pub platform: PlatformConfig,
     pub run: RunConfig,
     pub image_encoding: ImageEncoding,
+    /// How long the link polls for the world's replies (µs; `--busy-poll-us`,
+    /// recorded in `summary.json`; it changes no simulated result).
+    pub busy_poll_us: u64,
     /// The drone claimed in GET_INIT_DATA (`--drone`; `None` for a world
     /// with one drone, whose frames then stay the thesis's).
     pub drone: Option<String>,
@@ -184,7 +187,7 @@ struct Run<W: WorldLink> {
 }
 
 impl<W: WorldLink> Run<W> {
-    fn new(firmware: &[u8], cfg: &KernelConfig, world: W) -> Result<Self, KernelError> {
+    fn new(firmware: &[u8], cfg: &KernelConfig, mut world: W) -> Result<Self, KernelError> {
         let elf = load_elf(firmware)?;
         let map = map_dump::MapSymbols::find(&elf);
         let mut mem = Memory::new();
@@ -221,12 +224,15 @@ impl<W: WorldLink> Run<W> {
             .map(|spec| RadioDevice::new(spec, cfg.run.radio_id, spec.currents(&cfg.platform)));
         let time = TimeKeeper::new(cfg.run.sync);
         let session = WorldSession::new(cfg.drone.clone(), cfg.image_encoding);
-        let platform = Platform::new(camera, stm32, radios, world, session, time);
 
         let mut power = PowerNetwork::new(&cfg.platform, &cfg.run)?;
         if let Some(dir) = &cfg.out_dir {
-            power.attach_logger(PowerLogger::create(dir, cfg.reports_radios())?);
+            let logger = PowerLogger::create(dir, cfg.reports_radios())?;
+            // The logs are written while the link waits for the world.
+            world.set_idle_work(logger.idle_work());
+            power.attach_logger(logger);
         }
+        let platform = Platform::new(camera, stm32, radios, world, session, time);
         Ok(Run {
             cpu,
             mem,

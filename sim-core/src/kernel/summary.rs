@@ -88,6 +88,9 @@ pub struct Summary {
     pub sync: String,
     pub timestep_ms: u64,
     pub image_encoding: String,
+    /// µs the link polled for each reply before sleeping (0: off).
+    #[serde(default)]
+    pub busy_poll_us: u64,
     pub frames: u64,
     pub pid_iterations: u64,
     pub messages: u64,
@@ -167,6 +170,7 @@ impl Summary {
             sync: format!("{:?}", cfg.run.sync).to_lowercase(),
             timestep_ms: 0,
             image_encoding: cfg.image_encoding.as_str().to_string(),
+            busy_poll_us: cfg.busy_poll_us,
             frames: 0,
             pid_iterations: 0,
             messages: 0,

@@ -68,6 +68,12 @@ pub trait WorldLink {
         }
         Ok(replies)
     }
+
+    /// Work to do while waiting for the world's replies (the power logs,
+    /// [`crate::power::PowerLogger::idle_work`]). A link that never waits
+    /// (an in-process world) drops it, and the work is done when its owner
+    /// asks for it.
+    fn set_idle_work(&mut self, _work: protocol::busy_poll::IdleWork) {}
 }
 
 /// A borrowed link is a link (so a caller can keep an in-process world and
@@ -87,6 +93,9 @@ impl<T: WorldLink + ?Sized> WorldLink for &mut T {
     }
     fn call_deferred(&mut self, request: &Request, now: Picos) -> Result<DeferredReply, LinkError> {
         (**self).call_deferred(request, now)
+    }
+    fn set_idle_work(&mut self, work: protocol::busy_poll::IdleWork) {
+        (**self).set_idle_work(work)
     }
 }
 
@@ -270,6 +279,10 @@ impl Drop for SocketWorld {
 }
 
 impl WorldLink for SocketWorld {
+    fn set_idle_work(&mut self, work: protocol::busy_poll::IdleWork) {
+        self.conn.set_idle_work(work);
+    }
+
     fn call(&mut self, request: &Request, now: Picos) -> Result<Reply, LinkError> {
         self.before_send(1, now);
         match self.conn.request(request) {

@@ -14,9 +14,11 @@
 //! exit, on an error return and while unwinding from a panic — so the files
 //! are always valid CSV (a row is handed to the buffer whole, [`CsvLine`]).
 
+use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 use super::csv_line::CsvLine;
 use super::models::PowerModelKind;
@@ -107,11 +109,70 @@ impl CsvFile {
     }
 }
 
-/// Writers for `power.csv` and the three model files.
-pub struct PowerLogger {
+/// The four files.
+struct Files {
     power: CsvFile,
     models: [CsvFile; 3],
     radio_columns: bool,
+}
+
+/// Samples queued before [`PowerLogger::log`] writes them itself (a
+/// simulation whose link never waits: an in-process world). About 1.3 MB.
+const QUEUE_MAX: usize = 4096;
+/// Samples written per slice of idle work: 8 rows, a few µs, so that a
+/// reply that arrives meanwhile is noticed at once.
+const SLICE: usize = 2;
+
+/// What the logger and its idle work share.
+struct Shared {
+    files: Files,
+    /// Samples logged, not yet formatted, oldest first.
+    queue: VecDeque<PowerSample>,
+    /// The first write error: reported by every later log and flush.
+    error: Option<PowerError>,
+}
+
+impl Shared {
+    /// Formats and writes up to `n` queued samples, in order.
+    fn write_some(&mut self, n: usize) {
+        for _ in 0..n {
+            if self.error.is_some() {
+                self.queue.clear();
+                return;
+            }
+            let Some(s) = self.queue.pop_front() else {
+                return;
+            };
+            if let Err(e) = self.files.log(&s) {
+                self.error = Some(e);
+            }
+        }
+    }
+
+    fn result(&self) -> Result<(), PowerError> {
+        self.error.as_ref().map_or(Ok(()), |e| Err(again(e)))
+    }
+}
+
+/// Writers for `power.csv` and the three model files.
+///
+/// About 96 MB of CSV per race is formatted and written while the
+/// platform waits for the world rather than when a sample is taken: the
+/// samples are queued and [`PowerLogger::idle_work`], handed to the link
+/// ([`crate::peripherals::WorldLink::set_idle_work`]), writes a few at a
+/// time between polls of the socket. The next request to the world does
+/// not wait for them (docs/COSIM.md "Performance"). The bytes are the same,
+/// in the same order; [`PowerLogger::flush`] writes what is still queued.
+/// A write error is reported by the next `log` or `flush` after it.
+pub struct PowerLogger {
+    shared: Arc<Mutex<Shared>>,
+    paths: Vec<PathBuf>,
+}
+
+fn lock(shared: &Mutex<Shared>) -> std::sync::MutexGuard<'_, Shared> {
+    // A panic while formatting leaves whole rows behind (a row reaches the
+    // buffer whole), so the files can still be flushed.
+    shared.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl PowerLogger {
@@ -129,7 +190,7 @@ impl PowerLogger {
         };
         let power = CsvFile::create(dir.join(POWER_CSV), &header)?;
         let model = |k: PowerModelKind| CsvFile::create(dir.join(model_csv_name(k)), &MODEL_HEADER);
-        Ok(PowerLogger {
+        let files = Files {
             power,
             models: [
                 model(PowerModelKind::Empirical)?,
@@ -137,19 +198,66 @@ impl PowerLogger {
                 model(PowerModelKind::Stolaroff)?,
             ],
             radio_columns,
+        };
+        let paths = std::iter::once(&files.power)
+            .chain(files.models.iter())
+            .map(|f| f.path.clone())
+            .collect();
+        Ok(PowerLogger {
+            shared: Arc::new(Mutex::new(Shared {
+                files,
+                queue: VecDeque::with_capacity(QUEUE_MAX),
+                error: None,
+            })),
+            paths,
         })
     }
 
     /// Paths of the four files (power first, then the models in order).
     pub fn paths(&self) -> Vec<PathBuf> {
-        std::iter::once(&self.power)
-            .chain(self.models.iter())
-            .map(|f| f.path.clone())
-            .collect()
+        self.paths.clone()
     }
 
-    /// Appends one sample to every file.
+    /// Appends one sample to every file (queued; written by the idle work,
+    /// by this call once [`QUEUE_MAX`] are queued, or by `flush`).
     pub fn log(&mut self, s: &PowerSample) -> Result<(), PowerError> {
+        let mut g = lock(&self.shared);
+        g.queue.push_back(*s);
+        if g.queue.len() >= QUEUE_MAX {
+            let n = g.queue.len();
+            g.write_some(n);
+        }
+        g.result()
+    }
+
+    /// The work the link does while it waits for the world: writes
+    /// [`SLICE`] queued samples per call, returns whether more are queued.
+    pub fn idle_work(&self) -> protocol::busy_poll::IdleWork {
+        let shared = Arc::clone(&self.shared);
+        Box::new(move || {
+            let mut g = lock(&shared);
+            g.write_some(SLICE);
+            g.error.is_none() && !g.queue.is_empty()
+        })
+    }
+
+    /// Writes every queued sample and flushes every file.
+    pub fn flush(&mut self) -> Result<(), PowerError> {
+        let mut g = lock(&self.shared);
+        let n = g.queue.len();
+        g.write_some(n);
+        g.result()?;
+        if let Err(e) = g.files.flush() {
+            g.error = Some(again(&e));
+            return Err(e);
+        }
+        Ok(())
+    }
+}
+
+impl Files {
+    /// Appends one sample to every file.
+    fn log(&mut self, s: &PowerSample) -> Result<(), PowerError> {
         let time_s = s.t.as_secs_f64();
         let [i_uwb, i_p2p] = s.i_radios;
         // Without radio columns the radios are "other" loads. Added only
@@ -208,12 +316,27 @@ impl PowerLogger {
     }
 
     /// Flushes every file.
-    pub fn flush(&mut self) -> Result<(), PowerError> {
+    fn flush(&mut self) -> Result<(), PowerError> {
         self.power.flush()?;
         for f in &mut self.models {
             f.flush()?;
         }
         Ok(())
+    }
+}
+
+/// A copy of a write error, to report it again at every later log and
+/// flush (`io::Error` is not `Clone`).
+fn again(e: &PowerError) -> PowerError {
+    match e {
+        PowerError::Io { path, source } => PowerError::Io {
+            path: path.clone(),
+            source: std::io::Error::new(source.kind(), source.to_string()),
+        },
+        other => PowerError::Io {
+            path: PathBuf::new(),
+            source: std::io::Error::other(other.to_string()),
+        },
     }
 }
 
