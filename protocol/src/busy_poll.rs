@@ -176,14 +176,19 @@ mod tests {
         assert_eq!(&buf[..n], b"abc");
     }
 
+    /// Writes `bytes` into `b` 2 ms from now; join to get `b` back.
+    fn write_later(mut b: UnixStream, bytes: &'static [u8]) -> std::thread::JoinHandle<UnixStream> {
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(2));
+            b.write_all(bytes).unwrap();
+            b
+        })
+    }
+
     #[test]
     fn data_arriving_while_polling_is_read() {
-        let (a, mut b) = UnixStream::pair().unwrap();
-        let writer = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(2));
-            b.write_all(b"late").unwrap();
-            b
-        });
+        let (a, b) = UnixStream::pair().unwrap();
+        let writer = write_later(b, b"late");
         let mut buf = [0u8; 8];
         let n = BusyPoll::from_micros(5_000_000)
             .recv(a.as_raw_fd(), &mut buf)
@@ -233,11 +238,7 @@ mod tests {
         assert_eq!(done.load(Ordering::Relaxed), 5);
         // Endless work: the data that arrives meanwhile is still read.
         let mut endless: IdleWork = Box::new(|| true);
-        let writer = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(2));
-            b.write_all(b"late").unwrap();
-            b
-        });
+        let writer = write_later(b, b"late");
         let n = BusyPoll::OFF
             .recv_or_work(a.as_raw_fd(), &mut buf, Some(&mut endless))
             .unwrap()

@@ -126,6 +126,17 @@ impl Default for CosimBins {
     }
 }
 
+/// The platform's outputs that are the same bytes whatever carries the
+/// frames (transport, image encoding, polling): the power network's four
+/// CSVs and the firmware's console.
+pub const PLATFORM_FILES: [&str; 5] = [
+    "power.csv",
+    "motor_empirical.csv",
+    "motor_dandrea.csv",
+    "motor_stolaroff.csv",
+    "console.log",
+];
+
 /// A finished process's status and output, for assertion messages.
 pub fn output_text(o: &Output) -> String {
     format!(

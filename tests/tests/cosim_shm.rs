@@ -9,7 +9,9 @@
 
 use std::path::Path;
 
-use e2e_tests::{assert_same_files, output_text as text, summary, CosimBins as Bins};
+use e2e_tests::{
+    assert_same_files, output_text as text, summary, CosimBins as Bins, PLATFORM_FILES,
+};
 use serde_json::Value;
 
 /// The trace's lines with `len` of image replies and GET_INIT_DATA lines
@@ -71,14 +73,7 @@ fn shm_images_fly_the_same_run_as_array_images() {
     assert_same_files(
         &a,
         &s,
-        &[
-            "trajectory.csv",
-            "power.csv",
-            "motor_empirical.csv",
-            "motor_dandrea.csv",
-            "motor_stolaroff.csv",
-            "console.log",
-        ],
+        &[&["trajectory.csv"][..], &PLATFORM_FILES].concat(),
         "between array and shm images",
     );
     for t in ["platform.trace", "world.trace"] {

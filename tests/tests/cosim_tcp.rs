@@ -13,7 +13,7 @@ use std::path::Path;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
-use e2e_tests::{output_text as text, CosimBins as Bins};
+use e2e_tests::{output_text as text, CosimBins as Bins, PLATFORM_FILES};
 use serde_json::Value;
 
 /// `cosim world ... --listen tcp:127.0.0.1:PORT`, in the background.
@@ -119,13 +119,7 @@ fn the_short_hop_split_over_tcp_is_the_unix_socket_run() {
         &unix.join("trajectory.csv"),
         &world_out.join("trajectory.csv"),
     );
-    for f in [
-        "power.csv",
-        "motor_empirical.csv",
-        "motor_dandrea.csv",
-        "motor_stolaroff.csv",
-        "console.log",
-    ] {
+    for f in PLATFORM_FILES {
         same_bytes(&unix.join(f), &platform.join(f));
     }
     // The world's outputs are where the world ran, not beside the platform's.
