@@ -82,13 +82,13 @@ impl Read for Stream {
 struct Polled {
     stream: Stream,
     poll: BusyPoll,
-    work: Option<IdleWork>,
+    work: Vec<IdleWork>,
 }
 
 impl Read for Polled {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         let fd = self.stream.raw_fd();
-        match self.poll.recv_or_work(fd, buf, self.work.as_mut()) {
+        match self.poll.recv_or_work(fd, buf, &mut self.work) {
             Some(r) => r,
             None => self.stream.read(buf),
         }
@@ -243,7 +243,7 @@ impl Connection {
                 Polled {
                     stream,
                     poll: opts.busy_poll,
-                    work: None,
+                    work: Vec::new(),
                 },
             ),
             role,
@@ -268,9 +268,10 @@ impl Connection {
         self.role
     }
 
-    /// Work to do while waiting for the peer's bytes ([`IdleWork`]).
-    pub fn set_idle_work(&mut self, work: IdleWork) {
-        self.io.get_mut().work = Some(work);
+    /// Adds work to do while waiting for the peer's bytes ([`IdleWork`]);
+    /// what was added first goes first.
+    pub fn add_idle_work(&mut self, work: IdleWork) {
+        self.io.get_mut().work.push(work);
     }
 
     /// The image encoding `send_reply` uses.

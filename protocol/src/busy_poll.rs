@@ -78,19 +78,20 @@ impl BusyPoll {
     /// no per-call non-blocking read: switching the socket to non-blocking
     /// and back would cost two `fcntl` per read.
     pub fn recv(self, fd: RawFd, buf: &mut [u8]) -> Option<io::Result<usize>> {
-        self.recv_or_work(fd, buf, None)
+        self.recv_or_work(fd, buf, &mut [])
     }
 
-    /// [`BusyPoll::recv`] that does slices of `work` between polls while it
-    /// lasts, and only then polls for the budget (even a zero budget does
-    /// the work first).
+    /// [`BusyPoll::recv`] that does slices of `work` between polls while
+    /// there is any (a slice of the first with work left each time), and
+    /// only then polls for the budget (even a zero budget does the work
+    /// first).
     pub fn recv_or_work(
         self,
         fd: RawFd,
         buf: &mut [u8],
-        mut work: Option<&mut IdleWork>,
+        work: &mut [IdleWork],
     ) -> Option<io::Result<usize>> {
-        if self.is_off() && work.is_none() {
+        if self.is_off() && work.is_empty() {
             return None;
         }
         // The budget starts when the work has run out.
@@ -110,7 +111,7 @@ impl BusyPoll {
                 _ => return Some(Err(e)),
             }
             if start.is_none() {
-                if work.as_mut().is_some_and(|w| w()) {
+                if work.iter_mut().any(|w| w()) {
                     continue;
                 }
                 start = Some(Instant::now());
@@ -131,19 +132,35 @@ impl BusyPoll {
     where
         S: futures::Stream + Unpin,
     {
+        self.next_or_work(stream, || false).await
+    }
+
+    /// [`BusyPoll::next`] doing slices of `work` (as [`IdleWork`]) while
+    /// nothing has arrived, before the budget starts.
+    pub async fn next_or_work<S>(
+        self,
+        stream: &mut S,
+        mut work: impl FnMut() -> bool,
+    ) -> Option<S::Item>
+    where
+        S: futures::Stream + Unpin,
+    {
         use futures::{FutureExt, StreamExt};
-        if !self.is_off() {
-            let start = Instant::now();
-            loop {
-                if let Some(item) = stream.next().now_or_never() {
-                    return item;
-                }
-                if start.elapsed() >= self.0 {
-                    break;
-                }
-                std::thread::yield_now();
-                tokio::task::yield_now().await;
+        let mut start: Option<Instant> = None;
+        loop {
+            if let Some(item) = stream.next().now_or_never() {
+                return item;
             }
+            if start.is_none() && !work() {
+                start = Some(Instant::now());
+            }
+            match start {
+                // Work done: poll the socket again at once.
+                None => {}
+                Some(s) if s.elapsed() >= self.0 => break,
+                Some(_) => std::thread::yield_now(),
+            }
+            tokio::task::yield_now().await;
         }
         stream.next().await
     }
@@ -225,13 +242,13 @@ mod tests {
         let mut work: IdleWork = Box::new(move || d.fetch_add(1, Ordering::Relaxed) + 1 < 5);
         let mut buf = [0u8; 8];
         assert!(BusyPoll::OFF
-            .recv_or_work(a.as_raw_fd(), &mut buf, Some(&mut work))
+            .recv_or_work(a.as_raw_fd(), &mut buf, std::slice::from_mut(&mut work))
             .is_none());
         assert_eq!(done.load(Ordering::Relaxed), 5);
         // Data already there: read before any work.
         b.write_all(b"now").unwrap();
         let n = BusyPoll::OFF
-            .recv_or_work(a.as_raw_fd(), &mut buf, Some(&mut work))
+            .recv_or_work(a.as_raw_fd(), &mut buf, std::slice::from_mut(&mut work))
             .unwrap()
             .unwrap();
         assert_eq!(&buf[..n], b"now");
@@ -240,7 +257,7 @@ mod tests {
         let mut endless: IdleWork = Box::new(|| true);
         let writer = write_later(b, b"late");
         let n = BusyPoll::OFF
-            .recv_or_work(a.as_raw_fd(), &mut buf, Some(&mut endless))
+            .recv_or_work(a.as_raw_fd(), &mut buf, std::slice::from_mut(&mut endless))
             .unwrap()
             .unwrap();
         assert_eq!(&buf[..n], b"late");

@@ -9,6 +9,7 @@
 //! buffer at once, and [`TraceWriter::flush`] pushes it out. A crash can
 //! leave at most a partial last line, which [`TraceReader`] reports and skips.
 
+use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, BufWriter, Write};
 use std::path::Path;
@@ -129,6 +130,29 @@ impl<W: Write> TraceWriter<W> {
         now: u64,
         drone: Option<&str>,
     ) -> io::Result<()> {
+        match ev.image {
+            Some(img) if !self.keep_images => {
+                let hash = sha256_hex(&img.data);
+                let camera = Camera {
+                    width: img.width,
+                    height: img.height,
+                    sha256: &hash,
+                };
+                self.write_line(ev.dir, ev.bytes.len(), Msg::Camera(camera), now, drone)
+            }
+            _ => self.write_line(ev.dir, ev.bytes.len(), Msg::Frame(ev), now, drone),
+        }
+    }
+
+    /// One line: `len` is the frame body's length, `msg` what stands for it.
+    fn write_line(
+        &mut self,
+        dir: Direction,
+        len: usize,
+        msg: Msg<'_>,
+        now: u64,
+        drone: Option<&str>,
+    ) -> io::Result<()> {
         let l = &mut self.line;
         l.clear();
         l.push(b'{');
@@ -136,26 +160,26 @@ impl<W: Write> TraceWriter<W> {
         write_u64(l, self.seq);
         l.push(b',');
         write_key(l, "dir");
-        write_str(l, ev.dir.as_str());
+        write_str(l, dir.as_str());
         l.push(b',');
         write_key(l, "len");
-        write_u64(l, ev.bytes.len() as u64);
+        write_u64(l, len as u64);
         l.push(b',');
         write_key(l, "msg");
-        match ev.image {
-            Some(img) if !self.keep_images => {
+        match msg {
+            Msg::Camera(c) => {
                 l.extend_from_slice(b"{\"camera\":");
                 write_object(
                     l,
                     &[
-                        ("height", Val::U64(img.height.into())),
-                        ("sha256", Val::Str(&sha256_hex(&img.data))),
-                        ("width", Val::U64(img.width.into())),
+                        ("height", Val::U64(c.height.into())),
+                        ("sha256", Val::Str(c.sha256)),
+                        ("width", Val::U64(c.width.into())),
                     ],
                 );
                 l.extend_from_slice(b",\"command\":\"GET_IMAGE\"}");
             }
-            _ => write_msg(l, ev),
+            Msg::Frame(ev) => write_msg(l, ev),
         }
         l.push(b',');
         write_key(l, self.clock.key());
@@ -183,6 +207,226 @@ impl<W: Write> TraceWriter<W> {
 
     pub fn into_inner(self) -> W {
         self.out
+    }
+}
+
+/// What a line's `msg` holds.
+enum Msg<'a> {
+    /// An image reply's size and the SHA-256 of its pixels.
+    Camera(Camera<'a>),
+    /// The frame body ([`write_msg`]).
+    Frame(&'a FrameEvent<'a>),
+}
+
+struct Camera<'a> {
+    width: u32,
+    height: u32,
+    sha256: &'a str,
+}
+
+/// A record kept by a [`TraceQueue`] until its line is written.
+enum Queued {
+    /// The frame's body, written as [`TraceWriter::record`] would.
+    Frame {
+        dir: Direction,
+        body: Vec<u8>,
+        valid: bool,
+        now: u64,
+        drone: Option<String>,
+    },
+    /// An image reply whose line holds the SHA-256 of its pixels, hashed
+    /// [`HASH_SLICE`] bytes per slice of work.
+    Image {
+        dir: Direction,
+        len: usize,
+        width: u32,
+        height: u32,
+        pixels: Vec<u8>,
+        hasher: sha2::Sha256,
+        hashed: usize,
+        now: u64,
+        drone: Option<String>,
+    },
+}
+
+/// Images queued before [`TraceQueue::push`] hashes them itself (a peer
+/// that never leaves time to wait): four 320×320 frames, 400 KB.
+const MAX_IMAGES: usize = 4;
+
+/// Bytes hashed per slice of [`TraceQueue::work`]: 16 KB, ~10 µs.
+const HASH_SLICE: usize = 16 * 1024;
+
+/// A trace whose lines are written later, as idle work
+/// (`busy_poll::IdleWork`): the platform hashes each image's pixels for
+/// its trace (a 320×320 frame, ~50 µs), and with a queue that hashing and
+/// the writing happen while the platform waits for the world instead of
+/// before its next request (docs/COSIM.md "Performance"). The lines are
+/// those of a [`TraceWriter`] recording the same events, in the same
+/// order; a line that needs no hash is written at once when nothing is
+/// queued before it. [`TraceQueue::flush`] and drop write what is queued.
+pub struct TraceQueue<W: Write = BufWriter<File>> {
+    writer: TraceWriter<W>,
+    queue: VecDeque<Queued>,
+    /// How many of the queued records are images.
+    images: usize,
+    /// The first write error of [`TraceQueue::work`], returned by the next
+    /// `push` or `flush`.
+    error: Option<io::ErrorKind>,
+}
+
+impl<W: Write> TraceQueue<W> {
+    pub fn new(writer: TraceWriter<W>) -> Self {
+        TraceQueue {
+            writer,
+            queue: VecDeque::new(),
+            images: 0,
+            error: None,
+        }
+    }
+
+    fn failed(&self) -> io::Result<()> {
+        match self.error {
+            Some(kind) => Err(io::Error::new(
+                kind,
+                "an earlier trace line could not be written",
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// Records `ev` (now or later).
+    pub fn push(&mut self, ev: &FrameEvent<'_>, now: u64) -> io::Result<()> {
+        self.push_for(ev, now, None)
+    }
+
+    /// [`TraceWriter::record_for`], now or later.
+    pub fn push_for(
+        &mut self,
+        ev: &FrameEvent<'_>,
+        now: u64,
+        drone: Option<&str>,
+    ) -> io::Result<()> {
+        self.failed()?;
+        match ev.image {
+            Some(img) if !self.writer.keep_images => {
+                while self.images >= MAX_IMAGES && self.work() {}
+                self.failed()?;
+                self.images += 1;
+                self.queue.push_back(Queued::Image {
+                    dir: ev.dir,
+                    len: ev.bytes.len(),
+                    width: img.width,
+                    height: img.height,
+                    pixels: img.data.clone(),
+                    hasher: Default::default(),
+                    hashed: 0,
+                    now,
+                    drone: drone.map(str::to_string),
+                });
+                Ok(())
+            }
+            _ if self.queue.is_empty() => self.writer.record_for(ev, now, drone),
+            _ => {
+                self.queue.push_back(Queued::Frame {
+                    dir: ev.dir,
+                    body: ev.bytes.to_vec(),
+                    valid: ev.valid,
+                    now,
+                    drone: drone.map(str::to_string),
+                });
+                Ok(())
+            }
+        }
+    }
+
+    /// One slice of work: hashes up to [`HASH_SLICE`] bytes of the first
+    /// queued image, or writes the lines up to the next image. Returns
+    /// whether anything is still queued. A write error is kept for the next
+    /// `push` or `flush` (and the queue dropped).
+    pub fn work(&mut self) -> bool {
+        if let Err(e) = self.step() {
+            self.error.get_or_insert(e.kind());
+            self.queue.clear();
+            self.images = 0;
+        }
+        !self.queue.is_empty()
+    }
+
+    fn step(&mut self) -> io::Result<()> {
+        use sha2::Digest as _;
+        while let Some(front) = self.queue.front_mut() {
+            match front {
+                Queued::Image {
+                    pixels,
+                    hasher,
+                    hashed,
+                    ..
+                } if *hashed < pixels.len() => {
+                    let end = (*hashed + HASH_SLICE).min(pixels.len());
+                    hasher.update(&pixels[*hashed..end]);
+                    *hashed = end;
+                    return Ok(());
+                }
+                _ => {}
+            }
+            match self.queue.pop_front().expect("front exists") {
+                Queued::Image {
+                    dir,
+                    len,
+                    width,
+                    height,
+                    hasher,
+                    now,
+                    drone,
+                    ..
+                } => {
+                    self.images -= 1;
+                    let hash = hex::encode(hasher.finalize());
+                    let camera = Camera {
+                        width,
+                        height,
+                        sha256: &hash,
+                    };
+                    self.writer
+                        .write_line(dir, len, Msg::Camera(camera), now, drone.as_deref())?;
+                }
+                Queued::Frame {
+                    dir,
+                    body,
+                    valid,
+                    now,
+                    drone,
+                } => {
+                    let ev = FrameEvent {
+                        dir,
+                        bytes: &body,
+                        image: None,
+                        valid,
+                    };
+                    self.writer.record_for(&ev, now, drone.as_deref())?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes every queued line and flushes the file.
+    pub fn flush(&mut self) -> io::Result<()> {
+        while self.work() {}
+        self.failed()?;
+        self.writer.flush()
+    }
+
+    /// Records written or queued so far.
+    pub fn records(&self) -> u64 {
+        self.writer.records() + self.queue.len() as u64
+    }
+}
+
+impl<W: Write> Drop for TraceQueue<W> {
+    fn drop(&mut self) {
+        // Best effort (the normal path flushes and sees the errors).
+        let _ = self.flush();
     }
 }
 

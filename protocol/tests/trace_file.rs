@@ -101,3 +101,102 @@ fn images_kept_when_asked() {
         )
     );
 }
+
+/// A writer into a buffer the test keeps.
+#[derive(Clone, Default)]
+struct Shared(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+
+impl std::io::Write for Shared {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+proptest::proptest! {
+    /// A queue writes the lines a writer writes, whenever its work runs:
+    /// frames and images (large enough to take several slices to hash)
+    /// pushed in one order, work done after any of them or never before
+    /// the flush.
+    #[test]
+    fn a_queue_writes_what_a_writer_writes(
+        kinds in proptest::collection::vec(0u8..4, 1..24),
+        work_after in proptest::collection::vec(0usize..40, 24),
+        keep_images: bool,
+    ) {
+        use protocol::trace::TraceQueue;
+        let images: Vec<Image> = (0..4u8)
+            .map(|k| Image {
+                width: 320,
+                height: 160 + u32::from(k),
+                data: (0..320 * (160 + u32::from(k)))
+                    .map(|i| (i as u8).wrapping_mul(k + 1))
+                    .collect(),
+            })
+            .collect();
+        let bodies: Vec<Vec<u8>> = images
+            .iter()
+            .map(|img| {
+                let mut b = Vec::new();
+                encode_reply(&Reply::Image(img.clone()), ImageEncoding::Array, &mut b);
+                b
+            })
+            .collect();
+        let mut direct = TraceWriter::new(Vec::new(), TraceClock::PlatformPs, keep_images);
+        let out = Shared::default();
+        let mut queue = TraceQueue::new(TraceWriter::new(out.clone(), TraceClock::PlatformPs, keep_images));
+        for (i, &k) in kinds.iter().enumerate() {
+            let now = 1000 * i as u64;
+            let e = match k {
+                0 => ev(Direction::ToWorld, br#"{"command":"GET_IMAGE"}"#, None),
+                1 => ev(Direction::ToPlatform, br#"{"command":"GET_SENSORS","x":1}"#, None),
+                _ => {
+                    let n = usize::from(k) % images.len();
+                    ev(Direction::ToPlatform, &bodies[n], Some(&images[n]))
+                }
+            };
+            direct.record(&e, now).unwrap();
+            queue.push(&e, now).unwrap();
+            for _ in 0..work_after[i] {
+                if !queue.work() {
+                    break;
+                }
+            }
+            proptest::prop_assert_eq!(queue.records(), direct.records());
+        }
+        queue.flush().unwrap();
+        let written = out.0.lock().unwrap().clone();
+        proptest::prop_assert_eq!(String::from_utf8(written).unwrap(), String::from_utf8(direct.into_inner()).unwrap());
+        // Nothing is left to do after a flush.
+        proptest::prop_assert!(!queue.work());
+    }
+}
+
+#[test]
+fn a_queue_hashes_an_image_a_slice_at_a_time() {
+    use protocol::trace::TraceQueue;
+    let img = Image {
+        width: 320,
+        height: 320,
+        data: (0..320 * 320).map(|i| (i % 251) as u8).collect(),
+    };
+    let mut body = Vec::new();
+    encode_reply(&Reply::Image(img.clone()), ImageEncoding::Array, &mut body);
+    let out = Shared::default();
+    let mut q = TraceQueue::new(TraceWriter::new(out.clone(), TraceClock::PlatformPs, false));
+    q.push(&ev(Direction::ToPlatform, &body, Some(&img)), 7)
+        .unwrap();
+    // 102,400 bytes in 16 KB slices: 7 slices of hashing, then the line.
+    let mut slices = 1;
+    while q.work() {
+        slices += 1;
+    }
+    assert_eq!(slices, 8);
+    q.flush().unwrap();
+    let text = String::from_utf8(out.0.lock().unwrap().clone()).unwrap();
+    assert!(text.contains(&sha256_hex(&img.data)), "{text}");
+    assert!(text.contains(&format!("\"len\":{}", body.len())), "{text}");
+}

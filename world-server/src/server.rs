@@ -34,7 +34,7 @@ use protocol::busy_poll::BusyPoll;
 use protocol::frame::{write_frame, DEFAULT_MAX_FRAME, HEADER_LEN};
 use protocol::shm::{ShmError, ShmFrame, ShmWriter};
 use protocol::tokio_transport::{FrameCodec, Listener};
-use protocol::trace::{TraceClock, TraceWriter};
+use protocol::trace::{TraceClock, TraceQueue, TraceWriter};
 use protocol::{
     decode_request, encode_reply, Direction, Endpoint, FrameEvent, ImageEncoding, Reply, Request,
 };
@@ -118,14 +118,16 @@ pub async fn serve(cfg: ServerConfig) -> Result<(), ServerError> {
         },
     )?;
     let mut trace = match &cfg.trace {
-        Some(path) => Some(
+        // Its lines (and the hashes of the images) are written while the
+        // world waits for the platforms (run_loop).
+        Some(path) => Some(TraceQueue::new(
             TraceWriter::create(path, TraceClock::WorldMs, cfg.trace_images).map_err(|source| {
                 ServerError::Output {
                     path: path.clone(),
                     source,
                 }
             })?,
-        ),
+        )),
         None => None,
     };
     let result = serve_session(&cfg, &mut session, trace.as_mut()).await;
@@ -144,7 +146,7 @@ pub async fn serve(cfg: ServerConfig) -> Result<(), ServerError> {
 async fn serve_session(
     cfg: &ServerConfig,
     session: &mut Session,
-    trace: Option<&mut TraceWriter>,
+    trace: Option<&mut TraceQueue>,
 ) -> Result<(), ServerError> {
     let listener = Listener::bind(&cfg.endpoint).await?;
     tracing::info!(
@@ -234,7 +236,9 @@ async fn run_loop(
         if progress == Progress::Finished {
             return Ok(());
         }
-        match busy_poll.next(inputs).await {
+        let trace = &mut wire.trace;
+        let work = || trace.as_deref_mut().is_some_and(|t| t.work());
+        match busy_poll.next_or_work(inputs, work).await {
             Some((d, input)) => accept_input(session, writers, open, d, input)?,
             None => unreachable!("every input stream ends with Closed, pushed above"),
         }
@@ -324,7 +328,7 @@ async fn drain(inputs: &mut SelectAll<Inputs>, open: &mut [bool]) {
 
 /// The trace and the sockets' side of a session's outputs.
 struct Wire<'a> {
-    trace: Option<&'a mut TraceWriter>,
+    trace: Option<&'a mut TraceQueue>,
     trace_path: PathBuf,
     names: Vec<String>,
     multi: bool,
@@ -353,7 +357,7 @@ impl Wire<'_> {
         let drone = self.multi.then(|| self.names[d].as_str());
         match self.trace.as_deref_mut() {
             Some(t) => t
-                .record_for(ev, now.0, drone)
+                .push_for(ev, now.0, drone)
                 .map_err(|source| SessionError::Output {
                     path: self.trace_path.clone(),
                     source,

@@ -229,7 +229,7 @@ impl<W: WorldLink> Run<W> {
         if let Some(dir) = &cfg.out_dir {
             let logger = PowerLogger::create(dir, cfg.reports_radios())?;
             // The logs are written while the link waits for the world.
-            world.set_idle_work(logger.idle_work());
+            world.add_idle_work(logger.idle_work());
             power.attach_logger(logger);
         }
         let platform = Platform::new(camera, stm32, radios, world, session, time);

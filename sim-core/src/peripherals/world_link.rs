@@ -73,7 +73,7 @@ pub trait WorldLink {
     /// [`crate::power::PowerLogger::idle_work`]). A link that never waits
     /// (an in-process world) drops it, and the work is done when its owner
     /// asks for it.
-    fn set_idle_work(&mut self, _work: protocol::busy_poll::IdleWork) {}
+    fn add_idle_work(&mut self, _work: protocol::busy_poll::IdleWork) {}
 }
 
 /// A borrowed link is a link (so a caller can keep an in-process world and
@@ -94,8 +94,8 @@ impl<T: WorldLink + ?Sized> WorldLink for &mut T {
     fn call_deferred(&mut self, request: &Request, now: Picos) -> Result<DeferredReply, LinkError> {
         (**self).call_deferred(request, now)
     }
-    fn set_idle_work(&mut self, work: protocol::busy_poll::IdleWork) {
-        (**self).set_idle_work(work)
+    fn add_idle_work(&mut self, work: protocol::busy_poll::IdleWork) {
+        (**self).add_idle_work(work)
     }
 }
 
@@ -151,7 +151,7 @@ pub struct SocketWorld {
     /// Test-only: wall-clock pause before each request (see [`SLOW_LINK_ENV`]).
     slow: Option<std::time::Duration>,
     counters: std::sync::Arc<Counters>,
-    trace: Option<std::sync::Arc<std::sync::Mutex<protocol::trace::TraceWriter>>>,
+    trace: Option<std::sync::Arc<std::sync::Mutex<protocol::trace::TraceQueue>>>,
 }
 
 /// Shared between the link and its frame observer (which must be `Send`).
@@ -185,14 +185,16 @@ impl SocketWorld {
         )?;
         let counters = Arc::new(Counters::default());
         let trace = match trace {
-            Some((path, keep_images)) => Some(Arc::new(Mutex::new(
-                protocol::trace::TraceWriter::create(
-                    path,
-                    protocol::trace::TraceClock::PlatformPs,
-                    keep_images,
-                )
-                .map_err(protocol::ProtocolError::Io)?,
-            ))),
+            Some((path, keep_images)) => {
+                Some(Arc::new(Mutex::new(protocol::trace::TraceQueue::new(
+                    protocol::trace::TraceWriter::create(
+                        path,
+                        protocol::trace::TraceClock::PlatformPs,
+                        keep_images,
+                    )
+                    .map_err(protocol::ProtocolError::Io)?,
+                ))))
+            }
             None => None,
         };
         let c = Arc::clone(&counters);
@@ -219,7 +221,7 @@ impl SocketWorld {
             }
             if let Some(t) = &t {
                 let now = c.now_ps.load(Relaxed);
-                t.lock().expect("trace lock").record(ev, now)?;
+                t.lock().expect("trace lock").push(ev, now)?;
             }
             Ok(())
         }));
@@ -234,6 +236,11 @@ impl SocketWorld {
             )?)),
             Err(_) => None,
         };
+        // The trace's hashing and writing while waiting for the world.
+        if let Some(t) = &trace {
+            let t = Arc::clone(t);
+            conn.add_idle_work(Box::new(move || t.lock().expect("trace lock").work()));
+        }
         Ok(SocketWorld {
             conn,
             slow,
@@ -279,8 +286,8 @@ impl Drop for SocketWorld {
 }
 
 impl WorldLink for SocketWorld {
-    fn set_idle_work(&mut self, work: protocol::busy_poll::IdleWork) {
-        self.conn.set_idle_work(work);
+    fn add_idle_work(&mut self, work: protocol::busy_poll::IdleWork) {
+        self.conn.add_idle_work(work);
     }
 
     fn call(&mut self, request: &Request, now: Picos) -> Result<Reply, LinkError> {

@@ -159,7 +159,7 @@ impl Shared {
 /// About 96 MB of CSV per race is formatted and written while the
 /// platform waits for the world rather than when a sample is taken: the
 /// samples are queued and [`PowerLogger::idle_work`], handed to the link
-/// ([`crate::peripherals::WorldLink::set_idle_work`]), writes a few at a
+/// ([`crate::peripherals::WorldLink::add_idle_work`]), writes a few at a
 /// time between polls of the socket. The next request to the world does
 /// not wait for them (docs/COSIM.md "Performance"). The bytes are the same,
 /// in the same order; [`PowerLogger::flush`] writes what is still queued.
