@@ -58,15 +58,6 @@ impl BusyPoll {
         BusyPoll(Duration::from_micros(us))
     }
 
-    /// The binaries' default ([`DEFAULT_US`]).
-    pub const fn default_budget() -> BusyPoll {
-        BusyPoll::from_micros(DEFAULT_US)
-    }
-
-    pub fn budget(self) -> Duration {
-        self.0
-    }
-
     pub fn is_off(self) -> bool {
         self.0.is_zero()
     }

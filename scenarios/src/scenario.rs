@@ -387,7 +387,9 @@ impl Scenario {
                 }
             }
             "image_encoding" => {
-                self.image_encoding = value.parse().map_err(|_| bad("expected array or base64"))?
+                self.image_encoding = value
+                    .parse()
+                    .map_err(|_| bad("expected array, base64 or shm"))?
             }
             "busy_poll_us" => {
                 self.busy_poll_us = match value.parse::<u64>() {
