@@ -231,3 +231,34 @@ fn reserved_encodings_raise_illegal_instruction() {
         assert_eq!(cpu.csr(0x343), Some(word), "{what}: mtval");
     }
 }
+
+#[test]
+fn post_increment_accesses_off_the_fast_path_update_the_base_too() {
+    // A load from a second RAM region (the executor's cold twin) and a
+    // post-increment store into the running block's own code (the core's
+    // general path), which rewrites the next instruction.
+    let new = addi(10, 0, 42);
+    let prog = [
+        cv_lw_pi(5, 11, 4),
+        13 << 20 | 12 << 15 | 2 << 12 | 4 << 7 | 0x2b, // cv.sw x13, (x12), 4
+        addi(10, 0, 1),                    // overwritten before it runs
+        NOP,
+    ];
+    let mut mem = Memory::new();
+    mem.add_ram(BASE, 0x2000).unwrap();
+    mem.add_ram(0x9000_0000, 0x100).unwrap();
+    for (k, w) in prog.iter().enumerate() {
+        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes()).unwrap();
+    }
+    mem.write_bytes(0x9000_0000, &0xfeed_beefu32.to_le_bytes()).unwrap();
+    let mut cpu = Cpu::new(CpuConfig::default());
+    cpu.set_pc(BASE);
+    cpu.set_reg(11, 0x9000_0000);
+    cpu.set_reg(12, BASE + 8);
+    cpu.set_reg(13, new);
+    cpu.set_instruction_limit(Some(3));
+    cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+    assert_eq!((cpu.reg(5), cpu.reg(11)), (0xfeed_beef, 0x9000_0004));
+    assert_eq!((cpu.reg(12), cpu.reg(10)), (BASE + 12, 42));
+    assert_eq!(mem.read_u32(BASE + 8), Some(new));
+}
