@@ -20,7 +20,7 @@
 //! | active core | 48.0 pJ/cycle | 0.70 × 96 mW / (8 × 175 MHz) |
 //! | gated core | 2.4 pJ/cycle | 5 % of active: the clock tree stub left running (assumption) |
 //! | L1 access | 34.3 pJ | 0.25 × 96 mW / (8 × 87.5 M accesses/s) |
-//! | DMA | 9.0 pJ/byte | one L1 word write (34.3 pJ / 4 B) plus the L2 side's read, taken equal (assumption) |
+//! | DMA | 17.1 pJ/byte | one L1 word access (34.3 pJ / 4 B) plus the L2 side's, taken equal (assumption) |
 //! | leakage | 4.8 mW | 0.05 × 96 mW while the cluster is powered |
 //!
 //! Dynamic energies scale with `(vref / 1.2 V)²`, leakage with
