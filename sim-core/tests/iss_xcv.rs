@@ -262,3 +262,18 @@ fn post_increment_accesses_off_the_fast_path_update_the_base_too() {
     assert_eq!((cpu.reg(12), cpu.reg(10)), (BASE + 12, 42));
     assert_eq!(mem.read_u32(BASE + 8), Some(new));
 }
+
+#[test]
+fn the_xcv_benchmark_sums_what_rust_sums() {
+    // xcv_bench.c: 2000 int8 dot products of 4096 elements (cv.lw
+    // post-increment + cv.sdotsp.b), about 10 M instructions.
+    let dot: i32 = (0..4096i32)
+        .map(|i| (i * 7 + 3) as i8 as i32 * (i * 13 - 100) as i8 as i32)
+        .sum();
+    let want = (0..2000).fold(0i32, |s, _| s.wrapping_add(dot));
+    let (code, out, cpu) = run_firmware("xcv_bench");
+    assert_eq!((code, out), (0, format!("sum {want}\n")));
+    // 5 instructions per 4 MACs, 7 cycles (a taken cv.bneimm costs 3).
+    let loop_insts = 2000 * 1024 * 5;
+    assert!(cpu.instret() > loop_insts && cpu.instret() < loop_insts + 200_000);
+}
