@@ -47,7 +47,10 @@ fn clang_o2_kernels_use_post_increment_loads_and_compute_what_rust_does() {
         let mut at = 0;
         while at + 2 <= seg.data.len() {
             let lo = u16::from_le_bytes([seg.data[at], seg.data[at + 1]]);
-            let hi = seg.data.get(at + 2..at + 4).map(|b| u16::from_le_bytes([b[0], b[1]]));
+            let hi = seg
+                .data
+                .get(at + 2..at + 4)
+                .map(|b| u16::from_le_bytes([b[0], b[1]]));
             let Some(d) = decode(lo, || hi) else { break };
             ops.push(d.op);
             at += d.len() as usize;
@@ -62,7 +65,8 @@ fn clang_o2_kernels_use_post_increment_loads_and_compute_what_rust_does() {
 
     const N: usize = 256;
     let mut r = Lcg(12345);
-    let (mut a8, mut b8, mut a16, mut b16) = (vec![0i8; N], vec![0i8; N], vec![0i16; N], vec![0i16; N]);
+    let (mut a8, mut b8, mut a16, mut b16) =
+        (vec![0i8; N], vec![0i8; N], vec![0i16; N], vec![0i16; N]);
     let (mut a32, mut b32, mut y32) = (vec![0i32; N], vec![0i32; N], vec![0i32; N]);
     for i in 0..N {
         a8[i] = r.next() as i8;
@@ -140,9 +144,11 @@ fn run(prog: &[u32], n: u64) -> (Cpu, Memory, u64) {
     let mut mem = Memory::new();
     mem.add_ram(BASE, 0x2000).unwrap();
     for (k, w) in prog.iter().chain(&[0x6f]).enumerate() {
-        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes()).unwrap();
+        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes())
+            .unwrap();
     }
-    mem.write_bytes(DATA, &0x0203_0405u32.to_le_bytes()).unwrap();
+    mem.write_bytes(DATA, &0x0203_0405u32.to_le_bytes())
+        .unwrap();
     let mut cpu = Cpu::new(CpuConfig::default());
     cpu.set_pc(BASE);
     cpu.set_reg(6, DATA);
@@ -195,7 +201,10 @@ fn immediate_branches_cost_as_branches() {
     let (_, _, c) = run(&[bimm(7, 8, 3, 8), NOP], 2);
     assert_eq!(c, 2);
     // A negative immediate is sign-extended: x9 = -16.
-    let (cpu, _, _) = run(&[addi(9, 0, -16), bimm(6, 9, -16, 8), addi(10, 0, 1), NOP], 3);
+    let (cpu, _, _) = run(
+        &[addi(9, 0, -16), bimm(6, 9, -16, 8), addi(10, 0, 1), NOP],
+        3,
+    );
     assert_eq!(cpu.reg(10), 0);
 }
 
@@ -207,9 +216,18 @@ fn reserved_encodings_raise_illegal_instruction() {
         ("hardware loop (xcvhwlp)", i(0, 0, 4, 0, 0x2b)),
         ("SIMD funct3 010", r(0, 1, 5, 2, 5, 0x7b)),
         ("cv.add.h with funct1", r(1, 1, 5, 0, 5, 0x7b)),
-        ("cv.sll.sci.h, Imm6[5:4] set", r(0b010_1000, 0b10000, 5, 6, 5, 0x7b)),
-        ("cv.extract.h, Imm6[5:1] set", r(0b101_1100, 1, 5, 0, 5, 0x7b)),
-        ("undefined SIMD funct5 01111", r(0b011_1100, 1, 5, 0, 5, 0x7b)),
+        (
+            "cv.sll.sci.h, Imm6[5:4] set",
+            r(0b010_1000, 0b10000, 5, 6, 5, 0x7b),
+        ),
+        (
+            "cv.extract.h, Imm6[5:1] set",
+            r(0b101_1100, 1, 5, 0, 5, 0x7b),
+        ),
+        (
+            "undefined SIMD funct5 01111",
+            r(0b011_1100, 1, 5, 0, 5, 0x7b),
+        ),
         ("cv.bitrev with Is3 > 3", r(0b110_0100, 0, 5, 1, 5, 0x5b)),
         ("custom-1 funct7 1111111", r(0x7f, 1, 5, 3, 5, 0x2b)),
     ] {
@@ -218,7 +236,12 @@ fn reserved_encodings_raise_illegal_instruction() {
         let mut mem = Memory::new();
         mem.add_ram(BASE, 0x2000).unwrap();
         let jal_back = 0xf01f_f06f; // at 0x104: jal x0, -0x100
-        for (at, w) in [(4, word), (0x100, 0x305f_9073), (0x104, jal_back), (0x800, 0x6f)] {
+        for (at, w) in [
+            (4, word),
+            (0x100, 0x305f_9073),
+            (0x104, jal_back),
+            (0x800, 0x6f),
+        ] {
             mem.write_bytes(BASE + at, &u32::to_le_bytes(w)).unwrap();
         }
         let mut cpu = Cpu::new(CpuConfig::default());
@@ -241,16 +264,18 @@ fn post_increment_accesses_off_the_fast_path_update_the_base_too() {
     let prog = [
         cv_lw_pi(5, 11, 4),
         13 << 20 | 12 << 15 | 2 << 12 | 4 << 7 | 0x2b, // cv.sw x13, (x12), 4
-        addi(10, 0, 1),                    // overwritten before it runs
+        addi(10, 0, 1),                                // overwritten before it runs
         NOP,
     ];
     let mut mem = Memory::new();
     mem.add_ram(BASE, 0x2000).unwrap();
     mem.add_ram(0x9000_0000, 0x100).unwrap();
     for (k, w) in prog.iter().enumerate() {
-        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes()).unwrap();
+        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes())
+            .unwrap();
     }
-    mem.write_bytes(0x9000_0000, &0xfeed_beefu32.to_le_bytes()).unwrap();
+    mem.write_bytes(0x9000_0000, &0xfeed_beefu32.to_le_bytes())
+        .unwrap();
     let mut cpu = Cpu::new(CpuConfig::default());
     cpu.set_pc(BASE);
     cpu.set_reg(11, 0x9000_0000);

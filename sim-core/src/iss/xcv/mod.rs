@@ -184,9 +184,8 @@ pub fn decode(inst: u32) -> Option<Decoded> {
                 }
             }
         }
-        0x7b => simd::decode(inst).and_then(|(o, imm, uses_rs2)| {
-            d(o, rd, rs1, if uses_rs2 { rs2 } else { 0 }, imm)
-        }),
+        0x7b => simd::decode(inst)
+            .and_then(|(o, imm, uses_rs2)| d(o, rd, rs1, if uses_rs2 { rs2 } else { 0 }, imm)),
         _ => None,
     }
 }
@@ -278,18 +277,22 @@ mod tests {
     #[test]
     fn decodes_what_clang_assembles() {
         for (word, o, rd, rs1, rs2) in [
-            (0x0015_070b, op::CV_LB_PI, 14, 10, 0),  // cv.lb a4, (a0), 1
-            (0x0045_270b, op::CV_LW_PI, 14, 10, 0),  // cv.lw a4, (a0), 4
-            (0x00e5_222b, op::CV_SW_PI, 0, 10, 14),  // cv.sw a4, (a0), 4
-            (0x56b5_352b, op::CV_ALU, 10, 10, 11),   // cv.min a0, a0, a1
+            (0x0015_070b, op::CV_LB_PI, 14, 10, 0), // cv.lb a4, (a0), 1
+            (0x0045_270b, op::CV_LW_PI, 14, 10, 0), // cv.lw a4, (a0), 4
+            (0x00e5_222b, op::CV_SW_PI, 0, 10, 14), // cv.sw a4, (a0), 4
+            (0x56b5_352b, op::CV_ALU, 10, 10, 11),  // cv.min a0, a0, a1
             (0xa8f7_157b, op::CV_SDOTSP_B, 10, 14, 15), // cv.sdotsp.b a0, a4, a5
             (0x98c5_d77b, op::CV_SIMD_RD, 14, 11, 12), // cv.sdotup.sc.b a4, a1, a2
-            (0x92c5_b72b, op::CV_MSU, 14, 11, 12),   // cv.msu a4, a1, a2
-            (0x2105_e77b, op::CV_SIMD, 14, 11, 0),   // cv.min.sci.h a4, a1, -32
-            (0x14c5_977b, op::CV_SIMD, 14, 11, 12),  // cv.cmpgt.b a4, a1, a2
+            (0x92c5_b72b, op::CV_MSU, 14, 11, 12),  // cv.msu a4, a1, a2
+            (0x2105_e77b, op::CV_SIMD, 14, 11, 0),  // cv.min.sci.h a4, a1, -32
+            (0x14c5_977b, op::CV_SIMD, 14, 11, 12), // cv.cmpgt.b a4, a1, a2
         ] {
             let d = decode(word).unwrap_or_else(|| panic!("{word:#010x}"));
-            assert_eq!((d.op, d.rd, d.rs1, d.rs2), (o, rd, rs1, rs2), "{word:#010x}");
+            assert_eq!(
+                (d.op, d.rd, d.rs1, d.rs2),
+                (o, rd, rs1, rs2),
+                "{word:#010x}"
+            );
         }
         // cv.bneimm a3, 0, -14 (the benchmark's loop branch).
         let b = decode(0xfe06_f98b).unwrap();
