@@ -106,7 +106,11 @@ fn clang_xcv_polling_loops_are_skipped_exactly() {
     let stepped = run_elf("xcv_idle", false, false, 0, None);
     let skipped = run_elf("xcv_idle", true, false, 0, None);
     assert_eq!(skipped.code, run(false, false, 0, None).code);
-    assert!(skipped.stats.skipped_instructions > 1_000_000, "{:?}", skipped.stats);
+    assert!(
+        skipped.stats.skipped_instructions > 1_000_000,
+        "{:?}",
+        skipped.stats
+    );
     assert_eq!(without_skip_count(skipped), without_skip_count(stepped));
 }
 

@@ -1334,8 +1334,8 @@ fn straight_line_body(mem: &Memory, target: u32, branch: u32) -> Option<u64> {
         // or compute with the XCV forms (register-offset loads, ALU, SIMD);
         // post-increment loads change their base, so an iteration with one
         // never ends with its starting registers and is rejected later.
-        let branch_op = (op::BEQ..=op::BGEU).contains(&d.op)
-            || matches!(d.op, op::CV_BEQIMM | op::CV_BNEIMM);
+        let branch_op =
+            (op::BEQ..=op::BGEU).contains(&d.op) || matches!(d.op, op::CV_BEQIMM | op::CV_BNEIMM);
         if pc == branch {
             return branch_op.then_some(n);
         }
