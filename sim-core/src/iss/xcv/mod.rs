@@ -98,16 +98,7 @@ pub fn decode(inst: u32) -> Option<Decoded> {
     let rs2 = bits(inst, 24, 20) as u8;
     let f3 = bits(inst, 14, 12);
     let f7 = bits(inst, 31, 25);
-    let d = |op, rd, rs1, rs2, imm| {
-        Some(Decoded {
-            op,
-            rd,
-            rs1,
-            rs2,
-            imm,
-            compressed: false,
-        })
-    };
+    let d = some;
     match inst & 0x7f {
         // custom-0: post-increment loads (immediate), immediate branches.
         0x0b => {
@@ -145,7 +136,7 @@ pub fn decode(inst: u32) -> Option<Decoded> {
                 let o = [op::CV_SB_PI, op::CV_SH_PI, op::CV_SW_PI][f3 as usize];
                 d(o, 0, rs1, rs2, imm_s)
             }
-            3 => decode_custom1_rr(inst, f7, rd, rs1, rs2),
+            3 => decode_custom1_rr(f7, rd, rs1, rs2),
             _ => None, // 4..: hardware loops (xcvhwlp)
         },
         // custom-2: immediate bit manipulation, addN/subN, 16-bit
@@ -190,23 +181,26 @@ pub fn decode(inst: u32) -> Option<Decoded> {
     }
 }
 
+/// A 32-bit decoded instruction.
+fn some(op: u8, rd: u8, rs1: u8, rs2: u8, imm: i32) -> Option<Decoded> {
+    Some(Decoded {
+        op,
+        rd,
+        rs1,
+        rs2,
+        imm,
+        compressed: false,
+    })
+}
+
 /// The rs2 field as a register number.
 fn rs2_of(inst: u32) -> u8 {
     bits(inst, 24, 20) as u8
 }
 
 /// custom-1, funct3 011: register-register forms (funct7 selects).
-fn decode_custom1_rr(inst: u32, f7: u32, rd: u8, rs1: u8, rs2: u8) -> Option<Decoded> {
-    let d = |op, rd, rs1, rs2, imm| {
-        Some(Decoded {
-            op,
-            rd,
-            rs1,
-            rs2,
-            imm,
-            compressed: false,
-        })
-    };
+fn decode_custom1_rr(f7: u32, rd: u8, rs1: u8, rs2: u8) -> Option<Decoded> {
+    let d = some;
     // Unary operations: the rs2 field is reserved (0).
     let unary = |f| {
         if rs2 == 0 {
@@ -217,7 +211,6 @@ fn decode_custom1_rr(inst: u32, f7: u32, rd: u8, rs1: u8, rs2: u8) -> Option<Dec
     };
     let binary = |f| d(op::CV_ALU, rd, rs1, rs2, alu_imm(f, 0));
     let loads = [op::CV_LB_PR, op::CV_LH_PR, op::CV_LW_PR];
-    let _ = inst;
     match f7 {
         // Loads: bit 2 = register offset (no increment), bit 3 = unsigned.
         0b000_0000..=0b000_0010 => d(loads[f7 as usize], rd, rs1, rs2, 0),
