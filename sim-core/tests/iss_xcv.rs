@@ -302,3 +302,70 @@ fn the_xcv_benchmark_sums_what_rust_sums() {
     let loop_insts = 2000 * 1024 * 5;
     assert!(cpu.instret() > loop_insts && cpu.instret() < loop_insts + 200_000);
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(300))]
+    /// XCV loads and stores give the same registers, cycles, traps and
+    /// memory whether their data is in the code's RAM region (the
+    /// executor's raw-pointer path) or in a region of its own at the same
+    /// addresses (the cold path through the region list).
+    #[test]
+    fn xcv_memory_ops_agree_on_the_fast_and_the_slow_path(
+        raw in proptest::collection::vec(proptest::prelude::any::<u32>(), 40),
+        kinds in proptest::collection::vec(0usize..4, 40),
+        regs in proptest::collection::vec(0u32..0x1000, 7),
+    ) {
+        // Registers x0..x7, small immediates; custom-0 loads (funct3 0, 1,
+        // 2, 4, 5), custom-1 stores (funct3 0..2) and the register forms
+        // (funct3 3 with the load/store funct7s).
+        const RR_F7: [u32; 16] = [0, 1, 2, 8, 9, 4, 5, 6, 12, 13, 16, 17, 18, 20, 21, 22];
+        let words: Vec<u32> = raw
+            .iter()
+            .zip(&kinds)
+            .map(|(&w, &k)| {
+                let (rd, rs1, rs2) = (w & 7, (w >> 3) & 7, (w >> 6) & 7);
+                let imm = (((w >> 9) & 0x7f) as i32 - 64) as u32 & 0xfff;
+                let f3 = (w >> 16) % 5;
+                match k {
+                    0 => i(imm as i32, rs1, [0, 1, 2, 4, 5][f3 as usize], rd, 0x0b),
+                    1 => (imm >> 5) << 25 | rs2 << 20 | rs1 << 15 | (f3 % 3) << 12 | (imm & 31) << 7 | 0x2b,
+                    _ => r(RR_F7[(w >> 27) as usize % 16], rs2, rs1, 3, rd, 0x2b),
+                }
+            })
+            .collect();
+        // Data at 0..0x8000, code at 0x8000 (one region, or two); the
+        // registers hold addresses and increments in the data.
+        const CODE: u32 = 0x8000;
+        let run = |split: bool| {
+            let mut mem = Memory::new();
+            if split {
+                mem.add_ram(0, CODE).unwrap();
+                mem.add_ram(CODE, 0x8000).unwrap();
+            } else {
+                mem.add_ram(0, 0x1_0000).unwrap();
+            }
+            for (k, w) in words.iter().chain(&[0x6f]).enumerate() {
+                mem.write_bytes(CODE + 4 * k as u32, &w.to_le_bytes()).unwrap();
+            }
+            // At CODE + 0x700: csrw mtvec, x31 (a spin at CODE + 0x800);
+            // jal x0, CODE.
+            for (at, w) in [(0x700, 0x305f_9073u32), (0x704, 0x8fdf_f06f), (0x800, 0x6f)] {
+                mem.write_bytes(CODE + at, &w.to_le_bytes()).unwrap();
+            }
+            let fill: Vec<u8> = (0..CODE).map(|x| (x * 37 + 11) as u8).collect();
+            mem.write_bytes(0, &fill).unwrap();
+            let mut cpu = Cpu::new(CpuConfig::default());
+            cpu.set_pc(CODE + 0x700);
+            cpu.set_reg(31, CODE + 0x800);
+            for (k, v) in regs.iter().enumerate() {
+                cpu.set_reg(k + 1, *v);
+            }
+            cpu.set_instruction_limit(Some(60));
+            let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+            let mut data = vec![0u8; CODE as usize];
+            mem.read_bytes(0, &mut data).unwrap();
+            (stop, *cpu.regs(), cpu.pc(), cpu.cycles(), cpu.csr(0x342), data)
+        };
+        proptest::prop_assert_eq!(run(false), run(true));
+    }
+}
