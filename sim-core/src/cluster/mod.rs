@@ -587,9 +587,6 @@ impl Cluster {
             if floor >= limit {
                 return StopReason::Limit;
             }
-            if let Some(t) = mem.tcdm.as_mut() {
-                t.retire_below(floor.0 / self.sh.period.0);
-            }
             let who = pick.2;
             let others = (0..self.sh.n)
                 .filter(|&j| j != who && self.sh.state[j] == CoreState::Running)
