@@ -222,3 +222,20 @@ fn run_elf_prints_each_core_in_stats_and_rejects_bad_core_counts() {
     assert!(err.contains("cluster.cores must be 1 to 8"), "{err}");
     assert_eq!(err.trim().lines().count(), 1, "{err}");
 }
+
+#[test]
+fn a_dma_command_outside_l1_is_a_clear_error_naming_the_core() {
+    let bin = env!("CARGO_BIN_EXE_sim-core");
+    let fw = firmware("cluster_bad_dma");
+    let o = Command::new(bin)
+        .args(["run-elf", fw.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_ne!(o.status.code(), Some(0));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("cluster core 0") && err.contains("store access fault"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+}

@@ -44,7 +44,9 @@ pub mod tcdm;
 
 use std::io::Write;
 
-use crate::iss::{AccessSize, Cpu, CpuConfig, MemTiming, Memory, Mmio, MmioError, StopReason};
+use crate::iss::{
+    AccessSize, Cpu, CpuConfig, IssError, MemTiming, Memory, Mmio, MmioError, StopReason,
+};
 use crate::units::{Hertz, Picos};
 
 use ctrl::{Ctrl, Who};
@@ -530,12 +532,10 @@ impl Cluster {
                     .and_then(|()| mem.write_bytes(to, &buf));
                 if let Err(e) = copied {
                     let msg = format!("cluster DMA command {}: {e}", c.id);
-                    return Err(StopReason::Fatal(crate::iss::IssError::Device(
-                        MmioError::Device {
-                            addr: from,
-                            message: msg,
-                        },
-                    )));
+                    return Err(StopReason::Fatal(IssError::Device(MmioError::Device {
+                        addr: from,
+                        message: msg,
+                    })));
                 }
             }
             self.sh
@@ -627,9 +627,13 @@ impl Cluster {
                 let stop = core.run_until(mem, &mut bus, horizon);
                 self.sh.time[who] = core.now();
                 match stop {
-                    StopReason::Exit { .. }
-                    | StopReason::Fatal(_)
-                    | StopReason::Breakpoint { .. } => return stop,
+                    StopReason::Exit { .. } | StopReason::Breakpoint { .. } => return stop,
+                    StopReason::Fatal(e) => {
+                        return StopReason::Fatal(IssError::ClusterCore {
+                            core: who,
+                            source: Box::new(e),
+                        })
+                    }
                     _ => {}
                 }
             }

@@ -129,6 +129,12 @@ static void dma_tests(void)
 
 void cl_main(uint32_t id)
 {
+#ifdef BAD_DMA
+    /* A command past the end of L1: the CMD store faults (no handler on
+     * the cluster core: the run ends with a clear error). */
+    if (id == 0)
+        dma((uint32_t)src, L1_BASE + 0xff00, 1024, DMA_EXT2LOC);
+#endif
     uint32_t n = CTRL_NB_CORES;
     results.hartid[id] = hartid();
     /* Dispatch: core 0 pushes one word per core; each pops its own. */
