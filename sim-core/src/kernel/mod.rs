@@ -205,9 +205,10 @@ impl<W: WorldLink> Run<W> {
 
         let cluster = match &cfg.platform.cluster {
             Some(section) => {
-                let c = Cluster::new(section.cluster_config(cfg.idle_skip), &mut mem)
-                    .map_err(|e| KernelError::Config(e.to_string()))?;
-                Some((c, Meter::new(section.vref)))
+                let cc = section.cluster_config(cfg.idle_skip);
+                let c =
+                    Cluster::new(cc, &mut mem).map_err(|e| KernelError::Config(e.to_string()))?;
+                Some((c, Meter::new(cc.vref, cc.clock)))
             }
             None => None,
         };
