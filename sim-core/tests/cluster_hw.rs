@@ -50,16 +50,24 @@ struct Outcome {
 }
 
 fn run(cores: usize) -> Outcome {
+    run_with(cores, true)
+}
+
+fn run_with(cores: usize, idle_skip: bool) -> Outcome {
     let bytes = std::fs::read(firmware("cluster_hw_test")).unwrap();
     let elf = load_elf(&bytes).unwrap();
     let mut mem = build_memory(&[], elf.lowest_address()).unwrap();
     elf.load_into(&mut mem).unwrap();
     let cfg = ClusterConfig {
         cores,
+        idle_skip,
         ..ClusterConfig::default()
     };
     let mut cluster = Cluster::new(cfg, &mut mem).unwrap();
-    let mut fc = Cpu::new(Cluster::fc_config(CpuConfig::default()));
+    let mut fc = Cpu::new(Cluster::fc_config(CpuConfig {
+        idle_skip,
+        ..CpuConfig::default()
+    }));
     Cluster::attach_fc(&mut fc);
     fc.set_pc(elf.entry);
     let console = Console::default();
@@ -188,6 +196,12 @@ fn same_elf_same_cycles_and_results() {
     assert_eq!(a.words, b.words);
     assert_eq!(a.reports, b.reports);
     assert_eq!(a.fc_cycles, b.fc_cycles);
+    // Idle skipping of the FC's polling (FC_EVENT, RUNNING) is exact: a
+    // step-by-step run lands on the same cycles.
+    let c = run_with(8, false);
+    assert_eq!(a.words, c.words);
+    assert_eq!(a.reports, c.reports);
+    assert_eq!(a.fc_cycles, c.fc_cycles);
 }
 
 #[test]
