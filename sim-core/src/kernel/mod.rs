@@ -449,6 +449,8 @@ impl<W: WorldLink> Run<W> {
             error.as_ref(),
             wall.elapsed().as_secs_f64(),
         );
+        let mut summary = summary;
+        summary.energy_j.cluster = self.cluster.as_ref().map(|(_, meter)| meter.energy_j);
         if let Some(dir) = &cfg.out_dir {
             if let Err(e) = summary.write(&dir.join("summary.json")) {
                 error.get_or_insert(KernelError::Io(e));
