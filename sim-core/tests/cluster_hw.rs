@@ -10,7 +10,9 @@ use std::process::Command;
 use iss_util::{firmware, Console};
 use sim_core::cluster::dma::SETUP_CYCLES;
 use sim_core::cluster::event_unit::WAKE_LATENCY_CYCLES;
-use sim_core::cluster::{Cluster, ClusterConfig, CoreReport, FC_HART_ID, L2_EXTRA_CYCLES};
+use sim_core::cluster::{
+    Cluster, ClusterConfig, CoreReport, FC_HART_ID, FC_L1_EXTRA_CYCLES, L2_EXTRA_CYCLES,
+};
 use sim_core::iss::run_elf::build_memory;
 use sim_core::iss::{load_elf, Cpu, CpuConfig, NoDevices, StopReason};
 use sim_core::units::Picos;
@@ -39,7 +41,11 @@ mod r {
     pub const INSTRET_BEFORE: usize = 62;
     pub const INSTRET_AFTER: usize = 63;
     pub const FC_HARTID: usize = 64;
-    pub const WORDS: usize = 65;
+    pub const FC_L1: usize = 65;
+    pub const FC_L2: usize = 66;
+    pub const CORE_L1: usize = 67;
+    pub const CORE_L2: usize = 68;
+    pub const WORDS: usize = 69;
 }
 
 struct Outcome {
@@ -104,6 +110,19 @@ fn cores_boot_with_their_hart_ids_and_dispatch_reaches_each() {
             .console
             .contains(&format!("cluster: {n} cores, counter {}", 100 * n)));
     }
+}
+
+#[test]
+fn l2_costs_cluster_cores_extra_cycles_and_l1_costs_the_fc() {
+    let o = run(2);
+    let w = &o.words;
+    // One load between two mcycle reads: the first read's 3 extra cycles
+    // (a 4-cycle CSR, CV32E40P), the load's 1 and the second read's 1; a
+    // cluster core's L1 load and the FC's L2 load cost the same.
+    let base = 3 + 1 + 1;
+    assert_eq!((w[r::CORE_L1], w[r::FC_L2]), (base, base));
+    assert_eq!(w[r::CORE_L2] as u64, base as u64 + L2_EXTRA_CYCLES);
+    assert_eq!(w[r::FC_L1] as u64, base as u64 + FC_L1_EXTRA_CYCLES);
 }
 
 #[test]
