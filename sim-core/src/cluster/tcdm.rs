@@ -1,26 +1,26 @@
 //! The cluster's L1 (TCDM, DESIGN.md §12): 64 KiB at 0x1000_0000 in 16
 //! word-interleaved banks (bank = `(addr >> 2) & 15`: the PULP cluster's
-//! logarithmic interconnect, 16 banks of 4 KiB on the GAP8). Each bank serves one access per cluster cycle;
-//! a core asking for a bank already granted in that cycle waits one cycle
-//! and asks again (the stall is added to its load or store).
+//! logarithmic interconnect, 16 banks of 4 KiB on the GAP8). Each bank
+//! serves one access per cluster cycle; a core asking for a bank already
+//! granted in that cycle waits one cycle and asks again (the stall is
+//! added to its load or store).
 //!
 //! # Why the counts are exact and deterministic
 //!
 //! Every access carries its exact cluster cycle (the core's issue cycle).
 //! The arbiter keeps, per bank, one bit per cycle of a sliding window:
 //! "granted in this cycle" (slices of 64 cycles tagged with their number,
-//! so a slot from a window ago reads as free without being cleared). An access at cycle `c` takes the first free
-//! cycle `g >= c` of its bank and stalls `g - c`. The cluster scheduler
-//! (`mod.rs`) runs the cores one after another in quanta (at most
-//! [`super::QUANTUM_CYCLES`] ahead of the slowest runnable one, in a fixed
-//! order), so a bank's bits for a cycle are always filled before any later
-//! core asks for it, and the window ([`WINDOW`] cycles, twice the quantum
-//! plus margin) never drops a cycle a core may still reach. What the
-//! quantum decides is only *which* of two cores that ask for one bank in
-//! one cycle wins: the one the scheduler runs first in that quantum, and
-//! the scheduler rotates that order every quantum (round robin per
-//! quantum rather than per cycle). The number of stalled cycles of a
-//! saturated bank, and everything else, is the same on every host.
+//! so a slot from a window ago reads as free without being cleared). An
+//! access at cycle `c` takes the first free cycle `g >= c` of its bank and
+//! stalls `g - c`. The cluster scheduler (`mod.rs`) runs the cores one
+//! after another in quanta (at most [`super::QUANTUM_CYCLES`] ahead of the
+//! slowest runnable one, in a fixed order), so the window ([`WINDOW`]
+//! cycles, four quanta) always holds every cycle a core may still reach.
+//! What the quantum decides is only *which* of two cores that ask for one
+//! bank in one cycle wins: the one the scheduler runs first in that
+//! quantum, and the scheduler rotates that order every quantum (round
+//! robin per quantum rather than per cycle). The number of stalled cycles
+//! of a saturated bank, and everything else, is the same on every host.
 
 /// Banks of the L1 (GAP8: 16 banks, gap_sdk `ARCHI_CLUSTER_NB_TCDM_BANKS`...
 /// the interleaving is one 32-bit word per bank).
