@@ -22,8 +22,7 @@
 //! robin per quantum rather than per cycle). The number of stalled cycles
 //! of a saturated bank, and everything else, is the same on every host.
 
-/// Banks of the L1 (GAP8: 16 banks, gap_sdk `ARCHI_CLUSTER_NB_TCDM_BANKS`...
-/// the interleaving is one 32-bit word per bank).
+/// Banks of the L1 (GAP8: 16, one 32-bit word per bank in turn).
 pub const BANKS: usize = 16;
 /// L1 base address and size (DESIGN.md §12, docs/CLUSTER.md).
 pub const L1_BASE: u32 = 0x1000_0000;
