@@ -38,6 +38,9 @@ fn tohost_pass_and_fail() {
     assert_eq!(sim_core(&[&fw("rvtest_pass")]).status.code(), Some(0));
     // tohost = (3 << 1) | 1: test 3 failed.
     assert_eq!(sim_core(&[&fw("rvtest_fail")]).status.code(), Some(3));
+    // An unexpected trap with a0 = 0 fails as test 1337 (it once passed);
+    // the exit status keeps the low 8 bits: 1337 & 0xff = 57.
+    assert_eq!(sim_core(&[&fw("rvtest_trap")]).status.code(), Some(57));
 }
 
 #[test]

@@ -3,7 +3,8 @@
  * riscv-test-env/p/riscv_test.h, written from its documented behaviour):
  * machine-mode reset code that drops to user mode with mret, test number in
  * gp (x3), ecall to finish; the trap vector writes tohost = 1 (pass) or
- * (gp << 1) | 1 (fail of test gp) and spins.
+ * (gp << 1) | 1 (fail of test gp) and spins; any other trap is a failure
+ * (test 1337), whatever a0 holds.
  */
 #define TESTNUM gp
 
@@ -35,7 +36,10 @@ trap_vector:                               \
     beq t5, t6, write_tohost_result;       \
     li t6, 11; /* ecall from M */          \
     beq t5, t6, write_tohost_result;       \
-    li TESTNUM, 1337; /* unexpected */     \
+    /* an unexpected trap fails, whatever a0 \
+     * holds: test 1337 */                 \
+    li TESTNUM, (1337 << 1) | 1;           \
+    j write_tohost;                        \
 write_tohost_result:                       \
     sll TESTNUM, TESTNUM, 1;               \
     or TESTNUM, TESTNUM, 1;                \
