@@ -36,7 +36,11 @@ fn dataset_is_seeded_and_its_labels_are_projected_gates() {
     let bins = Bins::new();
     let tmp = tempfile::tempdir().unwrap();
     let world = world_file("thesis-course");
-    let (a, b, c) = (tmp.path().join("a"), tmp.path().join("b"), tmp.path().join("c"));
+    let (a, b, c) = (
+        tmp.path().join("a"),
+        tmp.path().join("b"),
+        tmp.path().join("c"),
+    );
     dataset(&bins, &world, "60", "7", &a);
     dataset(&bins, &world, "60", "7", &b);
     dataset(&bins, &world, "60", "8", &c);
@@ -45,7 +49,11 @@ fn dataset_is_seeded_and_its_labels_are_projected_gates() {
     files.push("dataset.json".into());
     assert_same_files(&a, &b, &files, "same seed");
     let read = |d: &Path, f: &str| std::fs::read(d.join(f)).unwrap();
-    assert_ne!(read(&a, "labels.csv"), read(&c, "labels.csv"), "another seed");
+    assert_ne!(
+        read(&a, "labels.csv"),
+        read(&c, "labels.csv"),
+        "another seed"
+    );
 
     let mut labels = csv::Reader::from_path(a.join("labels.csv")).unwrap();
     assert_eq!(
@@ -66,8 +74,14 @@ fn dataset_is_seeded_and_its_labels_are_projected_gates() {
         visible += 1;
         let num = |k: usize| row[k].parse::<f64>().unwrap();
         let (u, v, d) = (num(2), num(3), num(4));
-        assert!((0.0..320.0).contains(&u) && (0.0..320.0).contains(&v), "{row:?}");
-        assert!(d > 0.0 && d <= world_server::dataset::MAX_RANGE_M, "{row:?}");
+        assert!(
+            (0.0..320.0).contains(&u) && (0.0..320.0).contains(&v),
+            "{row:?}"
+        );
+        assert!(
+            d > 0.0 && d <= world_server::dataset::MAX_RANGE_M,
+            "{row:?}"
+        );
         let corners: Vec<f64> = row[5].split(' ').map(|x| x.parse().unwrap()).collect();
         assert_eq!(corners.len(), 8);
         let (cu, cv) = diagonals_cross(&corners);
@@ -76,12 +90,18 @@ fn dataset_is_seeded_and_its_labels_are_projected_gates() {
             "centre ({u}, {v}) but the diagonals cross at ({cu}, {cv}): {row:?}"
         );
         // Top-left is left of top-right and above bottom-left (as seen).
-        assert!(corners[0] < corners[2] && corners[1] < corners[7], "{row:?}");
+        assert!(
+            corners[0] < corners[2] && corners[1] < corners[7],
+            "{row:?}"
+        );
     }
     assert!(visible >= 20, "only {visible} of 60 images see a gate");
 
     for (args, want) in [
-        (vec!["--count", "0", "--seed", "1"], "--count must be at least 1"),
+        (
+            vec!["--count", "0", "--seed", "1"],
+            "--count must be at least 1",
+        ),
         (vec!["--count", "x", "--seed", "1"], "invalid value"),
     ] {
         let mut all = vec!["dataset", world.to_str().unwrap()];

@@ -138,8 +138,9 @@ struct Sample {
 }
 
 /// Renders and labels `spec.count` images of `world` into `out` (created if
-/// missing); returns the labels. Each image is written as it is made and
-/// `labels.csv` is flushed row by row, so an error leaves valid files.
+/// missing); returns the labels. Each image is written whole before its
+/// label row; on an error the rows so far are flushed (the writer's drop),
+/// so the files written stay valid and consistent.
 pub fn write_dataset(
     world: &WorldDesc,
     spec: &DatasetSpec,
@@ -162,8 +163,9 @@ pub fn write_dataset(
     });
     std::fs::write(&meta_path, format!("{meta:#}\n")).map_err(io_err(&meta_path))?;
     let csv_path = out.join("labels.csv");
-    let mut csv = std::io::BufWriter::new(std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?);
-    writeln!(csv, "file,gate_visible,u,v,distance_m,corners").map_err(io_err(&csv_path))?;
+    let mut rows =
+        std::io::BufWriter::new(std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?);
+    writeln!(rows, "file,gate_visible,u,v,distance_m,corners").map_err(io_err(&csv_path))?;
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let mut labels = Vec::with_capacity(spec.count);
     let mut pgm = Vec::with_capacity(16 + 320 * 320);
@@ -182,10 +184,10 @@ pub fn write_dataset(
             file,
             gate: nearest_visible_gate(&camera, &s.world, s.position, s.rotation),
         };
-        writeln!(csv, "{}", csv_row(&label)).map_err(io_err(&csv_path))?;
+        writeln!(rows, "{}", csv_row(&label)).map_err(io_err(&csv_path))?;
         labels.push(label);
     }
-    csv.flush().map_err(io_err(&csv_path))?;
+    rows.flush().map_err(io_err(&csv_path))?;
     Ok(labels)
 }
 
@@ -199,7 +201,10 @@ pub fn csv_row(l: &Label) -> String {
                 let sep = if k == 0 { "" } else { " " };
                 write!(corners, "{sep}{u:.3} {v:.3}").expect("to a String");
             }
-            format!("{},1,{:.3},{:.3},{:.4},{corners}", l.file, g.u, g.v, g.distance_m)
+            format!(
+                "{},1,{:.3},{:.3},{:.4},{corners}",
+                l.file, g.u, g.v, g.distance_m
+            )
         }
     }
 }
@@ -246,14 +251,21 @@ pub fn nearest_visible_gate(
         let half = g.inner.0 / 2.0;
         let corner = |a: f64, z: f64| {
             camera
-                .project(position, rotation, c + across * (a * half) + DVec3::Z * (z * half))
+                .project(
+                    position,
+                    rotation,
+                    c + across * (a * half) + DVec3::Z * (z * half),
+                )
                 .map(|(u, v, _)| (u, v))
         };
         // A corner behind the camera while the centre is in front: the gate
         // is too close to label its corners; skip it (rare, < 1 m).
-        let (Some(c0), Some(c1), Some(c2), Some(c3)) =
-            (corner(-1.0, 1.0), corner(1.0, 1.0), corner(1.0, -1.0), corner(-1.0, -1.0))
-        else {
+        let (Some(c0), Some(c1), Some(c2), Some(c3)) = (
+            corner(-1.0, 1.0),
+            corner(1.0, 1.0),
+            corner(1.0, -1.0),
+            corner(-1.0, -1.0),
+        ) else {
             continue;
         };
         best = Some(GateLabel {
@@ -309,7 +321,11 @@ fn draw_sample(world: &WorldDesc, spec: &DatasetSpec, rng: &mut ChaCha8Rng) -> O
             // half field of view 0.435 rad, so some aimed images miss it).
             let g = &w.gates[rng.random_range(0..w.gates.len())];
             let c = DVec3::from_array(g.centre.0);
-            let side = if rng.random_bool(0.5) { 0.0 } else { std::f64::consts::PI };
+            let side = if rng.random_bool(0.5) {
+                0.0
+            } else {
+                std::f64::consts::PI
+            };
             let bearing = g.yaw.0 + side + rng.random_range(-1.05..=1.05);
             let r = rng.random_range(0.8..=7.0);
             let mut p = c + DVec3::new(bearing.cos(), bearing.sin(), 0.0) * r;
@@ -323,7 +339,10 @@ fn draw_sample(world: &WorldDesc, spec: &DatasetSpec, rng: &mut ChaCha8Rng) -> O
                 rng.random_range(lo.y..=hi.y),
                 rng.random_range(lo.z..=hi.z),
             );
-            (p, rng.random_range(-std::f64::consts::PI..std::f64::consts::PI))
+            (
+                p,
+                rng.random_range(-std::f64::consts::PI..std::f64::consts::PI),
+            )
         };
         let t = spec.tilt_rad;
         let (roll, pitch) = (rng.random_range(-t..=t), rng.random_range(-t..=t));
