@@ -5,7 +5,7 @@ int8, numpy only (docs/NN.md):
 
 Prints JSON: per model, images, detection_rate (visible gates found),
 false_positive_rate (a gate reported in an image without one),
-mean_px_error / p95_px_error (centre, on the 320x320 image, over the
+mean_px_error / median_px_error / p95_px_error (centre, on the 320x320 image, over the
 detected gates) and mean_distance_error_m.
 """
 
@@ -51,6 +51,7 @@ def metrics(preds, labels):
         "detection_rate": round(len(found) / max(n_vis, 1), 4),
         "false_positive_rate": round(fp / max(len(labels) - n_vis, 1), 4),
         "mean_px_error": round(float(err.mean()), 2) if len(err) else None,
+        "median_px_error": round(float(np.median(err)), 2) if len(err) else None,
         "p95_px_error": round(float(np.percentile(err, 95)), 2) if len(err) else None,
         "mean_distance_error_m": round(float(derr.mean()), 3) if len(derr) else None,
     }

@@ -108,6 +108,7 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--heldout", help="a dataset to report accuracy on at the end")
     ap.add_argument("--limit", type=int, help="use only the first N images")
+    ap.add_argument("--init", help="start from this checkpoint (a further cosine cycle)")
     a = ap.parse_args()
     t0 = time.time()
     small, labels = netdef.load_dataset(a.data, a.limit)
@@ -120,6 +121,10 @@ def main():
 
     key = jax.random.PRNGKey(a.seed)
     params = init(key)
+    if a.init:
+        with np.load(a.init) as z:
+            params = {name: {"w": jnp.asarray(np.transpose(z[f"{name}.w"], (1, 2, 3, 0))),
+                             "b": jnp.asarray(z[f"{name}.b"])} for name, *_ in netdef.LAYERS}
     steps_per_epoch = len(x) // a.batch
     sched = optax.cosine_decay_schedule(a.lr, a.epochs * steps_per_epoch)
     opt = optax.adamw(sched, weight_decay=1e-4)
