@@ -104,9 +104,10 @@ fn dataset_is_seeded_and_its_labels_are_projected_gates() {
         ),
         (vec!["--count", "x", "--seed", "1"], "invalid value"),
     ] {
+        let bad = tmp.path().join("bad");
         let mut all = vec!["dataset", world.to_str().unwrap()];
         all.extend(args);
-        all.extend(["--out", tmp.path().join("bad").to_str().unwrap()]);
+        all.extend(["--out", bad.to_str().unwrap()]);
         let o = bins.cosim(&all);
         assert_eq!(o.status.code(), Some(2), "{}", text(&o));
         assert!(text(&o).contains(want), "{}", text(&o));
