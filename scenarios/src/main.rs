@@ -9,6 +9,7 @@
 //! - `cosim world SCENARIO --listen tcp:HOST:PORT`, `cosim run SCENARIO
 //!   --world-endpoint tcp:HOST:PORT` (a platform and its world on two hosts)
 //! - `cosim bench swarm [--sizes 1,2,4,8]`, `cosim bench race`
+//! - `cosim dataset WORLD --count N --seed S --out DIR` (labelled camera images)
 //! - `cosim list`
 
 use std::path::{Path, PathBuf};
@@ -139,6 +140,22 @@ enum Cmd {
     /// course's nominal positions: sideways in each gate's plane and
     /// vertically (`cosim world perturb ...` is the same command).
     Perturb(PerturbArgs),
+    /// Renders N labelled camera images (PGM + labels.csv) of a world's
+    /// course from random poses, gates moved and greys jittered (DESIGN.md
+    /// §13; docs/NN.md): the neural network's training and test data.
+    Dataset {
+        /// The world file (e.g. scenarios/worlds/thesis-course.toml).
+        world: PathBuf,
+        /// Number of images.
+        #[arg(long, value_name = "N")]
+        count: usize,
+        /// Seed of every draw (ChaCha8): same world, N and S give the same bytes.
+        #[arg(long, value_name = "S")]
+        seed: u64,
+        /// Output directory (created if missing).
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+    },
     /// Serves the world of a scenario on an endpoint, for one platform run
     /// elsewhere with `cosim run SCENARIO --world-endpoint ...`; exits after
     /// the run's STOP.
@@ -772,6 +789,21 @@ fn cmd_list() -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+fn cmd_dataset(world: &Path, count: usize, seed: u64, out: &Path) -> anyhow::Result<ExitCode> {
+    let desc = world_server::WorldDesc::load(world).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let spec = world_server::dataset::DatasetSpec::new(count, seed);
+    let start = std::time::Instant::now();
+    let labels = world_server::dataset::write_dataset(&desc, &spec, out)?;
+    let secs = start.elapsed().as_secs_f64();
+    let visible = labels.iter().filter(|l| l.gate.is_some()).count();
+    println!(
+        "cosim: {count} images ({visible} with a gate) -> {} in {secs:.1} s ({:.0} images/min)",
+        out.display(),
+        count as f64 / secs.max(1e-9) * 60.0
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -796,6 +828,12 @@ fn main() -> ExitCode {
             action: Some(WorldCmd::Perturb(p)),
             ..
         } => cmd_perturb(p),
+        Cmd::Dataset {
+            world,
+            count,
+            seed,
+            out,
+        } => cmd_dataset(&world, count, seed, &out),
         Cmd::World {
             action: None,
             scenario,

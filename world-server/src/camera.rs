@@ -103,18 +103,48 @@ impl Camera {
         &self.image
     }
 
-    /// Renders what the camera of a drone at `position`/`rotation` (body pose) sees.
-    pub fn render(&mut self, position: DVec3, rotation: DQuat) -> &[u8] {
-        let eye = position + rotation * DVec3::from_array(CAMERA_POSITION);
-        let view = View {
-            eye,
+    /// 1 / depth along the optical axis of the last rendered image, per pixel
+    /// (0 for the sky): what is nearest along each pixel's ray.
+    pub fn inv_depth(&self) -> &[f32] {
+        &self.inv_depth
+    }
+
+    /// The optical centre in the world for a drone at `position`/`rotation`.
+    pub fn eye(position: DVec3, rotation: DQuat) -> DVec3 {
+        position + rotation * DVec3::from_array(CAMERA_POSITION)
+    }
+
+    /// Where the world point `p` appears in the image of a drone at
+    /// `position`/`rotation`: `(u, v, depth)` with (u, v) in pixels from the
+    /// top-left corner of the top-left pixel (the renderer's convention) and
+    /// the depth along the optical axis (m); `None` behind the near plane.
+    pub fn project(&self, position: DVec3, rotation: DQuat, p: DVec3) -> Option<(f64, f64, f64)> {
+        let v = self.view(position, rotation);
+        let c = v.to_camera(p);
+        (c.z >= NEAR).then(|| {
+            (
+                v.half_w + v.focal * c.x / c.z,
+                v.half_h - v.focal * c.y / c.z,
+                c.z,
+            )
+        })
+    }
+
+    fn view(&self, position: DVec3, rotation: DQuat) -> View {
+        View {
+            eye: Camera::eye(position, rotation),
             fwd: rotation * DVec3::X,
             right: rotation * -DVec3::Y,
             up: rotation * DVec3::Z,
             focal: self.focal,
             half_w: self.width as f64 / 2.0,
             half_h: self.height as f64 / 2.0,
-        };
+        }
+    }
+
+    /// Renders what the camera of a drone at `position`/`rotation` (body pose) sees.
+    pub fn render(&mut self, position: DVec3, rotation: DQuat) -> &[u8] {
+        let view = self.view(position, rotation);
         self.draw_ground_and_sky(&view);
         // Moved out for the loop (no allocation) so faces can be drawn into `self`.
         let solids = std::mem::take(&mut self.solids);

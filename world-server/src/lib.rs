@@ -6,6 +6,7 @@
 
 pub mod camera;
 pub mod crazyflie;
+pub mod dataset;
 pub mod gates;
 pub mod lockstep;
 pub mod physics;

@@ -1,0 +1,136 @@
+"""The gate network's definition, shared by training, export and the int8
+reference (numpy only; docs/NN.md).
+
+Input: the 320x320 camera image averaged over 4x4 blocks (integer, rounded)
+to 80x80, minus 128, as int8 (float: that / 128). Six 3x3 convolutions with
+ReLU (four of stride 2) down to a 5x5 grid, then a 1x1 head: 12 channels per
+grid cell (one cell = 16x16 input pixels = 64x64 camera pixels):
+
+  0     objectness logit: "the nearest visible gate's centre is in this cell"
+  1, 2  centre - cell centre, (u, v), in cells (64 px)
+  3     distance / 8 m
+  4-11  the opening's corners - cell centre, (u0 v0 u1 v1 u2 v2 u3 v3), in cells
+
+Layout everywhere: activations HWC (channel fastest), weights
+[cout][kh][kw][cin] (the dot product runs over cin, 4 int8 per SIMD word).
+"""
+
+import csv
+import os
+
+import numpy as np
+
+CAMERA = 320
+POOL = 4  # camera pixels per input pixel (each way)
+INPUT = CAMERA // POOL  # 80
+GRID = 5
+CELL_PX = CAMERA // GRID  # 64 camera pixels per grid cell
+DIST_SCALE_M = 8.0
+
+# name, kernel, stride, pad, cin, cout, relu
+LAYERS = [
+    ("conv1", 3, 2, 1, 1, 8, True),
+    ("conv2", 3, 2, 1, 8, 16, True),
+    ("conv3", 3, 2, 1, 16, 32, True),
+    ("conv4", 3, 1, 1, 32, 32, True),
+    ("conv5", 3, 2, 1, 32, 64, True),
+    ("conv6", 3, 1, 1, 64, 64, True),
+    ("head", 1, 1, 0, 64, 12, False),
+]
+HEAD_CHANNELS = 12
+
+# The head's int16 output units (in the float head's units): objectness in
+# 1/64 logit, offsets in 1/16 camera pixel (a cell is 64 px: 1/1024 cell),
+# distance in mm (1/8000 of 8 m).
+HEAD_UNITS = np.array(
+    [1 / 64, 1 / 1024, 1 / 1024, 1 / 8000] + [1 / 1024] * 8, dtype=np.float64
+)
+
+
+def geometry():
+    """(in_h, in_w, out_h, out_w) of each layer."""
+    out, h = [], INPUT
+    for _, k, s, p, _, _, _ in LAYERS:
+        o = (h + 2 * p - k) // s + 1
+        out.append((h, h, o, o))
+        h = o
+    return out
+
+
+def macs():
+    """Multiply-accumulates per inference, per layer."""
+    return [
+        oh * ow * cout * k * k * cin
+        for (_, _, oh, ow), (_, k, _, _, cin, cout, _) in zip(geometry(), LAYERS)
+    ]
+
+
+def params():
+    return sum(k * k * cin * cout + cout for _, k, _, _, cin, cout, _ in LAYERS)
+
+
+def read_pgm(path):
+    """A binary (P5) 8-bit PGM as a (h, w) uint8 array."""
+    with open(path, "rb") as f:
+        data = f.read()
+    fields, pos = [], 0
+    while len(fields) < 4:
+        while data[pos : pos + 1].isspace():
+            pos += 1
+        if data[pos : pos + 1] == b"#":
+            pos = data.index(b"\n", pos) + 1
+            continue
+        end = pos
+        while not data[end : end + 1].isspace():
+            end += 1
+        fields.append(data[pos:end])
+        pos = end
+    if fields[0] != b"P5" or int(fields[3]) != 255:
+        raise ValueError(f"{path}: not an 8-bit binary PGM")
+    w, h = int(fields[1]), int(fields[2])
+    pixels = np.frombuffer(data, dtype=np.uint8, count=w * h, offset=pos + 1)
+    return pixels.reshape(h, w)
+
+
+def downsample(images):
+    """(n, 320, 320) uint8 -> (n, 80, 80) uint8: the rounded mean of each 4x4
+    block, (sum + 8) >> 4, exactly as the firmware does it."""
+    n = images.shape[0]
+    s = images.reshape(n, INPUT, POOL, INPUT, POOL).astype(np.int32).sum(axis=(2, 4))
+    return ((s + 8) >> 4).astype(np.uint8)
+
+
+def to_int8(small):
+    """(n, 80, 80) uint8 -> (n, 80, 80, 1) int8: pixel - 128."""
+    return (small.astype(np.int16) - 128).astype(np.int8)[..., None]
+
+
+def read_labels(directory):
+    """labels.csv as a list of dicts: file, visible (bool), u, v, distance_m,
+    corners (8 floats) for visible rows."""
+    rows = []
+    with open(os.path.join(directory, "labels.csv"), newline="") as f:
+        for r in csv.DictReader(f):
+            vis = r["gate_visible"] == "1"
+            row = {"file": r["file"], "visible": vis}
+            if vis:
+                row["u"] = float(r["u"])
+                row["v"] = float(r["v"])
+                row["distance_m"] = float(r["distance_m"])
+                row["corners"] = [float(x) for x in r["corners"].split()]
+            rows.append(row)
+    return rows
+
+
+def load_dataset(directory, limit=None):
+    """(inputs (n, 80, 80) uint8, labels) of a `cosim dataset` directory."""
+    labels = read_labels(directory)[:limit]
+    small = np.empty((len(labels), INPUT, INPUT), dtype=np.uint8)
+    for i, r in enumerate(labels):
+        small[i] = downsample(read_pgm(os.path.join(directory, r["file"]))[None])[0]
+    return small, labels
+
+
+def cell_centre(gx, gy):
+    """Camera pixel of a grid cell's centre."""
+    return gx * CELL_PX + CELL_PX / 2, gy * CELL_PX + CELL_PX / 2

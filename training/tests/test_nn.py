@@ -1,0 +1,85 @@
+"""The committed network's artefacts agree with each other (numpy only, no
+JAX): `python3 -m pytest training/tests` (docs/NN.md).
+
+- the committed C weights are exactly the export of the committed checkpoint;
+- the int8 reference reproduces the committed golden outputs bit for bit;
+- the int8 arithmetic is the documented one, on a layer small enough to
+  compute by hand;
+- int8 and float agree on the golden images (same cell, centre within 4 px).
+"""
+
+import json
+import os
+import sys
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(HERE))
+import export  # noqa: E402
+import int8_ref  # noqa: E402
+import make_golden  # noqa: E402
+import netdef  # noqa: E402
+
+
+def test_committed_c_weights_are_the_export_of_the_checkpoint():
+    ckpt = export.load_checkpoint(export.DEFAULT_CHECKPOINT)
+    h, c = export.c_sources(export.quantize(ckpt), json.loads(str(ckpt["meta"])))
+    for name, want in (("weights.h", h), ("weights.c", c)):
+        with open(os.path.join(export.DEFAULT_OUT, name)) as f:
+            assert f.read() == want, f"{name} differs: run python3 training/export.py"
+
+
+def test_int8_reference_reproduces_the_golden_outputs():
+    with open(os.path.join(make_golden.GOLDEN, "golden.json")) as f:
+        committed = json.load(f)
+    assert len(committed["images"]) >= 5
+    assert any(e["outputs"]["visible"] for e in committed["images"])
+    assert committed == make_golden.golden()
+
+
+def test_requantization_rounds_half_up_and_pads_with_zeros():
+    # One 3x3 stride-2 convolution, 1 -> 1 channel, on a 2x2 input of 1s:
+    # output (0, 0) sees in[0..1][0..1] at taps (1..2, 1..2), the rest is
+    # padding.
+    layer = {"k": 3, "stride": 2, "pad": 1, "cout": 1,
+             "w": np.arange(1, 10, dtype=np.int8).reshape(1, 3, 3, 1),
+             "bias": np.array([-3], np.int32), "mult": np.array([3], np.int32),
+             "shift": 2, "lo": 0, "hi": 127}
+    x = np.ones((1, 2, 2, 1), np.int8)
+    acc = (5 + 6 + 8 + 9) - 3  # 25
+    got = int8_ref.layer_int8(layer, x)
+    assert got.shape == (1, 1, 1, 1)
+    assert int(got[0, 0, 0, 0]) == (acc * 3 + 2) >> 2 == 19  # 75/4 = 18.75
+    # Exactly half: 2 * 3 = 6, 6/4 = 1.5 -> 2 (half up); negative: ReLU clip.
+    layer["bias"] = np.array([2 - 28], np.int32)
+    assert int(int8_ref.layer_int8(layer, x)[0, 0, 0, 0]) == 2
+    layer["bias"] = np.array([-30 - 28], np.int32)
+    assert int(int8_ref.layer_int8(layer, x)[0, 0, 0, 0]) == 0
+    # -1.5 rounds half up to -1 (the head's clip range keeps the sign).
+    layer.update(lo=-32768, hi=32767, bias=np.array([-2 - 28], np.int32))
+    assert int(int8_ref.layer_int8(layer, x)[0, 0, 0, 0]) == -1
+
+
+def test_downsampling_rounds_the_block_mean():
+    img = np.zeros((1, 320, 320), np.uint8)
+    img[0, :4, 0] = 1  # sum 4 -> (4+8)>>4 = 0
+    img[0, :4, 4:8] = 1  # sum 16 -> 1
+    img[0, :4, 8:12] = [[1, 1, 0, 0]] * 4  # sum 8 -> (8+8)>>4 = 1 (half up)
+    small = netdef.downsample(img)
+    assert small[0, 0, :3].tolist() == [0, 1, 1]
+
+
+def test_int8_agrees_with_float_on_the_golden_images():
+    ckpt = export.load_checkpoint(export.DEFAULT_CHECKPOINT)
+    q = export.quantize(ckpt)
+    for r in netdef.read_labels(make_golden.GOLDEN):
+        image = netdef.read_pgm(os.path.join(make_golden.GOLDEN, r["file"]))
+        x, head, out = int8_ref.infer_image(q, image)
+        f = int8_ref.float_forward(ckpt, x[None].astype(np.float64) / 128.0)[0]
+        best = np.unravel_index(np.argmax(f[..., 0]), f.shape[:2])
+        if out["visible"] and f[best][0] > 0.5:
+            assert tuple(out["cell"][::-1]) == tuple(int(i) for i in best)
+            cu, cv = netdef.cell_centre(best[1], best[0])
+            fu, fv = cu + f[best][1] * netdef.CELL_PX, cv + f[best][2] * netdef.CELL_PX
+            assert abs(out["u_q4"] / 16 - fu) < 4 and abs(out["v_q4"] / 16 - fv) < 4
