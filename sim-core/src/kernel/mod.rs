@@ -270,6 +270,7 @@ impl<W: WorldLink> Run<W> {
             let motor = self.platform.motors.state;
             let sample = self.power.sample(t, &loads, &motor)?;
             self.platform.battery_low = sample.low_battery;
+            self.platform.motors.speed_cap = self.power.motor_speed_cap();
         }
         Ok(())
     }
