@@ -131,6 +131,32 @@ mod tests {
     }
 
     #[test]
+    fn a_crazyflie_at_hover_current_loses_hover_speed_just_before_empty() {
+        use super::super::battery::Battery;
+        use super::super::motor_drive::speed_cap;
+        use crate::units::Amps;
+        // The empirical model's hover draw (2.62 A motors + 0.16 A VCC,
+        // hover-endurance's power.csv) and the simulator's hover speed.
+        let i = Amps(2.78);
+        let hover = (0.05f64 * 9.81 / (4.0 * 4e-5)).sqrt();
+        let mut b = Battery::full(BatteryModel::LiPol250).with_load(BatteryLoad::Sag);
+        let mut lost_at = None;
+        while b.soc() > 0.0 {
+            if lost_at.is_none() && speed_cap(b.voltage(i)) < hover {
+                lost_at = Some(b.soc());
+            }
+            b.step(i, 0.1);
+        }
+        // By hand: at SOC 2.2 %, v_oc 4.10 − 0.47 = 3.63 V, R 0.363 Ω,
+        // 3.63 − 2.78·0.363 = 2.62 V < 55.37 / 21.06 = 2.63 V.
+        let soc = lost_at.expect("hover lost before empty");
+        assert!((0.015..0.03).contains(&soc), "{soc}");
+        // At 10 % it still has a fifth more speed than hover needs.
+        let b10 = Battery::new(BatteryModel::LiPol250, 0.1, 0.0, 0.1).with_load(BatteryLoad::Sag);
+        assert!(speed_cap(b10.voltage(i)) > 1.2 * hover);
+    }
+
+    #[test]
     fn names_parse() {
         assert_eq!("sag".parse::<BatteryLoad>(), Ok(BatteryLoad::Sag));
         assert_eq!("Thesis".parse::<BatteryLoad>(), Ok(BatteryLoad::Thesis));
