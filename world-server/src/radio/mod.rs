@@ -281,11 +281,16 @@ impl Channel {
                 resolved: resolved.0,
             });
         }
+        // The chip stamps the frame when it leaves its digital part (the
+        // platform's start, also a delayed TX's programmed time); the
+        // antenna radiates it tx_delay later (DESIGN.md §16; 0 with the
+        // "ideal" profile).
+        let tx_stamp = (radio == Radio::Uwb).then(|| dw1000_stamp(start, d.clock_ppt, d.phase).0);
+        let start = match radio {
+            Radio::Uwb => link::shift(start, d.tx_delay),
+            Radio::P2p => start,
+        };
         let end = start + radio.airtime(data.len());
-        // The chip stamps the frame's start tx_delay before it leaves the
-        // antenna (DESIGN.md §16; 0 with the "ideal" profile).
-        let tx_stamp = (radio == Radio::Uwb)
-            .then(|| dw1000_stamp(link::shift(start, -d.tx_delay), d.clock_ppt, d.phase).0);
         let number = d.frames_sent;
         d.frames_sent += 1;
         let frame = Arc::new(Frame {

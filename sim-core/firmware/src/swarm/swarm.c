@@ -9,7 +9,9 @@
  * "ideal" radio profile, whose stamps carry no antenna delay; seed 003
  * §6.4.2's one constant, 515.7 ns = 32 952 ticks of 15.65 ps, for the
  * "dw1000" profile, whose chips each have their own delays (DESIGN.md §16). */
-volatile int32_t swarm_antenna_delay_ticks = 0;
+/* In .data: a zero-initialised global would sit in .bss, which the start
+ * file clears after the kernel has written the parameter. */
+__attribute__((section(".data"))) volatile int32_t swarm_antenna_delay_ticks = 0;
 
 void swarm_default_settings(swarm_settings_t *s)
 {
