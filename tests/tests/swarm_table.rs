@@ -215,7 +215,12 @@ fn window_means(rows: &[Row], drone: &str) -> Vec<(f64, f64, f64, f64)> {
             assert!(sel.len() > 900, "{drone} in [{from}, {to}): {}", sel.len());
             let n = sel.len() as f64;
             let m = |f: fn(&Row) -> f64| sel.iter().map(|r| f(r)).sum::<f64>() / n;
-            (m(|r| r.est_x), m(|r| r.est_y), m(|r| r.true_x), m(|r| r.true_y))
+            (
+                m(|r| r.est_x),
+                m(|r| r.est_y),
+                m(|r| r.true_x),
+                m(|r| r.true_y),
+            )
         })
         .collect()
 }
@@ -269,7 +274,10 @@ fn swarm_table_as_measured_and_ideal() {
         assert!((0.02..=0.20).contains(&(x - 1.0).abs()), "C at {x:.3} m");
     }
     let mean_a = a_err.iter().sum::<f64>() / 4.0;
-    assert!((0.03..=0.40).contains(&mean_a), "A's mean error {mean_a:.3} m");
+    assert!(
+        (0.03..=0.40).contains(&mean_a),
+        "A's mean error {mean_a:.3} m"
+    );
 
     let ideal = run(
         "ideal",
@@ -286,7 +294,10 @@ fn swarm_table_as_measured_and_ideal() {
     for (drone, bound) in bounds {
         for ((x, y, tx, ty), bound) in window_means(&ideal, drone).into_iter().zip(bound) {
             let e = ((x - tx).powi(2) + (y - ty).powi(2)).sqrt();
-            assert!(e < bound, "ideal: {drone} at ({x:.3}, {y:.3}) for ({tx}, {ty})");
+            assert!(
+                e < bound,
+                "ideal: {drone} at ({x:.3}, {y:.3}) for ({tx}, {ty})"
+            );
         }
     }
 }

@@ -144,7 +144,10 @@ fn reception_fades_out_near_the_range_limit() {
         ch.take(1, Picos(2_500 * MS)).0.len() as f64 / 400.0
     };
     let near = share(5.0);
-    assert!((near - 0.977).abs() < 0.03, "6 dB above the edge: Φ(2) = 97.7 %, got {near}");
+    assert!(
+        (near - 0.977).abs() < 0.03,
+        "6 dB above the edge: Φ(2) = 97.7 %, got {near}"
+    );
     let at_limit = share(10.0);
     assert!((at_limit - 0.5).abs() < 0.08, "{at_limit}");
     let beyond = share(14.0);

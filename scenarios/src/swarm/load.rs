@@ -239,8 +239,10 @@ mod tests {
              swarm load t=2000 id=1 n=1 tx=50 rx=40 swarm_cycles=10 output_cycles=5 busy_cycles=20 second_cycles=100
 ",
         );
-        let b = parse("swarm load t=2000 id=2 n=1 tx=5 rx=60
-");
+        let b = parse(
+            "swarm load t=2000 id=2 n=1 tx=5 rx=60
+",
+        );
         let rows = load_rows(&a, &[&b]);
         assert_eq!(rows[0].ratio_sent, None);
         let md = load_markdown("a", &rows, None);

@@ -117,7 +117,9 @@ impl RadioConfig {
     pub fn uwb(&self) -> Uwb {
         let p = Uwb::of(self.profile);
         Uwb {
-            antenna_delay_sd_ps: self.uwb_antenna_delay_sd_ps.unwrap_or(p.antenna_delay_sd_ps),
+            antenna_delay_sd_ps: self
+                .uwb_antenna_delay_sd_ps
+                .unwrap_or(p.antenna_delay_sd_ps),
             antenna_delays: p.antenna_delays || self.uwb_antenna_delay_sd_ps.is_some(),
             nlos_bias_m: self.uwb_nlos_bias_m.unwrap_or(p.nlos_bias_m),
             nlos_sd_m: self.uwb_nlos_sd_m.unwrap_or(p.nlos_sd_m),
@@ -161,7 +163,9 @@ impl RadioConfig {
         for (key, v) in optional {
             match v {
                 Some(v) if !v.is_finite() || v < 0.0 => {
-                    return Err(format!("[radio] {key} must be a finite number >= 0, got {v}"))
+                    return Err(format!(
+                        "[radio] {key} must be a finite number >= 0, got {v}"
+                    ))
                 }
                 _ => {}
             }
@@ -249,8 +253,7 @@ mod tests {
         assert_eq!(c.uwb(), Uwb::IDEAL);
         let c: RadioConfig = toml::from_str("profile = \"dw1000\"").unwrap();
         assert_eq!(c.uwb(), Uwb::DW1000);
-        let c: RadioConfig =
-            toml::from_str("profile = \"dw1000\"\nuwb_nlos_bias_m = 0.5").unwrap();
+        let c: RadioConfig = toml::from_str("profile = \"dw1000\"\nuwb_nlos_bias_m = 0.5").unwrap();
         assert_eq!(c.uwb().nlos_bias_m, 0.5);
         assert_eq!(c.uwb().nlos_sd_m, Uwb::DW1000.nlos_sd_m);
         assert!(toml::from_str::<RadioConfig>("profile = \"real\"").is_err());

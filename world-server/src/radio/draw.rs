@@ -50,7 +50,10 @@ pub fn clock_phase(seed: u64, drone: usize) -> Picos {
 /// (the channel scales them by `uwb_antenna_delay_sd_ps`).
 pub fn antenna_delays(seed: u64, drone: usize) -> (f64, f64) {
     let mut rng = stream(seed, Domain::AntennaDelay, drone as u32, 0, 0);
-    (StandardNormal.sample(&mut rng), StandardNormal.sample(&mut rng))
+    (
+        StandardNormal.sample(&mut rng),
+        StandardNormal.sample(&mut rng),
+    )
 }
 
 /// A standard normal draw for a sensor reading of drone `drone` at world

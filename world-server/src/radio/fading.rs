@@ -78,7 +78,8 @@ impl Shadowing {
             None => self.sd_db * w,
             Some(p) => {
                 let moved = dist(p.a, a) + dist(p.b, b);
-                let rho = (-(t_s - p.t_s).abs() / self.tau_s).exp() * (-moved / self.decorr_m).exp();
+                let rho =
+                    (-(t_s - p.t_s).abs() / self.tau_s).exp() * (-moved / self.decorr_m).exp();
                 rho * p.db + (1.0 - rho * rho).max(0.0).sqrt() * self.sd_db * w
             }
         };
@@ -98,7 +99,9 @@ mod tests {
     fn rayleigh_in_db_is_centred_and_has_its_known_spread() {
         // Midpoint rule over u: mean 0, σ = 10/ln10 · π/√6 = 5.57 dB.
         let n = 200_000;
-        let xs: Vec<f64> = (0..n).map(|i| rayleigh_db((i as f64 + 0.5) / n as f64)).collect();
+        let xs: Vec<f64> = (0..n)
+            .map(|i| rayleigh_db((i as f64 + 0.5) / n as f64))
+            .collect();
         let mean = xs.iter().sum::<f64>() / n as f64;
         let sd = (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
         assert!(mean.abs() < 0.01, "{mean}");

@@ -71,7 +71,12 @@ impl Body {
             return false;
         };
         // The horizontal segment between t0 and t1, closest to the axis.
-        let p = |t: f64| [a[0] + t * (b[0] - a[0]) - at[0], a[1] + t * (b[1] - a[1]) - at[1]];
+        let p = |t: f64| {
+            [
+                a[0] + t * (b[0] - a[0]) - at[0],
+                a[1] + t * (b[1] - a[1]) - at[1],
+            ]
+        };
         let (p0, p1) = (p(t0), p(t1));
         let d = [p1[0] - p0[0], p1[1] - p0[1]];
         let len2 = d[0] * d[0] + d[1] * d[1];

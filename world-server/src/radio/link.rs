@@ -127,7 +127,8 @@ impl Channel {
                             (p_to, p_from)
                         };
                         let t_s = frame.start.0 as f64 * 1e-12;
-                        let next = s.next(self.shadows.get(&key).copied(), t_s, a, b, draws.shadowing);
+                        let next =
+                            s.next(self.shadows.get(&key).copied(), t_s, a, b, draws.shadowing);
                         self.shadows.insert(key, next);
                         rssi += next.db;
                     }

@@ -173,17 +173,17 @@ impl Channel {
             .map(|(i, desc)| {
                 let (tx_delay, rx_delay) = link::antenna_delays(cfg.seed, i, &uwb);
                 Drone {
-                clock_ppt: ppm_to_ppt(desc.clock_ppm),
-                phase: draw::clock_phase(cfg.seed, i),
-                tx_delay,
-                rx_delay,
-                desc,
-                retired: false,
-                frames_sent: 0,
-                own: Vec::new(),
-                inbox: Vec::new(),
-                outbox: Vec::new(),
-            }
+                    clock_ppt: ppm_to_ppt(desc.clock_ppm),
+                    phase: draw::clock_phase(cfg.seed, i),
+                    tx_delay,
+                    rx_delay,
+                    desc,
+                    retired: false,
+                    frames_sent: 0,
+                    own: Vec::new(),
+                    inbox: Vec::new(),
+                    outbox: Vec::new(),
+                }
             })
             .collect();
         Channel {
