@@ -1,8 +1,8 @@
 //! The "dw1000" UWB profile (DESIGN.md §16) against closed form: per-chip
-//! antenna delays bias an SDS-TWR range by (δ_A + δ_B)·c/2 (δ = a chip's TX
-//! + RX delay beyond the nominal the firmware subtracts), NLOS only when the
-//! direct path crosses a box or a drone's body, the reception edge near the
-//! range limit; "ideal" keeps the stamps of DESIGN.md §8.
+//! antenna delays bias an SDS-TWR range by (δ_A + δ_B)·c/2, with δ a chip's
+//! TX plus RX delay beyond the nominal the firmware subtracts; NLOS only
+//! when the direct path crosses a box or a drone's body; the reception edge
+//! near the range limit; "ideal" keeps the stamps of DESIGN.md §8.
 
 use protocol::radio::{Dw1000Ticks, Picos, Radio, DW1000_TICKS_PER_SECOND};
 use world_server::radio::geometry::Obstacle;
