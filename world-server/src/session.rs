@@ -26,6 +26,7 @@ use crate::camera::{write_png, Camera};
 use crate::crazyflie::MotorCommands;
 use crate::lockstep::{Lockstep, Next};
 use crate::physics::{StepConfig, World, WorldError};
+use crate::radio::geometry::Obstacle;
 use crate::radio::{Channel, DroneRadio};
 use crate::time::Millis;
 use crate::trajectory::TrajectoryWriter;
@@ -172,7 +173,8 @@ impl Session {
                     radios: d.radios.clone(),
                 })
                 .collect(),
-        );
+        )
+        .with_obstacles(desc.boxes.iter().map(Obstacle::from).collect());
         if let Some(path) = outputs.radio_log {
             let f = std::fs::File::create(path).map_err(|source| SessionError::Output {
                 path: path.to_path_buf(),

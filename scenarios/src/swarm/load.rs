@@ -37,9 +37,12 @@ pub struct LoadRow {
     /// rx / (own tx × neighbours), the seed's definition.
     pub ratio_seed: f64,
     /// rx / (what the neighbours actually sent in that second): their
-    /// lines of the same firmware second (meaningful for carried drones,
-    /// whose firmware clocks start together; not in flight).
-    pub ratio_sent: f64,
+    /// lines of the same firmware second. Only for carried drones, whose
+    /// firmware clocks start together; `None` in flight, where a flying
+    /// core's clock runs ahead of the world's by its own amount
+    /// (docs/SWARM_RESULTS.md §5) and the "same second" of two drones are
+    /// different seconds of the world (issue 21: it read 643 %).
+    pub ratio_sent: Option<f64>,
     /// Share of the core's cycles in the library (ranging + estimation).
     pub swarm_share: f64,
     /// Share in the 100 Hz output (formatting + the console write).
@@ -51,8 +54,11 @@ pub struct LoadRow {
 /// The observer's per-second lines grouped by its neighbour count (a
 /// second whose count differs from the one before is a transition, left
 /// out); the neighbours' transmissions from their own lines of the same
-/// second.
+/// second, unless a drone flies (an estimate with `world_us=`).
 pub fn load_rows(observer: &SwarmConsole, others: &[&SwarmConsole]) -> Vec<LoadRow> {
+    let flying = std::iter::once(observer)
+        .chain(others.iter().copied())
+        .any(|c| c.estimates.iter().any(|e| e.world_us.is_some()));
     let sent_at = |t: u64| -> u64 {
         others
             .iter()
@@ -93,11 +99,13 @@ pub fn load_rows(observer: &SwarmConsole, others: &[&SwarmConsole]) -> Vec<LoadR
                 } else {
                     0.0
                 },
-                ratio_sent: if sent > 0 {
-                    sum("rx") / sent as f64
-                } else {
-                    0.0
-                },
+                ratio_sent: (!flying).then(|| {
+                    if sent > 0 {
+                        sum("rx") / sent as f64
+                    } else {
+                        0.0
+                    }
+                }),
                 swarm_share: sum("swarm_cycles") / cycles,
                 output_share: sum("output_cycles") / cycles,
                 busy_share: sum("busy_cycles") / cycles,
@@ -174,10 +182,9 @@ pub fn load_markdown(observer: &str, rows: &[LoadRow], ram: Option<Ram>) -> Stri
                 "–".into()
             },
             seed(&SEED_RATIO, r.neighbours),
-            if r.neighbours > 0 {
-                pct(r.ratio_sent)
-            } else {
-                "–".into()
+            match r.ratio_sent {
+                Some(v) if r.neighbours > 0 => pct(v),
+                _ => "–".into(),
             },
             pct(r.swarm_share),
             pct(r.output_share),
@@ -218,7 +225,29 @@ mod tests {
         assert_eq!((rows[0].neighbours, rows[0].seconds), (0, 1));
         assert_eq!((rows[1].neighbours, rows[1].seconds), (1, 1));
         assert!((rows[1].ratio_seed - 0.6).abs() < 1e-12);
-        assert!((rows[1].ratio_sent - 0.75).abs() < 1e-12);
+        assert!((rows[1].ratio_sent.unwrap() - 0.75).abs() < 1e-12);
         assert!((rows[1].swarm_share - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn in_flight_the_sent_ratio_is_a_dash() {
+        // A flying drone prints world_us=: the firmware seconds of two
+        // drones are not the same world second.
+        let a = parse(
+            "swarm t=500 id=1 frame=built n=1 1=0,0,0,5,s world_us=2600000
+             swarm load t=1000 id=1 n=1 tx=50 rx=40 swarm_cycles=10 output_cycles=5 busy_cycles=20 second_cycles=100
+             swarm load t=2000 id=1 n=1 tx=50 rx=40 swarm_cycles=10 output_cycles=5 busy_cycles=20 second_cycles=100
+",
+        );
+        let b = parse(
+            "swarm load t=2000 id=2 n=1 tx=5 rx=60
+",
+        );
+        let rows = load_rows(&a, &[&b]);
+        assert_eq!(rows[0].ratio_sent, None);
+        let md = load_markdown("a", &rows, None);
+        let row = md.lines().find(|l| l.starts_with("| 1 |")).unwrap();
+        // columns: n, seconds, tx/s, rx/s, rx/(tx n), seed, rx/sent
+        assert_eq!(row.split('|').nth(7).unwrap().trim(), "–", "{row}");
     }
 }

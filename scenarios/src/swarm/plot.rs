@@ -119,6 +119,7 @@ pub fn swarm_top_view(
     }
     // Links under the paths, so a path stays visible across them.
     let most = links.iter().map(|l| l.frames).max().unwrap_or(0).max(1);
+    let mut labels = Vec::new();
     for (k, l) in links.iter().filter(|l| l.frames > 0).enumerate() {
         let (Some(a), Some(b)) = (drones.get(l.a), drones.get(l.b)) else {
             continue;
@@ -137,17 +138,20 @@ pub fn swarm_top_view(
                     PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.5).stroke_width(3))
                 });
         }
-        let mid = ((pa.0 + pb.0) / 2.0, (pa.1 + pb.1) / 2.0);
-        // Above the line, so the line does not cross the text.
-        chart
-            .draw_series(std::iter::once(
-                EmptyElement::at(mid)
-                    + Text::new(
-                        format!("{} frames", l.frames),
-                        (-30, -22),
-                        (FONT, 14).into_font().color(&BLACK.mix(0.8)),
-                    ),
-            ))
+        labels.push((
+            chart.backend_coord(&pa),
+            chart.backend_coord(&pb),
+            format!("{} frames", l.frames),
+        ));
+    }
+    // The labels where they do not cover each other (issue 21: the links of
+    // a square of drones cross at the centre, and their mid-points with
+    // them): each on its own line, at the first free place along it.
+    let segments: Vec<_> = labels.iter().map(|(a, b, _)| (*a, *b)).collect();
+    let sizes: Vec<_> = labels.iter().map(|(_, _, t)| label_size(t)).collect();
+    let font = (FONT, 14).into_font().color(&BLACK.mix(0.8));
+    for ((_, _, text), at) in labels.iter().zip(place_labels(&segments, &sizes)) {
+        root.draw(&Text::new(text.clone(), at, font.clone()))
             .map_err(|e| err(path, e))?;
     }
     for (i, d) in drones.iter().enumerate() {
@@ -184,9 +188,67 @@ pub fn swarm_top_view(
     root.present().map_err(|e| err(path, e))
 }
 
+/// A pixel position on the drawing area.
+type Px = (i32, i32);
+
+/// The box of a link label at 14 px (DejaVu Sans: about 7.5 px a character).
+fn label_size(text: &str) -> Px {
+    ((text.chars().count() as f64 * 7.5).ceil() as i32, 16)
+}
+
+/// Where to put each label (its top-left corner, pixels): along its segment
+/// at the first of the fractions 1/2, 1/3, 2/3, 1/4, 3/4, 1/6, 5/6 whose box,
+/// centred there and lifted above the line, covers no label already placed;
+/// at the middle when none is free.
+fn place_labels(segments: &[(Px, Px)], sizes: &[Px]) -> Vec<Px> {
+    const ALONG: [f64; 7] = [0.5, 1.0 / 3.0, 2.0 / 3.0, 0.25, 0.75, 1.0 / 6.0, 5.0 / 6.0];
+    let mut placed: Vec<(Px, Px)> = Vec::new();
+    for (&(a, b), &(w, h)) in segments.iter().zip(sizes) {
+        let at = |f: f64| -> Px {
+            let x = a.0 as f64 + f * (b.0 - a.0) as f64;
+            let y = a.1 as f64 + f * (b.1 - a.1) as f64;
+            (x.round() as i32 - w / 2, y.round() as i32 - h - 4)
+        };
+        let free = |p: Px| {
+            placed.iter().all(|&(q, (qw, qh))| {
+                p.0 + w <= q.0 || q.0 + qw <= p.0 || p.1 + h <= q.1 || q.1 + qh <= p.1
+            })
+        };
+        let p = ALONG
+            .iter()
+            .map(|&f| at(f))
+            .find(|&p| free(p))
+            .unwrap_or_else(|| at(0.5));
+        placed.push((p, (w, h)));
+    }
+    placed.into_iter().map(|(p, _)| p).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn crossing_links_get_labels_apart() {
+        // A square's two diagonals and two sides through the same middle.
+        let segments = [
+            ((100, 100), (500, 500)),
+            ((100, 500), (500, 100)),
+            ((100, 300), (500, 300)),
+            ((300, 100), (300, 500)),
+        ];
+        let sizes = [label_size("4102 frames"); 4];
+        let at = place_labels(&segments, &sizes);
+        for i in 0..4 {
+            for j in 0..i {
+                let (p, q, (w, h)) = (at[i], at[j], sizes[i]);
+                let apart = p.0 + w <= q.0 || q.0 + w <= p.0 || p.1 + h <= q.1 || q.1 + h <= p.1;
+                assert!(apart, "labels {i} and {j} overlap: {at:?}");
+            }
+        }
+        // The first one is at the middle of its line, lifted above it.
+        assert_eq!(at[0], (300 - sizes[0].0 / 2, 300 - 16 - 4));
+    }
 
     #[test]
     fn a_swarm_top_view_is_a_png_and_anchors_are_means() {

@@ -13,6 +13,7 @@ use std::str::FromStr;
 
 use crate::power::battery::{BatteryModel, CurveAxis};
 use crate::power::models::{ModelParams, PowerModelKind};
+use crate::power::sag::BatteryLoad;
 pub use crate::sync::SyncMode;
 
 use super::ConfigError;
@@ -112,7 +113,7 @@ impl fmt::Display for DebugLevel {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 16] = [
+pub const RUN_KEYS: [(&str, &str); 18] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -124,6 +125,14 @@ pub const RUN_KEYS: [(&str, &str); 16] = [
     (
         "battery_curve",
         "variable of the v_oc/r_s polynomials: soc (thesis) | discharged (1 - SOC)",
+    ),
+    (
+        "battery_load",
+        "thesis (the thesis's curves, motors up to 600 rad/s) | sag (internal resistance, end-of-discharge knee, motor speed capped by the voltage; DESIGN.md §16)",
+    ),
+    (
+        "soc_low",
+        "BATTERY_LOW threshold in % SOC (default: the platform file's, 10)",
     ),
     (
         "debug_level",
@@ -181,6 +190,10 @@ pub struct RunConfig {
     pub battery: Option<BatteryModel>,
     /// Which variable the battery polynomials are evaluated at.
     pub battery_curve: CurveAxis,
+    /// How the battery behaves under load (sag, motor speed cap).
+    pub battery_load: BatteryLoad,
+    /// BATTERY_LOW threshold (% SOC); `None` takes the platform file's.
+    pub soc_low: Option<f64>,
     /// Debug level.
     pub debug_level: DebugLevel,
     /// PID tolerance in m.
@@ -228,6 +241,8 @@ impl Default for RunConfig {
             power_model: PowerModelKind::Empirical,
             battery: Some(BatteryModel::LiPol250),
             battery_curve: CurveAxis::Discharged,
+            battery_load: BatteryLoad::Thesis,
+            soc_low: None,
             debug_level: DebugLevel::None,
             tolerance: 0.1,
             target_cycles: 100,
@@ -322,6 +337,15 @@ impl RunConfig {
                 }
             }
             "battery_curve" => self.battery_curve = parse(value).map_err(bad)?,
+            "battery_load" => self.battery_load = parse(value).map_err(bad)?,
+            "soc_low" if value.trim().eq_ignore_ascii_case("platform") => self.soc_low = None,
+            "soc_low" => {
+                let v = parse_non_negative(value).map_err(bad)?;
+                if v > 100.0 {
+                    return Err(bad("a percentage in [0, 100]".into()));
+                }
+                self.soc_low = Some(v)
+            }
             "debug_level" => self.debug_level = parse(value).map_err(bad)?,
             "tolerance" => self.tolerance = parse_positive(value).map_err(bad)?,
             "target_cycles" => self.target_cycles = parse_count(value).map_err(bad)?,
@@ -375,6 +399,10 @@ impl RunConfig {
                 .battery
                 .map_or_else(|| "platform".to_string(), |b| b.to_string()),
             "battery_curve" => self.battery_curve.to_string(),
+            "battery_load" => self.battery_load.to_string(),
+            "soc_low" => self
+                .soc_low
+                .map_or_else(|| "platform".to_string(), |v| v.to_string()),
             "debug_level" => self.debug_level.to_string(),
             "tolerance" => self.tolerance.to_string(),
             "target_cycles" => self.target_cycles.to_string(),

@@ -302,6 +302,7 @@ impl<W: WorldLink> Run<W> {
             }
             let sample = self.power.sample(t, &loads, &motor)?;
             self.platform.battery_low = sample.low_battery;
+            self.platform.motors.speed_cap = self.power.motor_speed_cap();
         }
         Ok(())
     }

@@ -20,6 +20,10 @@ pub struct Motors {
     pub state: MotorState,
     /// SET_VELOCITY frames sent.
     pub set_velocity_sent: u64,
+    /// The highest speed the battery's voltage allows (rad/s), set by the
+    /// power network after each sample with `battery_load = "sag"`
+    /// (`crate::power::motor_drive`); `None`: [`MAX_SPEED`] only.
+    pub speed_cap: Option<f64>,
 }
 
 impl Motors {
@@ -36,8 +40,10 @@ impl Motors {
         // The motor drivers cannot reverse a propeller nor exceed the
         // motors' 600 rad/s (DESIGN.md §5): the PID's outputs saturate here,
         // as the Crazyflie's PWM saturates in [0, 100 %]. The Bitcraze
-        // controller does go below 0 on hard attitude corrections.
-        let commands = saturate(commands);
+        // controller does go below 0 on hard attitude corrections. A
+        // sagging battery lowers the ceiling (DESIGN.md §16).
+        let ceiling = self.speed_cap.map_or(MAX_SPEED, |c| c.min(MAX_SPEED));
+        let commands = saturate_at(commands, ceiling);
         self.state.omega = commands.as_array();
         let steps = time.iteration_steps(Millis(iter.0.saturating_sub(1)));
         let request = Request::SetVelocity {
@@ -108,7 +114,12 @@ pub const MAX_SPEED: f64 = 600.0;
 
 /// Clamps each command to what a motor can do, `[0, MAX_SPEED]`.
 pub fn saturate(c: MotorCommands) -> MotorCommands {
-    let s = |m: f64| m.clamp(0.0, MAX_SPEED);
+    saturate_at(c, MAX_SPEED)
+}
+
+/// Clamps each command to `[0, ceiling]` (`ceiling` ≥ 0).
+pub fn saturate_at(c: MotorCommands, ceiling: f64) -> MotorCommands {
+    let s = |m: f64| m.clamp(0.0, ceiling.max(0.0));
     MotorCommands {
         m1: s(c.m1),
         m2: s(c.m2),
@@ -125,4 +136,29 @@ pub fn drive_from_ctx(
     now: Picos,
 ) -> Result<(), LinkError> {
     ctx.motors.drive(commands, iter, now, ctx.world, ctx.time)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::power::motor_drive::speed_cap;
+    use crate::units::Volts;
+
+    #[test]
+    fn a_sagging_battery_lowers_the_ceiling() {
+        let c = MotorCommands {
+            m1: -5.0,
+            m2: 50.0,
+            m3: 80.0,
+            m4: 700.0,
+        };
+        assert_eq!(saturate(c).as_array(), [0.0, 50.0, 80.0, MAX_SPEED]);
+        // At 3.0 V the motors reach 21.0585 rad/s/V · 3.0 V = 63.18 rad/s:
+        // above hover (55.37), below full throttle.
+        let cap = speed_cap(Volts(3.0));
+        assert!((cap - 63.175).abs() < 0.01, "{cap}");
+        assert_eq!(saturate_at(c, cap).as_array(), [0.0, 50.0, cap, cap]);
+        // At 2.5 V it cannot hold hover any more.
+        assert!(speed_cap(Volts(2.5)) < 55.37);
+    }
 }

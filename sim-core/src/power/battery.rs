@@ -30,6 +30,7 @@ use std::str::FromStr;
 
 use crate::units::{Amps, Volts};
 
+use super::sag::{self, BatteryLoad};
 use super::Ohms;
 
 /// Which variable the `v_oc`/`r_s` polynomials are evaluated at (see the
@@ -224,6 +225,8 @@ pub struct Battery {
     /// Current of the previous step (A), for the trapezoid. MESSY starts it at 0.
     i_prev: f64,
     empty: bool,
+    /// The thesis's curves, or the sag of [`super::sag`].
+    load: BatteryLoad,
 }
 
 impl Battery {
@@ -239,6 +242,7 @@ impl Battery {
             soc_low,
             i_prev: 0.0,
             empty: soc_init <= soc_end,
+            load: BatteryLoad::default(),
         }
     }
 
@@ -251,6 +255,17 @@ impl Battery {
     pub fn with_axis(mut self, axis: CurveAxis) -> Battery {
         self.axis = axis;
         self
+    }
+
+    /// Chooses how the battery behaves under load.
+    pub fn with_load(mut self, load: BatteryLoad) -> Battery {
+        self.load = load;
+        self
+    }
+
+    /// How the battery behaves under load.
+    pub fn load(&self) -> BatteryLoad {
+        self.load
     }
 
     /// The battery model.
@@ -290,12 +305,19 @@ impl Battery {
 
     /// Open-circuit voltage at the current SOC.
     pub fn v_oc(&self) -> Volts {
-        self.model.v_oc_at(self.x())
+        let v = self.model.v_oc_at(self.x());
+        match self.load {
+            BatteryLoad::Thesis => v,
+            BatteryLoad::Sag => Volts(v.0 + sag::knee(self.soc)),
+        }
     }
 
     /// Series resistance at the current SOC.
     pub fn r_s(&self) -> Ohms {
-        self.model.r_s_at(self.x())
+        match self.load {
+            BatteryLoad::Thesis => self.model.r_s_at(self.x()),
+            BatteryLoad::Sag => sag::resistance(sag::internal_resistance(self.model), self.soc),
+        }
     }
 
     /// Terminal voltage while drawing `i`: `v_oc − r_s·I`.
@@ -437,6 +459,22 @@ mod tests {
         let v = b.voltage(Amps(2.0));
         assert!(close(v.0, b.v_oc().0 - 2.0 * b.r_s().0, 1e-15));
         assert!(v.0 < b.v_oc().0);
+    }
+
+    #[test]
+    fn sag_is_i_times_r() {
+        // Half charge: the knee is e^-17.5 ≈ 2.5e-8 V, the resistance
+        // 0.16302 Ω (Eq. 3.2's slope) within 1e-5 Ω: 2.8 A sag 0.4565 V.
+        let b = Battery::new(BatteryModel::LiPol250, 0.5, 0.0, 0.1).with_load(BatteryLoad::Sag);
+        let thesis = Battery::new(BatteryModel::LiPol250, 0.5, 0.0, 0.1);
+        assert!((b.v_oc().0 - thesis.v_oc().0).abs() < 1e-7);
+        let sag = b.v_oc().0 - b.voltage(Amps(2.8)).0;
+        assert!((sag - 2.8 * b.r_s().0).abs() < 1e-12);
+        assert!((sag - 2.8 * 0.16302).abs() < 1e-4, "{sag}");
+        // Empty: v_oc 4.10081 − 1.031, R tripled.
+        let e = Battery::new(BatteryModel::LiPol250, 0.0, 0.0, 0.1).with_load(BatteryLoad::Sag);
+        assert!((e.v_oc().0 - (4.10081 - 1.031)).abs() < 1e-9);
+        assert!((e.r_s().0 - 0.16302 * (1.0 + 0.1562 / 0.07446)).abs() < 1e-12);
     }
 
     #[test]

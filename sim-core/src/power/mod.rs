@@ -27,6 +27,8 @@ pub mod converter;
 pub mod csv_line;
 pub mod log;
 pub mod models;
+pub mod motor_drive;
+pub mod sag;
 
 use std::fmt;
 use std::path::PathBuf;
@@ -361,9 +363,10 @@ impl PowerNetwork {
             model,
             b.soc_init / 100.0,
             b.soc_end / 100.0,
-            b.soc_low / 100.0,
+            run.soc_low.unwrap_or(b.soc_low) / 100.0,
         )
-        .with_axis(run.battery_curve);
+        .with_axis(run.battery_curve)
+        .with_load(run.battery_load);
         let ldo = b.converter().map_err(PowerError::Platform)?;
         let v_terminal = battery.voltage(Amps(0.0));
         let vcc_bus_currents = vec![Amps(0.0); vcc_load_currents.len()];
@@ -405,6 +408,16 @@ impl PowerNetwork {
     /// The battery.
     pub fn battery(&self) -> &Battery {
         &self.battery
+    }
+
+    /// The highest motor speed (rad/s) the battery's terminal voltage of the
+    /// last sample allows ([`motor_drive`]), with `battery_load = "sag"`;
+    /// `None` with the thesis's battery (the motors' 600 rad/s only).
+    pub fn motor_speed_cap(&self) -> Option<f64> {
+        match self.battery.load() {
+            sag::BatteryLoad::Thesis => None,
+            sag::BatteryLoad::Sag => Some(motor_drive::speed_cap(self.v_terminal)),
+        }
     }
 
     /// The motor models (with the drone's total mass).

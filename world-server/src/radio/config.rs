@@ -3,6 +3,9 @@
 
 use serde::Deserialize;
 
+use super::fading::{FastFading, Shadowing};
+use super::profile::{Profile, Uwb};
+
 /// The radio channel's parameters. Every key has a default (the table in
 /// docs/SWARM.md §3.1 gives each one's source); unknown keys are an error.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -36,6 +39,25 @@ pub struct RadioConfig {
     pub uwb_rssi_1m_dbm: f64,
     /// Path-loss exponent of the UWB power estimate.
     pub uwb_path_loss_exp: f64,
+    /// `"ideal"` (today's channel) or `"dw1000"` (the UWB as measured):
+    /// the defaults of the next four keys (DESIGN.md §16, [`super::profile`]).
+    pub profile: Profile,
+    /// σ of each chip's TX and RX antenna delay about the nominal, ps.
+    pub uwb_antenna_delay_sd_ps: Option<f64>,
+    /// Extra range of a frame whose direct path crosses a box or a drone, m.
+    pub uwb_nlos_bias_m: Option<f64>,
+    /// σ of its extra spread, m.
+    pub uwb_nlos_sd_m: Option<f64>,
+    /// σ of the reception edge at the range limit, dB (0: a hard limit).
+    pub uwb_edge_db: Option<f64>,
+    /// σ of the P2P shadowing per link, dB (0: none; [`super::fading`]).
+    pub p2p_shadowing_db: f64,
+    /// Its decorrelation distance (m the two ends have moved).
+    pub p2p_shadowing_decorr_m: f64,
+    /// Its decorrelation time (s).
+    pub p2p_shadowing_tau_s: f64,
+    /// P2P fast fading per packet: `"none"` or `"rayleigh"`.
+    pub p2p_fading: FastFading,
 }
 
 impl Default for RadioConfig {
@@ -68,6 +90,18 @@ impl Default for RadioConfig {
             // -14.3 dBm EIRP - 44.5 dB free-space loss at 1 m (SWARM §3.1).
             uwb_rssi_1m_dbm: -58.8,
             uwb_path_loss_exp: 2.0,
+            profile: Profile::Ideal,
+            uwb_antenna_delay_sd_ps: None,
+            uwb_nlos_bias_m: None,
+            uwb_nlos_sd_m: None,
+            uwb_edge_db: None,
+            p2p_shadowing_db: 0.0,
+            // Indoor shadowing decorrelates over about a metre at 2.4 GHz
+            // (Gudmundson's model as used indoors; docs/SWARM.md §3.1) and,
+            // for drones that stay put, over seconds as the room changes.
+            p2p_shadowing_decorr_m: 1.0,
+            p2p_shadowing_tau_s: 5.0,
+            p2p_fading: FastFading::None,
         }
     }
 }
@@ -79,6 +113,29 @@ pub const P2P_RSSI_1M_DBM: f64 = -71.0;
 pub const P2P_RSSI_NOISE_DB: f64 = 10.3;
 
 impl RadioConfig {
+    /// The UWB effects: the profile's, each key set in the file winning.
+    pub fn uwb(&self) -> Uwb {
+        let p = Uwb::of(self.profile);
+        Uwb {
+            antenna_delay_sd_ps: self
+                .uwb_antenna_delay_sd_ps
+                .unwrap_or(p.antenna_delay_sd_ps),
+            antenna_delays: p.antenna_delays || self.uwb_antenna_delay_sd_ps.is_some(),
+            nlos_bias_m: self.uwb_nlos_bias_m.unwrap_or(p.nlos_bias_m),
+            nlos_sd_m: self.uwb_nlos_sd_m.unwrap_or(p.nlos_sd_m),
+            edge_db: self.uwb_edge_db.unwrap_or(p.edge_db),
+        }
+    }
+
+    /// The P2P shadowing, `None` when its σ is 0.
+    pub fn shadowing(&self) -> Option<Shadowing> {
+        (self.p2p_shadowing_db > 0.0).then_some(Shadowing {
+            sd_db: self.p2p_shadowing_db,
+            decorr_m: self.p2p_shadowing_decorr_m,
+            tau_s: self.p2p_shadowing_tau_s,
+        })
+    }
+
     /// Checks every key: probabilities in [0, 1], σ ≥ 0, finite numbers,
     /// positive range and exponents. The message names the key.
     pub fn validate(&self) -> Result<(), String> {
@@ -93,7 +150,26 @@ impl RadioConfig {
             ("p2p_sensitivity_dbm", self.p2p_sensitivity_dbm),
             ("uwb_rssi_1m_dbm", self.uwb_rssi_1m_dbm),
             ("uwb_path_loss_exp", self.uwb_path_loss_exp),
+            ("p2p_shadowing_db", self.p2p_shadowing_db),
+            ("p2p_shadowing_decorr_m", self.p2p_shadowing_decorr_m),
+            ("p2p_shadowing_tau_s", self.p2p_shadowing_tau_s),
         ];
+        let optional = [
+            ("uwb_antenna_delay_sd_ps", self.uwb_antenna_delay_sd_ps),
+            ("uwb_nlos_bias_m", self.uwb_nlos_bias_m),
+            ("uwb_nlos_sd_m", self.uwb_nlos_sd_m),
+            ("uwb_edge_db", self.uwb_edge_db),
+        ];
+        for (key, v) in optional {
+            match v {
+                Some(v) if !v.is_finite() || v < 0.0 => {
+                    return Err(format!(
+                        "[radio] {key} must be a finite number >= 0, got {v}"
+                    ))
+                }
+                _ => {}
+            }
+        }
         for (key, v) in finite {
             if !v.is_finite() {
                 return Err(format!("[radio] {key} must be a finite number, got {v}"));
@@ -109,6 +185,7 @@ impl RadioConfig {
         for (key, s) in [
             ("uwb_noise_m", self.uwb_noise_m),
             ("p2p_rssi_noise_db", self.p2p_rssi_noise_db),
+            ("p2p_shadowing_db", self.p2p_shadowing_db),
         ] {
             if s < 0.0 {
                 return Err(format!(
@@ -120,6 +197,8 @@ impl RadioConfig {
             ("uwb_max_range_m", self.uwb_max_range_m),
             ("p2p_path_loss_exp", self.p2p_path_loss_exp),
             ("uwb_path_loss_exp", self.uwb_path_loss_exp),
+            ("p2p_shadowing_decorr_m", self.p2p_shadowing_decorr_m),
+            ("p2p_shadowing_tau_s", self.p2p_shadowing_tau_s),
         ] {
             if v <= 0.0 {
                 return Err(format!("[radio] {key} must be > 0, got {v}"));
@@ -164,5 +243,20 @@ mod tests {
         bad(|c| c.p2p_rssi_noise_db = f64::NAN, "p2p_rssi_noise_db");
         bad(|c| c.uwb_max_range_m = 0.0, "uwb_max_range_m");
         bad(|c| c.p2p_path_loss_exp = f64::INFINITY, "p2p_path_loss_exp");
+        bad(|c| c.uwb_nlos_sd_m = Some(-0.1), "uwb_nlos_sd_m");
+        bad(|c| c.p2p_shadowing_tau_s = 0.0, "p2p_shadowing_tau_s");
+    }
+
+    #[test]
+    fn the_profile_sets_defaults_and_keys_win() {
+        let c: RadioConfig = toml::from_str("").unwrap();
+        assert_eq!(c.uwb(), Uwb::IDEAL);
+        let c: RadioConfig = toml::from_str("profile = \"dw1000\"").unwrap();
+        assert_eq!(c.uwb(), Uwb::DW1000);
+        let c: RadioConfig = toml::from_str("profile = \"dw1000\"\nuwb_nlos_bias_m = 0.5").unwrap();
+        assert_eq!(c.uwb().nlos_bias_m, 0.5);
+        assert_eq!(c.uwb().nlos_sd_m, Uwb::DW1000.nlos_sd_m);
+        assert!(toml::from_str::<RadioConfig>("profile = \"real\"").is_err());
+        assert_eq!(c.shadowing(), None);
     }
 }

@@ -16,6 +16,8 @@ enum Domain {
     ClockPhase = 1,
     /// Range and flow sensor noise (world file `[sensors]`).
     Sensor = 2,
+    /// Per-chip UWB antenna delays (DESIGN.md §16).
+    AntennaDelay = 3,
 }
 
 /// A ChaCha generator whose 256-bit key is the tuple itself (seed, domain,
@@ -44,6 +46,16 @@ pub fn clock_phase(seed: u64, drone: usize) -> Picos {
     Picos(rng.random_range(0..wrap_ps()))
 }
 
+/// Drone `drone`'s DW1000 TX and RX antenna delays as standard normals
+/// (the channel scales them by `uwb_antenna_delay_sd_ps`).
+pub fn antenna_delays(seed: u64, drone: usize) -> (f64, f64) {
+    let mut rng = stream(seed, Domain::AntennaDelay, drone as u32, 0, 0);
+    (
+        StandardNormal.sample(&mut rng),
+        StandardNormal.sample(&mut rng),
+    )
+}
+
 /// A standard normal draw for a sensor reading of drone `drone` at world
 /// time `time_ms` on `channel` (the rangers 0-5, the flow axes 6-7): the
 /// same reading whenever and however often it is asked for.
@@ -52,8 +64,9 @@ pub fn sensor_normal(seed: u64, drone: usize, time_ms: u64, channel: u64) -> f64
     StandardNormal.sample(&mut rng)
 }
 
-/// The draws of one (frame, receiver): always all three, in this order, so
-/// that each is the same whichever radio or outcome.
+/// The draws of one (frame, receiver): always all of them, in this order, so
+/// that each is the same whichever radio, profile or outcome (the first three
+/// are those of the "ideal" channel, unchanged by the ones added after them).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReceptionDraws {
     /// Standard normal: the ranging noise in units of `uwb_noise_m`.
@@ -62,6 +75,15 @@ pub struct ReceptionDraws {
     pub rssi_noise: f64,
     /// Uniform in [0, 1): the frame is lost when below the loss probability.
     pub loss: f64,
+    /// Standard normal: the NLOS spread in units of `uwb_nlos_sd_m`.
+    pub nlos: f64,
+    /// Uniform in [0, 1): the frame is received when below the reception
+    /// probability at the range edge (UWB).
+    pub edge: f64,
+    /// Standard normal: the innovation of the link's shadowing (P2P).
+    pub shadowing: f64,
+    /// Uniform in [0, 1): the packet's Rayleigh fading (P2P).
+    pub fading: f64,
 }
 
 impl ReceptionDraws {
@@ -76,10 +98,18 @@ impl ReceptionDraws {
         let range_noise = StandardNormal.sample(&mut rng);
         let rssi_noise = StandardNormal.sample(&mut rng);
         let loss = rng.random::<f64>();
+        let nlos = StandardNormal.sample(&mut rng);
+        let edge = rng.random::<f64>();
+        let shadowing = StandardNormal.sample(&mut rng);
+        let fading = rng.random::<f64>();
         ReceptionDraws {
             range_noise,
             rssi_noise,
             loss,
+            nlos,
+            edge,
+            shadowing,
+            fading,
         }
     }
 }

@@ -14,7 +14,11 @@
 
 mod config;
 pub(crate) mod draw;
+pub mod fading;
+pub mod geometry;
+mod link;
 mod log;
+pub mod profile;
 
 pub use config::{RadioConfig, P2P_RSSI_1M_DBM, P2P_RSSI_NOISE_DB};
 pub use log::{LogRow, Outcome, RadioLog, HEADER as LOG_HEADER};
@@ -24,7 +28,8 @@ use std::sync::Arc;
 use protocol::radio::{dw1000_stamp, ppm_to_ppt, Dw1000Ticks, Picos, Radio};
 use protocol::{RadioPacket, TxDone};
 
-use draw::ReceptionDraws;
+use fading::LinkShadow;
+use geometry::{Body, Obstacle};
 
 /// Speed of light in vacuum, m/s (exact, SI).
 pub const SPEED_OF_LIGHT_M_S: f64 = 299_792_458.0;
@@ -100,6 +105,8 @@ struct Reception {
     rx_stamp: Option<u64>,
     /// In range / above sensitivity: it can be received and it interferes.
     audible: bool,
+    /// Heard but too weak to be decoded (the UWB's reception edge, §16).
+    faded: bool,
     /// The loss draw fell below the loss probability.
     lost: bool,
     /// Its outcome is decided (it stays a while as an interferer).
@@ -116,6 +123,11 @@ struct Drone {
     desc: DroneRadio,
     clock_ppt: i64,
     phase: Picos,
+    /// Its DW1000's antenna delays (ps): the TX stamp precedes the frame's
+    /// leaving the antenna by `tx_delay`, the RX stamp follows its arrival
+    /// by `rx_delay` (0 and 0 with the "ideal" profile).
+    tx_delay: i64,
+    rx_delay: i64,
     retired: bool,
     frames_sent: u64,
     /// Its own transmissions (for half duplex), kept while they can overlap
@@ -140,6 +152,13 @@ pub struct Channel {
     /// reception that ends at or before it is decided.
     resolved: Picos,
     log: Option<RadioLog>,
+    /// The world's boxes, for the UWB's line of sight ([`Channel::with_obstacles`]).
+    obstacles: Vec<Obstacle>,
+    /// A drone's body, for the line of sight between two others.
+    body: Body,
+    /// The P2P shadowing of each link (lower index first), once it has
+    /// carried a packet.
+    shadows: std::collections::BTreeMap<(usize, usize), LinkShadow>,
 }
 
 impl Channel {
@@ -147,18 +166,24 @@ impl Channel {
     /// drone's DW1000 clock phase is drawn from `cfg.seed`. `cfg` should have
     /// passed [`RadioConfig::validate`].
     pub fn new(cfg: RadioConfig, drones: Vec<DroneRadio>) -> Channel {
+        let uwb = cfg.uwb();
         let drones = drones
             .into_iter()
             .enumerate()
-            .map(|(i, desc)| Drone {
-                clock_ppt: ppm_to_ppt(desc.clock_ppm),
-                phase: draw::clock_phase(cfg.seed, i),
-                desc,
-                retired: false,
-                frames_sent: 0,
-                own: Vec::new(),
-                inbox: Vec::new(),
-                outbox: Vec::new(),
+            .map(|(i, desc)| {
+                let (tx_delay, rx_delay) = link::antenna_delays(cfg.seed, i, &uwb);
+                Drone {
+                    clock_ppt: ppm_to_ppt(desc.clock_ppm),
+                    phase: draw::clock_phase(cfg.seed, i),
+                    tx_delay,
+                    rx_delay,
+                    desc,
+                    retired: false,
+                    frames_sent: 0,
+                    own: Vec::new(),
+                    inbox: Vec::new(),
+                    outbox: Vec::new(),
+                }
             })
             .collect();
         Channel {
@@ -168,7 +193,25 @@ impl Channel {
             live: Vec::new(),
             resolved: Picos(0),
             log: None,
+            obstacles: Vec::new(),
+            body: Body {
+                radius: crate::crazyflie::BODY_RADIUS_M,
+                height: crate::crazyflie::BODY_HEIGHT_M,
+            },
+            shadows: Default::default(),
         }
+    }
+
+    /// The world's boxes, which block the UWB's direct path (the "dw1000"
+    /// profile's NLOS, DESIGN.md §16).
+    pub fn with_obstacles(mut self, obstacles: Vec<Obstacle>) -> Channel {
+        self.obstacles = obstacles;
+        self
+    }
+
+    /// Drone `drone`'s antenna delays (TX, RX) in ps.
+    pub fn antenna_delays(&self, drone: usize) -> Option<(i64, i64)> {
+        self.drones.get(drone).map(|d| (d.tx_delay, d.rx_delay))
     }
 
     pub fn config(&self) -> &RadioConfig {
@@ -238,8 +281,16 @@ impl Channel {
                 resolved: resolved.0,
             });
         }
-        let end = start + radio.airtime(data.len());
+        // The chip stamps the frame when it leaves its digital part (the
+        // platform's start, also a delayed TX's programmed time); the
+        // antenna radiates it tx_delay later (DESIGN.md §16; 0 with the
+        // "ideal" profile).
         let tx_stamp = (radio == Radio::Uwb).then(|| dw1000_stamp(start, d.clock_ppt, d.phase).0);
+        let start = match radio {
+            Radio::Uwb => link::shift(start, d.tx_delay),
+            Radio::P2p => start,
+        };
+        let end = start + radio.airtime(data.len());
         let number = d.frames_sent;
         d.frames_sent += 1;
         let frame = Arc::new(Frame {
@@ -274,82 +325,18 @@ impl Channel {
         if until <= self.resolved {
             return;
         }
-        let (now, later): (Vec<_>, Vec<_>) = std::mem::take(&mut self.pending)
+        let (mut now, later): (Vec<_>, Vec<_>) = std::mem::take(&mut self.pending)
             .into_iter()
             .partition(|f| f.start < until);
         self.pending = later;
+        // In time order: a link's shadowing evolves from packet to packet.
+        now.sort_by_key(|f| (f.start, f.from, f.number));
         for frame in now {
             self.resolve_frame(&frame, position);
         }
         self.resolved = until;
         self.decide();
         self.prune();
-    }
-
-    /// The receptions of one frame at every other drone that carries its
-    /// radio and has not stopped.
-    fn resolve_frame(&mut self, frame: &Arc<Frame>, position: &dyn Fn(usize, Picos) -> [f64; 3]) {
-        let p_from = position(frame.from, frame.start);
-        let airtime = Picos(frame.end.0 - frame.start.0);
-        for (to, q) in self.drones.iter().enumerate() {
-            if to == frame.from || q.retired || !q.desc.radios.contains(&frame.radio) {
-                continue;
-            }
-            let p_to = position(to, frame.start);
-            let distance_m = dist(p_from, p_to);
-            let draws = ReceptionDraws::new(self.cfg.seed, frame.from, frame.number, to);
-            let tof_s = distance_m / SPEED_OF_LIGHT_M_S;
-            let arrival = frame.start + Picos((tof_s * 1e12).round() as u64);
-            let (rssi_dbm, audible, loss_p, rx_stamp) = match frame.radio {
-                Radio::Uwb => {
-                    let rssi = log_distance(
-                        self.cfg.uwb_rssi_1m_dbm,
-                        self.cfg.uwb_path_loss_exp,
-                        distance_m,
-                    );
-                    // The ranging noise is the error of the receiver's
-                    // leading-edge stamp; the frame's timing on the air (its
-                    // end, its overlaps) is the noise-free start + D/c.
-                    let noisy_tof_ps = ((tof_s
-                        + draws.range_noise * self.cfg.uwb_noise_m / SPEED_OF_LIGHT_M_S)
-                        * 1e12)
-                        .round() as i128;
-                    let at = (frame.start.0 as i128 + noisy_tof_ps).max(0) as u64;
-                    let rx_stamp = dw1000_stamp(Picos(at), q.clock_ppt, q.phase).0;
-                    (
-                        rssi,
-                        distance_m <= self.cfg.uwb_max_range_m,
-                        self.cfg.uwb_loss,
-                        Some(rx_stamp),
-                    )
-                }
-                Radio::P2p => {
-                    let rssi = log_distance(
-                        self.cfg.p2p_rssi_1m_dbm,
-                        self.cfg.p2p_path_loss_exp,
-                        distance_m,
-                    ) + draws.rssi_noise * self.cfg.p2p_rssi_noise_db;
-                    (
-                        rssi,
-                        rssi >= self.cfg.p2p_sensitivity_dbm,
-                        self.cfg.p2p_loss,
-                        None,
-                    )
-                }
-            };
-            self.live.push(Reception {
-                frame: frame.clone(),
-                to,
-                arrival,
-                end: arrival + airtime,
-                distance_m,
-                rssi_dbm,
-                rx_stamp,
-                audible,
-                lost: draws.loss < loss_p,
-                done: false,
-            });
-        }
     }
 
     /// Decides every undecided reception that ends at or before `resolved`,
@@ -398,7 +385,7 @@ impl Channel {
     /// known (it ends at or before `resolved`).
     fn outcome(&self, i: usize) -> Outcome {
         let r = &self.live[i];
-        if !r.audible {
+        if !r.audible || r.faded {
             return Outcome::OutOfRange;
         }
         let radio = r.frame.radio;

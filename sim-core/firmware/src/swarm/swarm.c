@@ -3,6 +3,16 @@
 
 #include <string.h>
 
+/* The antenna delay the firmware subtracts from every TOF, DW1000 ticks:
+ * the run key firmware.swarm_antenna_delay_ticks = N writes it by its
+ * symbol (sim-core/src/kernel/firmware_params.rs). 0 for the world's
+ * "ideal" radio profile, whose stamps carry no antenna delay; seed 003
+ * §6.4.2's one constant, 515.7 ns = 32 952 ticks of 15.65 ps, for the
+ * "dw1000" profile, whose chips each have their own delays (DESIGN.md §16). */
+/* In .data: a zero-initialised global would sit in .bss, which the start
+ * file clears after the kernel has written the parameter. */
+__attribute__((section(".data"))) volatile int32_t swarm_antenna_delay_ticks = 0;
+
 void swarm_default_settings(swarm_settings_t *s)
 {
     memset(s, 0, sizeof *s);
@@ -32,9 +42,10 @@ void swarm_default_settings(swarm_settings_t *s)
      * clocks are not trimmed); limits 1 ± 2·25 ppm. */
     s->clock.clock_deviation_ppb = 25000;
     s->clock.accepted_noise_ppb = 30; /* §6.4.2: ±0.03e-6 */
-    /* The simulated DW1000 stamps the arrival itself (DESIGN.md §8): no
-     * antenna delay. The thesis's hardware needed ≈ 515.7 ns (§6.4.2). */
-    s->antenna_delay = 0;
+    /* The "ideal" simulated DW1000 stamps the arrival itself (DESIGN.md
+     * §8): no antenna delay; the thesis's hardware needed ≈ 515.7 ns
+     * (§6.4.2), as the "dw1000" profile does. */
+    s->antenna_delay = swarm_antenna_delay_ticks;
     s->neighbour_timeout_us = 1000000;
     /* A reference closer than this to the origin, the X axis or the XY
      * plane is passed over (see assign_references). */
