@@ -11,7 +11,7 @@
 
 use std::path::PathBuf;
 
-use rand::{Rng, SeedableRng};
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 use sim_core::peripherals::stm32::pid::{
@@ -39,6 +39,7 @@ fn flight(seed: u64) -> Value {
         rng.random_range(-3.0..3.0),
         rng.random_range(0.0..2.0),
     );
+    let start = [x, y, z];
     let mut time = 2.0;
     let (mut past_x, mut past_y, mut past_time) = (x, y, time);
     let mut height_desired = z;
@@ -89,7 +90,7 @@ fn flight(seed: u64) -> Value {
             "motors": m.as_array(),
         }));
     }
-    json!({ "seed": seed, "start_time_s": 2.0, "steps": steps })
+    json!({ "seed": seed, "dt": dt, "start": start, "start_time_s": 2.0, "steps": steps })
 }
 
 #[test]

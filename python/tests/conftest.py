@@ -1,0 +1,88 @@
+"""Fixtures: the checkout's release binaries (built once if missing) and
+small world files.  Every test talks to real world-server / cosim processes."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+RELEASE = ROOT / "target" / "release"
+sys.path.insert(0, str(ROOT / "python" / "src"))  # the tests run from a checkout
+
+
+def _build(*packages: str) -> None:
+    cargo = shutil.which("cargo")
+    if cargo is None:
+        pytest.fail("cargo is needed to build the release binaries the tests run")
+    cmd = [cargo, "build", "--release", "--quiet"]
+    for p in packages:
+        cmd += ["-p", p]
+    subprocess.run(cmd, cwd=ROOT, check=True)
+
+
+@pytest.fixture(scope="session")
+def binaries() -> dict[str, Path]:
+    """world-server, sim-core and cosim of target/release (the test command
+    builds them first; built here if they are missing)."""
+    names = {"world-server": "world-server", "sim-core": "sim-core", "cosim": "scenarios"}
+    missing = [pkg for exe, pkg in names.items() if not (RELEASE / exe).is_file()]
+    if missing:
+        _build(*missing)
+    return {exe: RELEASE / exe for exe in names}
+
+
+@pytest.fixture(autouse=True)
+def _world_server_env(binaries, monkeypatch):
+    monkeypatch.setenv("COSIM_WORLD_SERVER", str(binaries["world-server"]))
+    monkeypatch.chdir(ROOT)
+
+
+THREE_DRONES = """
+name = "three drones (python tests)"
+
+[ground]
+tile = 0.5
+grey_dark = 90
+grey_light = 140
+
+[sky]
+grey = 200
+
+[radio]
+seed = 1
+
+[[drone]]
+name = "alpha"
+position = [0.0, 0.0, 0.015]
+yaw = 1.5707963267948966
+
+[[drone]]
+name = "bravo"
+position = [2.0, 0.0, 0.015]
+yaw = 1.5707963267948966
+
+[[drone]]
+name = "charlie"
+position = [4.0, 0.0, 0.015]
+yaw = 1.5707963267948966
+"""
+
+
+@pytest.fixture
+def three_drone_world(tmp_path) -> Path:
+    path = tmp_path / "three.toml"
+    path.write_text(THREE_DRONES)
+    return path
+
+
+def lockstep_fixed() -> bool:
+    """Whether world-server answers a request at t before the other drones'
+    next requests (DESIGN.md §15, issue 23 part 1).  Until then one thread
+    cannot drive several drones."""
+    return os.environ.get("COSIM_LOCKSTEP_FIXED", "1") == "1"
