@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import collections
 import socket
+import time
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
@@ -48,13 +49,23 @@ class Endpoint:
             sock = socket.create_connection((self.host, self.port), timeout=timeout)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         else:
-            sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-            sock.settimeout(timeout)
-            try:
-                sock.connect(self.path)
-            except OSError:
-                sock.close()
-                raise
+            deadline = None if timeout is None else time.monotonic() + timeout
+            while True:
+                sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+                sock.settimeout(timeout)
+                try:
+                    sock.connect(self.path)
+                    break
+                except BlockingIOError:
+                    # A full listen backlog (a world-server older than
+                    # DESIGN.md §15 listens with a backlog of 1): retry.
+                    sock.close()
+                    if deadline is not None and time.monotonic() > deadline:
+                        raise TimeoutError(f"{self}: the server's listen backlog stayed full") from None
+                    time.sleep(0.002)
+                except OSError:
+                    sock.close()
+                    raise
         sock.settimeout(None)
         return sock
 
@@ -69,8 +80,17 @@ class Drone:
     single-drone world, whose claim carries no name, §12.1).
     """
 
-    def __init__(self, sock: socket.socket, name: str | None = None, max_frame: int = p.MAX_FRAME):
+    def __init__(
+        self,
+        sock: socket.socket,
+        name: str | None = None,
+        max_frame: int = p.MAX_FRAME,
+        reply_timeout: float | None = None,
+    ):
         self._sock = sock
+        # A reply that takes longer raises TimeoutError; the connection is
+        # then unusable (the world may be half-way through a frame).
+        sock.settimeout(reply_timeout)
         self.name = name
         self.max_frame = max_frame
         self._pending: collections.deque[str] = collections.deque()
@@ -80,8 +100,16 @@ class Drone:
         self.stopped = False
 
     @classmethod
-    def connect(cls, endpoint: str | Endpoint, name: str | None = None, timeout: float | None = 10.0) -> Drone:
-        return cls(Endpoint.parse(endpoint).connect(timeout), name)
+    def connect(
+        cls,
+        endpoint: str | Endpoint,
+        name: str | None = None,
+        timeout: float | None = 10.0,
+        reply_timeout: float | None = None,
+    ) -> Drone:
+        """Connect (waiting at most ``timeout`` s); ``reply_timeout``: the
+        longest wait for a reply (``None``: no limit)."""
+        return cls(Endpoint.parse(endpoint).connect(timeout), name, reply_timeout=reply_timeout)
 
     # -- the wire ----------------------------------------------------------
 
@@ -201,10 +229,13 @@ class World:
         drones: Iterable[str] | None = None,
         image_encoding: str | None = None,
         timeout: float | None = 10.0,
+        reply_timeout: float | None = None,
     ) -> World:
         """Connect one socket per drone and claim them all (§12.1); the
         replies come after the common warm-up, at 2.000 s.  ``drones`` are
-        names of the world file (``None``: a single-drone world)."""
+        names of the world file (``None``: a single-drone world);
+        ``timeout`` bounds each connect, ``reply_timeout`` each reply
+        (``None``: no limit; a timed-out connection is unusable)."""
         ep = Endpoint.parse(endpoint)
         names = [None] if drones is None else list(drones)
         if len(set(names)) != len(names):
@@ -212,7 +243,7 @@ class World:
         conns: list[Drone] = []
         try:
             for name in names:
-                conns.append(Drone.connect(ep, name, timeout))
+                conns.append(Drone.connect(ep, name, timeout, reply_timeout))
             world = cls(conns)
             # Every claim first: the world answers none before all are made.
             world.send({d.label: p.get_init_data(image_encoding, d.name) for d in conns})
