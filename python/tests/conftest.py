@@ -43,42 +43,10 @@ def _world_server_env(binaries, monkeypatch):
     monkeypatch.chdir(ROOT)
 
 
-THREE_DRONES = """
-name = "three drones (python tests)"
-
-[ground]
-tile = 0.5
-grey_dark = 90
-grey_light = 140
-
-[sky]
-grey = 200
-
-[radio]
-seed = 1
-
-[[drone]]
-name = "alpha"
-position = [0.0, 0.0, 0.015]
-yaw = 1.5707963267948966
-
-[[drone]]
-name = "bravo"
-position = [2.0, 0.0, 0.015]
-yaw = 1.5707963267948966
-
-[[drone]]
-name = "charlie"
-position = [4.0, 0.0, 0.015]
-yaw = 1.5707963267948966
-"""
-
-
 @pytest.fixture
-def three_drone_world(tmp_path) -> Path:
-    path = tmp_path / "three.toml"
-    path.write_text(THREE_DRONES)
-    return path
+def three_drone_world() -> Path:
+    """Three drones 2 m apart with the radio (the example's world)."""
+    return ROOT / "examples" / "python" / "three-drones.toml"
 
 
 def lockstep_fixed() -> bool:
