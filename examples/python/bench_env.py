@@ -11,7 +11,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from crazyflie_cosim.env import WorldEnv
 
 THREE = Path(__file__).with_name("three-drones.toml")
@@ -36,7 +35,10 @@ def main():
     ap.add_argument("--no-three", action="store_true", help="skip the three-drone case")
     args = ap.parse_args()
     cases = [("1 drone, state only", {})]
-    cases += [(f"1 drone + image ({e})", {"image": True, "image_encoding": e}) for e in ("shm", "base64", "array")]
+    cases += [
+        (f"1 drone + image ({e})", {"image": True, "image_encoding": e})
+        for e in ("shm", "base64", "array")
+    ]
     if not args.no_three:
         cases.append(("3 drones, state only", {"world": str(THREE)}))
     for name, kw in cases:

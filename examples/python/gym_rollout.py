@@ -14,10 +14,9 @@ import argparse
 import math
 import time
 
+import crazyflie_cosim  # noqa: F401  (registers crazyflie_cosim/World-v0)
 import gymnasium as gym
 import numpy as np
-
-import crazyflie_cosim  # noqa: F401  (registers crazyflie_cosim/World-v0)
 
 
 def policy(env, obs):
@@ -48,9 +47,16 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--max-time", type=float, default=120.0, help="time limit of an episode (s of world time)")
+    ap.add_argument(
+        "--max-time",
+        type=float,
+        default=120.0,
+        help="time limit of an episode (s of world time)",
+    )
     args = ap.parse_args()
-    env = gym.make("crazyflie_cosim/World-v0", action="velocity", max_time_s=args.max_time)
+    env = gym.make(
+        "crazyflie_cosim/World-v0", action="velocity", max_time_s=args.max_time
+    )
     for ep in range(args.episodes):
         obs, info = env.reset(seed=args.seed + ep)
         ret, steps, t0 = 0.0, 0, time.perf_counter()

@@ -17,10 +17,9 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from crazyflie_cosim.outputs import Run  # noqa: E402
-from crazyflie_cosim.server import find_checkout  # noqa: E402
+import matplotlib.pyplot as plt
+from crazyflie_cosim.outputs import Run
+from crazyflie_cosim.server import find_checkout
 
 
 def main():
@@ -38,13 +37,17 @@ def main():
           f"power: {len(power)} rows, mean battery current {power['i_battery_a'].mean():.3f} A")  # fmt: skip
     for m, df in motors.items():
         # power_w in 1 ms rows: the energy is the sum times 1 ms.
-        print(f"  motor model {m:9s}: {df['power_w'].sum() * 1e-3:8.2f} J (summary: {s['energy_j'][m]:.2f} J)")
+        print(
+            f"  motor model {m:9s}: {df['power_w'].sum() * 1e-3:8.2f} J (summary: {s['energy_j'][m]:.2f} J)"
+        )
 
     fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
     ax[0].plot(traj["time_ms"] / 1000, traj["z"])
     ax[0].set_ylabel("altitude (m)")
     ax[0].set_title("trajectory.csv")
-    ax[1].plot(power["time_s"], power["i_battery_a"], lw=0.6, label="battery current (A)")
+    ax[1].plot(
+        power["time_s"], power["i_battery_a"], lw=0.6, label="battery current (A)"
+    )
     ax[1].set_ylabel("current (A)")
     ax2 = ax[1].twinx()
     ax2.plot(power["time_s"], power["soc"] * 100, color="tab:red", label="SOC (%)")
@@ -52,7 +55,9 @@ def main():
     for m, df in motors.items():
         ax[2].plot(df["time_s"], df["power_w"], lw=0.6, label=m)
     ax[2].set_ylabel("motor power (W)")
-    ax[2].set_xlabel("time (s): altitude on the world clock, currents and power on the platform clock")
+    ax[2].set_xlabel(
+        "time (s): altitude on the world clock, currents and power on the platform clock"
+    )
     ax[2].legend()
     fig.suptitle(f"{out.name}: read with crazyflie_cosim.outputs")
     fig.tight_layout()

@@ -20,10 +20,19 @@ WORLD = Path(__file__).with_name("three-drones.toml")
 
 
 def main():
-    with WorldServer(WORLD) as srv, World.connect(srv.endpoint, ["alpha", "bravo", "charlie"]) as w:
-        print("claimed", ", ".join(f"{d.name} at {d.init.x:+.2f}, {d.init.y:+.2f}" for d in w))
+    with (
+        WorldServer(WORLD) as srv,
+        World.connect(srv.endpoint, ["alpha", "bravo", "charlie"]) as w,
+    ):
+        print(
+            "claimed",
+            ", ".join(f"{d.name} at {d.init.x:+.2f}, {d.init.y:+.2f}" for d in w),
+        )
         states = w.request({n: p.get_state() for n in w.names})
-        ctl = {n: VelocityController(32, s.time_s, s.x, s.y, s.z) for n, s in states.items()}
+        ctl = {
+            n: VelocityController(32, s.time_s, s.x, s.y, s.z)
+            for n, s in states.items()
+        }
         # Each drone climbs at its own speed to a different height.
         climb = {"alpha": 0.2, "bravo": 0.3, "charlie": 0.4}
         heard = {n: 0 for n in w.names}
@@ -47,7 +56,9 @@ def main():
             print(f"{n}: z {s.z:.2f} m at {s.time_s:.3f} s, heard {heard[n]} frames, "
                   f"distances {({k: round(v, 2) for k, v in (s.drone_distances or {}).items()})}")  # fmt: skip
         for n, r in w.stop().items():
-            print(f"{n}: STOP at {r.time_s:.3f} s ({r.stop_time_ms} ms to stop the propellers)")
+            print(
+                f"{n}: STOP at {r.time_s:.3f} s ({r.stop_time_ms} ms to stop the propellers)"
+            )
         print("world-server exited with", srv.wait(10))
 
 

@@ -1,6 +1,7 @@
 """The client against real world-server processes."""
 
 import hashlib
+
 import pytest
 from conftest import lockstep_fixed
 

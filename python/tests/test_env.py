@@ -94,7 +94,7 @@ def test_three_drones_in_one_environment(three_drone_world):
     check_env(env, skip_render_check=True)
     obs, _ = env.reset(seed=3)
     for _ in range(30):
-        obs, r, term, trunc, info = env.step({n: np.array([0.0, 0.0, 0.5, 0.0]) for n in env.names})
+        obs, _, _, _, info = env.step({n: np.array([0.0, 0.0, 0.5, 0.0]) for n in env.names})
     assert set(info["rewards"]) == {"alpha", "bravo", "charlie"}
     assert all(obs[n][2] > 0.2 for n in env.names)
     env.close()

@@ -62,7 +62,7 @@ def test_bad_outputs_are_clear_errors(tmp_path):
         Sweep(tmp_path)
     (tmp_path / "summary.json").write_text("{")
     with pytest.raises(OutputError, match="invalid JSON"):
-        Run(tmp_path).summary
+        _ = Run(tmp_path).summary
     (tmp_path / "summary.json").write_text(json.dumps({"completed": True}))
     with pytest.raises(OutputError, match="no such file"):
         Run(tmp_path).power()

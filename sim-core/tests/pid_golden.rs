@@ -110,7 +110,8 @@ fn the_python_port_s_golden_file_matches_the_rust_controller() {
         .unwrap_or_else(|e| panic!("{}: {e} (COSIM_BLESS=1 writes it)", path.display()));
     let stored: Value = serde_json::from_str(&text).expect("golden file is JSON");
     assert_eq!(
-        stored, golden,
+        stored,
+        golden,
         "the Rust controller no longer gives {}; if the change is deliberate, \
          re-bless it (COSIM_BLESS=1) and port the change to controller.py",
         path.display()

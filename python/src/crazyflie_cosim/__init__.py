@@ -27,4 +27,4 @@ def _register() -> None:
 
 _register()
 
-__all__ = ["protocol", "Drone", "Endpoint", "World", "WorldServer", "find_world_server", "ENV_ID"]
+__all__ = ["ENV_ID", "Drone", "Endpoint", "World", "WorldServer", "find_world_server", "protocol"]

@@ -14,8 +14,9 @@ from __future__ import annotations
 import collections
 import socket
 import time
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any, Iterable, Mapping
+from typing import Any
 
 from . import protocol as p
 
@@ -39,7 +40,7 @@ class Endpoint:
             if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
                 raise ValueError(f"bad endpoint {text!r}: expected tcp:HOST:PORT")
             return cls("tcp", host=host.strip("[]"), port=int(port))
-        path = text[5:] if text.startswith("unix:") else text
+        path = text.removeprefix("unix:")
         if not path:
             raise ValueError(f"bad endpoint {text!r}: empty socket path")
         return cls("unix", path=path)

@@ -112,9 +112,7 @@ class PidController:
         derivative = (error - self.past_altitude_error) / dt
         self.altitude_integrator += error * dt
         self.past_altitude_error = error
-        altitude_cmd = (
-            g.kp_z * _clamp1(error) + g.kd_z * derivative + g.ki_z * self.altitude_integrator + g.base_thrust
-        )
+        altitude_cmd = g.kp_z * _clamp1(error) + g.kd_z * derivative + g.ki_z * self.altitude_integrator + g.base_thrust
         # attitude
         pitch_error = desired_pitch - pitch
         pitch_derivative = (pitch_error - self.past_pitch_error) / dt

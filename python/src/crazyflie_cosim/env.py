@@ -41,7 +41,7 @@ import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -128,7 +128,7 @@ class GateProgress(Reward):
 class WorldEnv(gym.Env):
     """See the module's documentation."""
 
-    metadata = {"render_modes": []}
+    metadata: ClassVar[dict] = {"render_modes": []}
 
     def __init__(
         self,
@@ -185,7 +185,9 @@ class WorldEnv(gym.Env):
             self.action_space = one_act
         else:
             self.observation_space = spaces.Dict({n: self._drone_obs_space() for n in self.names})
-            self.action_space = spaces.Dict({n: spaces.Box(one_act.low, one_act.high, (4,), np.float64) for n in self.names})
+            self.action_space = spaces.Dict(
+                {n: spaces.Box(one_act.low, one_act.high, (4,), np.float64) for n in self.names}
+            )
 
     # -- set-up ----------------------------------------------------------------
 
@@ -238,7 +240,11 @@ class WorldEnv(gym.Env):
                 continue
             dx, dy = self.np_random.uniform(-self.start_jitter_m, self.start_jitter_m, 2)
             dyaw = self.np_random.uniform(-self.start_jitter_yaw, self.start_jitter_yaw)
-            moved.append(DroneStart(d.name, (d.position[0] + float(dx), d.position[1] + float(dy), d.position[2]), d.yaw + float(dyaw)))
+            moved.append(
+                DroneStart(
+                    d.name, (d.position[0] + float(dx), d.position[1] + float(dy), d.position[2]), d.yaw + float(dyaw)
+                )
+            )
         self.episode_starts = moved
         return self.world_file.with_drones(moved).write(self._dir / "world.toml")
 
@@ -257,7 +263,7 @@ class WorldEnv(gym.Env):
                 self._server.endpoint, self.names if multi else None, image_encoding=self.image_encoding
             )
             states = self._world.request({n: p.get_state() for n in self._world.names})
-        except Exception as e:
+        except (OSError, p.ProtocolError) as e:
             self._fail(e)
         self.status = {}
         for name, key in zip(self.names, self._world.names):
@@ -283,7 +289,7 @@ class WorldEnv(gym.Env):
                 requests[keys[n]] = [p.set_velocity(*self._motors(n, actions[n])), p.get_state()]
             try:
                 states = self._world.request(requests)
-            except Exception as e:
+            except (OSError, p.ProtocolError) as e:
                 self._fail(e)
             self.episode_time_s += self.timestep_ms / 1000.0
             for n in self.names:
@@ -376,10 +382,12 @@ class WorldEnv(gym.Env):
             keys = dict(zip(self.names, self._world.names))
             try:
                 imgs = self._world.request({keys[n]: p.get_image() for n in self.names})
-            except Exception as e:
+            except (OSError, p.ProtocolError) as e:
                 self._fail(e)
             self._images = {
-                n: np.frombuffer(imgs[keys[n]].pixels, np.uint8).reshape(imgs[keys[n]].height, imgs[keys[n]].width).copy()
+                n: np.frombuffer(imgs[keys[n]].pixels, np.uint8)
+                .reshape(imgs[keys[n]].height, imgs[keys[n]].width)
+                .copy()
                 for n in self.names
             }
         if len(self.names) == 1:

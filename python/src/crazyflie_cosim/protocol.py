@@ -20,9 +20,10 @@ import json
 import math
 import socket
 import struct
-from decimal import Decimal
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from decimal import Decimal
+from typing import Any
 
 #: Default maximum frame body (PROTOCOL.md §2: ours is 64 MiB).
 MAX_FRAME = 64 << 20
@@ -52,9 +53,7 @@ class FrameTooLarge(ProtocolError):
 
 class Truncated(ProtocolError):
     def __init__(self, expected: int, got: int):
-        super().__init__(
-            f"connection closed in the middle of a frame (expected {expected} bytes, got {got})"
-        )
+        super().__init__(f"connection closed in the middle of a frame (expected {expected} bytes, got {got})")
         self.expected = expected
         self.got = got
 
@@ -493,8 +492,7 @@ def _read_shm(camera: Mapping[str, Any], w: int, h: int) -> Image:
             magic, fseq, fw, fh, n = _SHM_HEADER.unpack(head)
             if magic != b"CFSHMIMG" or (fseq, fw, fh, n) != (seq, w, h, w * h):
                 raise ProtocolError(
-                    f"shared-memory image file {path} holds frame {fseq} {fw}x{fh}, "
-                    f"the reply names frame {seq} {w}x{h}"
+                    f"shared-memory image file {path} holds frame {fseq} {fw}x{fh}, the reply names frame {seq} {w}x{h}"
                 )
             return f.read(n)
     except OSError as e:
@@ -540,9 +538,13 @@ def parse_reply(msg: Mapping[str, Any]):
         return RadioRecv(
             tuple(
                 Packet(
-                    p["radio"], base64.b64decode(p["data"]), p["from"], float(p["rssi"]),
-                    int(p["time_ps"]), p.get("rx_stamp"),
-                )  # fmt: skip
+                    p["radio"],
+                    base64.b64decode(p["data"]),
+                    p["from"],
+                    float(p["rssi"]),
+                    int(p["time_ps"]),
+                    p.get("rx_stamp"),
+                )
                 for p in msg.get("packets", [])
             ),
             tuple(TxDone(t["radio"], int(t["time_ps"]), t.get("tx_stamp")) for t in msg.get("tx_done", [])),
@@ -552,4 +554,3 @@ def parse_reply(msg: Mapping[str, Any]):
 
 def expects_reply(msg: Mapping[str, Any]) -> bool:
     return msg["command"] not in NO_REPLY
-

@@ -83,7 +83,11 @@ class WorldFile:
         if tables:
             # A carried drone starts at its path's first point (t, x, y, z).
             return [
-                DroneStart(t["name"], tuple(t["position"] if "position" in t else t["carried"][0][1:4]), float(t.get("yaw", 0.0)))
+                DroneStart(
+                    t["name"],
+                    tuple(t["position"] if "position" in t else t["carried"][0][1:4]),
+                    float(t.get("yaw", 0.0)),
+                )
                 for t in tables
             ]
         start = self.data.get("start", {})
@@ -95,7 +99,9 @@ class WorldFile:
 
     @property
     def gates(self) -> list[Gate]:
-        return [Gate(tuple(g["centre"]), float(g.get("yaw", 0.0)), float(g["inner"])) for g in self.data.get("gate", [])]
+        return [
+            Gate(tuple(g["centre"]), float(g.get("yaw", 0.0)), float(g["inner"])) for g in self.data.get("gate", [])
+        ]
 
     def with_drones(self, drones: list[DroneStart]) -> WorldFile:
         """A copy whose drones are ``drones``: ``[start]`` for one drone named
