@@ -7,11 +7,13 @@ each image encoding, and three drones (one thread) without images.
 """
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 from crazyflie_cosim.env import WorldEnv
+from crazyflie_cosim.server import WorldServerError
 
 THREE = Path(__file__).with_name("three-drones.toml")
 
@@ -47,4 +49,7 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except (WorldServerError, RuntimeError, OSError, ValueError) as e:
+        sys.exit(f"bench_env.py: {e}")

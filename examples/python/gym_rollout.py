@@ -12,11 +12,13 @@ It prints each episode's return, the gates passed and how fast the world ran.
 
 import argparse
 import math
+import sys
 import time
 
 import crazyflie_cosim  # noqa: F401  (registers crazyflie_cosim/World-v0)
 import gymnasium as gym
 import numpy as np
+from crazyflie_cosim.server import WorldServerError
 
 
 def policy(env, obs):
@@ -78,4 +80,7 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except (WorldServerError, RuntimeError, OSError, ValueError) as e:
+        sys.exit(f"gym_rollout.py: {e}")

@@ -18,14 +18,17 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-from crazyflie_cosim.outputs import Run
-from crazyflie_cosim.server import find_checkout
+from crazyflie_cosim.outputs import OutputError, Run
+from crazyflie_cosim.server import WorldServerError, find_checkout
 
 
 def main():
     out = Path(sys.argv[1] if len(sys.argv) > 1 else "out/short-hop")
     if not (out / "summary.json").is_file():
-        cosim = find_checkout() / "target" / "release" / "cosim"
+        root = find_checkout()
+        if root is None:
+            raise OutputError(f"{out} holds no run and the checkout (for cosim) is not around the working directory")
+        cosim = root / "target" / "release" / "cosim"
         subprocess.run([str(cosim), "run", "short-hop", "--out", str(out)], check=True)
     run = Run(out)
     s = run.summary
@@ -66,4 +69,7 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except (OutputError, WorldServerError, subprocess.CalledProcessError, OSError) as e:
+        sys.exit(f"read_outputs.py: {e}")

@@ -10,11 +10,13 @@ every drone's requests, then reads every reply (DESIGN.md §15).
     python examples/python/three_drones.py
 """
 
+import sys
 from pathlib import Path
 
 from crazyflie_cosim import World, WorldServer
 from crazyflie_cosim import protocol as p
 from crazyflie_cosim.controller import VelocityController, euler
+from crazyflie_cosim.server import WorldServerError
 
 WORLD = Path(__file__).with_name("three-drones.toml")
 
@@ -63,4 +65,7 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except (WorldServerError, p.ProtocolError, OSError) as e:
+        sys.exit(f"three_drones.py: {e}")
