@@ -121,3 +121,16 @@ def test_truncated_and_oversized_frames_are_errors():
         p.loads(b'{"x":1}')
     with pytest.raises(p.ProtocolError, match="invalid JSON"):
         p.loads(b"{")
+
+
+def test_endpoints_parse_as_documented():
+    from crazyflie_cosim.client import Endpoint
+
+    assert Endpoint.parse("unix:/tmp/w.sock") == Endpoint("unix", path="/tmp/w.sock")
+    assert Endpoint.parse("/tmp/w.sock") == Endpoint("unix", path="/tmp/w.sock")
+    assert Endpoint.parse("tcp:worldhost:7000") == Endpoint("tcp", host="worldhost", port=7000)
+    assert Endpoint.parse("tcp:[::1]:7000") == Endpoint("tcp", host="::1", port=7000)
+    assert str(Endpoint.parse("tcp:h:1")) == "tcp:h:1"
+    for bad in ("tcp:host", "tcp::7000", "tcp:h:70000", "unix:"):
+        with pytest.raises(ValueError, match="bad endpoint"):
+            Endpoint.parse(bad)
