@@ -33,12 +33,14 @@ def test_check_env_passes_in_both_action_modes():
         env.close()
 
 
-def test_check_env_passes_with_the_camera_image():
-    env = WorldEnv(image=True, action="velocity")
-    check_env(env, skip_render_check=True)
+def test_check_env_passes_with_the_camera_image_and_rendering():
+    env = WorldEnv(image=True, action="velocity", render_mode="rgb_array")
+    check_env(env)
     obs, _ = env.reset(seed=0)
     assert obs["image"].shape == (320, 320) and obs["image"].dtype == np.uint8
     assert obs["image"].std() > 0  # the course, not a blank picture
+    frame = env.render()
+    assert frame.shape == (320, 320, 3) and np.array_equal(frame[:, :, 1], obs["image"])
     env.close()
 
 

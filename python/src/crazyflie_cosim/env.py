@@ -128,7 +128,9 @@ class GateProgress(Reward):
 class WorldEnv(gym.Env):
     """See the module's documentation."""
 
-    metadata: ClassVar[dict] = {"render_modes": []}
+    # "rgb_array": the first drone's camera (grey in three channels); the
+    # frame rate is that of a 32 ms world step.
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 31.25}
 
     def __init__(
         self,
@@ -146,6 +148,7 @@ class WorldEnv(gym.Env):
         max_distance_m: float = 50.0,
         image_encoding: str = "shm",
         world_server: str | None = None,
+        render_mode: str | None = None,
     ):
         if action not in ("motors", "velocity"):
             raise ValueError(f'action must be "motors" or "velocity", not {action!r}')
@@ -167,6 +170,9 @@ class WorldEnv(gym.Env):
         self.max_distance_m = max_distance_m
         self.image_encoding = image_encoding if image else None
         self.world_server = world_server
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f'render_mode must be None or "rgb_array", not {render_mode!r}')
+        self.render_mode = render_mode
         self._seed = seed
         self._dir = Path(tempfile.mkdtemp(prefix="cosim-env-"))
         self._server: WorldServer | None = None
@@ -305,6 +311,20 @@ class WorldEnv(gym.Env):
         info = self._info()
         info["rewards"] = rewards
         return obs, float(sum(rewards.values())), terminated, truncated, info
+
+    def render(self):
+        """The first drone's camera image as an RGB array (``render_mode
+        "rgb_array"``); ``None`` otherwise."""
+        if self.render_mode != "rgb_array":
+            return None
+        if self._world is None:
+            raise RuntimeError("render() before reset()")
+        try:
+            img = self._world.drones[self._world.names[0]].image()
+        except (OSError, p.ProtocolError) as e:
+            self._fail(e)
+        grey = np.frombuffer(img.pixels, np.uint8).reshape(img.height, img.width)
+        return np.repeat(grey[:, :, None], 3, axis=2)
 
     def close(self):
         self._shutdown()
