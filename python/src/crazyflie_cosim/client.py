@@ -117,17 +117,24 @@ class Drone:
     def send(self, msg: Mapping[str, Any]) -> None:
         """Send a request without waiting; its reply (if it has one) is read
         by a later :meth:`receive`."""
-        if self.stopped:
+        self.send_many((msg,))
+
+    def send_many(self, msgs: Iterable[Mapping[str, Any]]) -> None:
+        """Send several requests in one write (PROTOCOL.md §5.2: the world
+        answers them in order), without waiting."""
+        msgs = list(msgs)
+        if self.stopped and msgs:
             raise p.ProtocolError(f"drone {self.label}: no request after STOP")
-        p.send_frame(self._sock, msg)
-        cmd = msg["command"]
-        if self.clock_ms is not None and self.init is not None:
-            if cmd == "SET_VELOCITY":
-                self.clock_ms += self.init.timestep_ms
-            elif cmd == "ADVANCE_TIME":
-                self.clock_ms += msg["time"]
-        if p.expects_reply(msg):
-            self._pending.append(cmd)
+        self._sock.sendall(b"".join(p.encode_frame(m) for m in msgs))
+        for msg in msgs:
+            cmd = msg["command"]
+            if self.clock_ms is not None and self.init is not None:
+                if cmd == "SET_VELOCITY":
+                    self.clock_ms += self.init.timestep_ms
+                elif cmd == "ADVANCE_TIME":
+                    self.clock_ms += msg["time"]
+            if p.expects_reply(msg):
+                self._pending.append(cmd)
 
     def receive(self):
         """The reply to the oldest request sent and not yet answered."""
@@ -269,12 +276,15 @@ class World:
         return len(self.drones)
 
     def send(self, requests: Mapping[str, Mapping[str, Any] | Iterable[Mapping[str, Any]]]) -> None:
-        """Send each drone its request (or list of requests), in world-file
-        order, without reading anything."""
-        for name, reqs in requests.items():
-            drone = self.drones[name]
-            for msg in [reqs] if isinstance(reqs, Mapping) else reqs:
-                drone.send(msg)
+        """Send each drone its request (or list of requests, in one write),
+        in world-file order, without reading anything."""
+        unknown = set(requests) - set(self.drones)
+        if unknown:
+            raise KeyError(f"no drone {sorted(unknown)} in this world ({self.names})")
+        for name, drone in self.drones.items():
+            if name in requests:
+                reqs = requests[name]
+                drone.send_many([reqs] if isinstance(reqs, Mapping) else reqs)
 
     def receive(self) -> dict[str, Any]:
         """Every pending reply of every drone: ``{name: reply}``, or

@@ -149,6 +149,7 @@ class WorldEnv(gym.Env):
         image_encoding: str = "shm",
         world_server: str | None = None,
         render_mode: str | None = None,
+        reply_timeout_s: float | None = 60.0,
     ):
         if action not in ("motors", "velocity"):
             raise ValueError(f'action must be "motors" or "velocity", not {action!r}')
@@ -173,12 +174,17 @@ class WorldEnv(gym.Env):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f'render_mode must be None or "rgb_array", not {render_mode!r}')
         self.render_mode = render_mode
+        # A world that does not answer within this (wall time) failed: an
+        # error instead of a hang (a world step takes microseconds).
+        self.reply_timeout_s = reply_timeout_s
         self._seed = seed
         self._dir = Path(tempfile.mkdtemp(prefix="cosim-env-"))
         self._server: WorldServer | None = None
         self._world: World | None = None
         self.status: dict[str, DroneStatus] = {}
         self.episode_time_s = 0.0
+        self._images: dict[str, np.ndarray] = {}
+        self._images_fresh = False
 
         one_obs = self._drone_obs_space()
         if action == "motors":
@@ -266,14 +272,17 @@ class WorldEnv(gym.Env):
         multi = len(self.names) > 1
         try:
             self._world = World.connect(
-                self._server.endpoint, self.names if multi else None, image_encoding=self.image_encoding
+                self._server.endpoint,
+                self.names if multi else None,
+                image_encoding=self.image_encoding,
+                reply_timeout=self.reply_timeout_s,
             )
-            states = self._world.request({n: p.get_state() for n in self._world.names})
         except (OSError, p.ProtocolError) as e:
             self._fail(e)
+        states = self._exchange(None, self.image)
         self.status = {}
-        for name, key in zip(self.names, self._world.names):
-            st = states[key]
+        for name in self.names:
+            st = states[name]
             s = DroneStatus(name, self._pos(st), st, self._pos(st), collisions_at_start=st.collisions)
             if self.action_mode == "velocity":
                 s.controller = VelocityController(self.timestep_ms, st.time_s, st.x, st.y, st.z)
@@ -288,19 +297,15 @@ class WorldEnv(gym.Env):
         actions = self._actions(action)
         rewards = {n: 0.0 for n in self.names}
         terminated = False
-        keys = dict(zip(self.names, self._world.names))
-        for _ in range(self.steps_per_action):
-            requests = {}
-            for n in self.names:
-                requests[keys[n]] = [p.set_velocity(*self._motors(n, actions[n])), p.get_state()]
-            try:
-                states = self._world.request(requests)
-            except (OSError, p.ProtocolError) as e:
-                self._fail(e)
+        self._images_fresh = False
+        for i in range(self.steps_per_action):
+            motors = {n: self._motors(n, actions[n]) for n in self.names}
+            # The image of the step's last state travels with it.
+            states = self._exchange(motors, self.image and i == self.steps_per_action - 1)
             self.episode_time_s += self.timestep_ms / 1000.0
             for n in self.names:
                 before = self.status[n]
-                after, passed = self._advance(before, states[keys[n]])
+                after, passed = self._advance(before, states[n])
                 rewards[n] += float(self.reward_fn(self, before, after, passed))
                 self.status[n] = after
             terminated = self._terminated()
@@ -397,8 +402,33 @@ class WorldEnv(gym.Env):
             return state
         return {"state": state, "image": self._images[name]}
 
+    def _exchange(self, motors: dict[str, tuple] | None, with_image: bool) -> dict[str, p.State]:
+        """One round trip for every drone, in one write each: SET_VELOCITY
+        (unless ``motors`` is None), GET_STATE and, ``with_image``,
+        GET_IMAGE.  Returns the states by drone name; keeps the images."""
+        keys = dict(zip(self.names, self._world.names))
+        requests = {}
+        for n in self.names:
+            reqs = [p.set_velocity(*motors[n])] if motors is not None else []
+            reqs.append(p.get_state())
+            if with_image:
+                reqs.append(p.get_image())
+            requests[keys[n]] = reqs
+        try:
+            replies = self._world.request(requests)
+        except (OSError, p.ProtocolError) as e:
+            self._fail(e)
+        replies = {n: r if isinstance(r, list) else [r] for n, r in ((n, replies[keys[n]]) for n in self.names)}
+        if with_image:
+            self._images = {
+                n: np.frombuffer(r[1].pixels, np.uint8).reshape(r[1].height, r[1].width).copy()
+                for n, r in replies.items()
+            }
+            self._images_fresh = True
+        return {n: r[0] for n, r in replies.items()}
+
     def _observation(self):
-        if self.image:
+        if self.image and not self._images_fresh:  # an episode that ended mid-step
             keys = dict(zip(self.names, self._world.names))
             try:
                 imgs = self._world.request({keys[n]: p.get_image() for n in self.names})
@@ -410,6 +440,7 @@ class WorldEnv(gym.Env):
                 .copy()
                 for n in self.names
             }
+            self._images_fresh = True
         if len(self.names) == 1:
             return self._drone_obs(self.names[0])
         return {n: self._drone_obs(n) for n in self.names}
