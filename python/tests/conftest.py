@@ -39,7 +39,9 @@ def binaries() -> dict[str, Path]:
 
 @pytest.fixture(autouse=True)
 def _world_server_env(binaries, monkeypatch):
-    monkeypatch.setenv("COSIM_WORLD_SERVER", str(binaries["world-server"]))
+    # $COSIM_WORLD_SERVER, when set, picks another build to test.
+    if not os.environ.get("COSIM_WORLD_SERVER"):
+        monkeypatch.setenv("COSIM_WORLD_SERVER", str(binaries["world-server"]))
     monkeypatch.chdir(ROOT)
 
 

@@ -454,6 +454,8 @@ class WorldEnv(gym.Env):
 
     def _fail(self, e: Exception):
         """A world that failed: its last words in the error, no process left."""
+        if isinstance(e, TimeoutError):
+            e = TimeoutError(f"no reply within {self.reply_timeout_s} s (reply_timeout_s)")
         log = self._server.log.strip().splitlines()[-1:] if self._server else []
         self._shutdown(clean=False)
         raise RuntimeError(f"world-server failed: {e}" + (f" ({log[0]})" if log else "")) from e
