@@ -107,3 +107,19 @@ def test_one_thread_drives_three_drones_twice_with_identical_traces(three_drone_
     results = [_drive_three(three_drone_world, tmp_path / f"world{k}.trace") for k in range(2)]
     assert len(results) == 2 and results[0] == results[1]
     assert (tmp_path / "world0.trace").read_bytes() == (tmp_path / "world1.trace").read_bytes()
+
+
+def test_advance_time_and_the_radio_of_a_single_drone_world():
+    # A single-drone world has the channel too; its frames reach nobody but
+    # their end is reported in tx_done (PROTOCOL.md §12.3).
+    with WorldServer("scenarios/worlds/empty.toml") as srv, World.connect(srv.endpoint) as w:
+        d = w["cf1"]
+        d.radio_send("uwb", b"ping", offset_ps=1234)
+        d.advance_time(320)
+        assert d.clock_ms == 2320
+        r = d.radio_recv()
+        assert r.packets == () and len(r.tx_done) == 1
+        # It left at 2000 ms + 1234 ps and was on the air for its airtime.
+        assert r.tx_done[0].radio == "uwb" and 2_000_000_001_234 < r.tx_done[0].time_ps < 2_001_000_000_000
+        assert d.sensors().time_s == pytest.approx(2.32)
+        w.stop()
