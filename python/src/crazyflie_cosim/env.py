@@ -185,6 +185,8 @@ class WorldEnv(gym.Env):
         self.episode_time_s = 0.0
         self._images: dict[str, np.ndarray] = {}
         self._images_fresh = False
+        #: After an episode's world stopped: its STOP replies' GATES_PASSED.
+        self.world_gates_passed: dict[str, int | None] = {}
 
         one_obs = self._drone_obs_space()
         if action == "motors":
@@ -466,7 +468,11 @@ class WorldEnv(gym.Env):
         if self._world is not None:
             try:
                 if clean:
-                    self._world.stop()
+                    keys = dict(zip(self._world.names, self.names))
+                    stops = self._world.stop()
+                    # The world's own count (any order; DESIGN.md §10), for
+                    # comparison with the in-order count of info["gates_passed"].
+                    self.world_gates_passed = {keys[k]: r.gates_passed for k, r in stops.items()}
             except (OSError, p.ProtocolError):
                 clean = False
             self._world.close()
