@@ -27,7 +27,9 @@ def main():
     if not (out / "summary.json").is_file():
         root = find_checkout()
         if root is None:
-            raise OutputError(f"{out} holds no run and the checkout (for cosim) is not around the working directory")
+            raise OutputError(
+                f"{out} holds no run and the checkout (for cosim) is not around the working directory"
+            )
         cosim = root / "target" / "release" / "cosim"
         subprocess.run([str(cosim), "run", "short-hop", "--out", str(out)], check=True)
     run = Run(out)

@@ -95,8 +95,12 @@ def test_three_drones_in_one_environment(three_drone_world):
     assert list(env.observation_space.spaces) == ["alpha", "bravo", "charlie"]
     check_env(env, skip_render_check=True)
     obs, _ = env.reset(seed=3)
-    for _ in range(30):
-        obs, _, _, _, info = env.step({n: np.array([0.0, 0.0, 0.5, 0.0]) for n in env.names})
+    # 3.2 s climbing at 0.3, 0.4, 0.5 m/s (the motors need ~2 s to spin up
+    # at 30 rad/s per s): each drone flies its own demand.
+    climb = {"alpha": 0.3, "bravo": 0.4, "charlie": 0.5}
+    for _ in range(100):
+        obs, _, _, _, info = env.step({n: np.array([0.0, 0.0, climb[n], 0.0]) for n in env.names})
     assert set(info["rewards"]) == {"alpha", "bravo", "charlie"}
-    assert all(obs[n][2] > 0.2 for n in env.names)
+    z = [obs[n][2] for n in env.names]
+    assert 0.2 < z[0] < z[1] < z[2], z
     env.close()

@@ -146,7 +146,10 @@ class WorldServer:
             lines = self.log_path.read_text(errors="replace").strip().splitlines()
         except OSError:
             lines = []
-        tail = lines[-1] if lines else "(no output)"
+        # clap ends its errors with a "For more information" line: the
+        # error line itself says why.
+        errors = [ln for ln in lines if "error" in ln.lower()]
+        tail = errors[-1] if errors else lines[-1] if lines else "(no output)"
         return f"world-server {what} (status {self.process.returncode}): {tail}"
 
     @property
