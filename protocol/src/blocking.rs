@@ -664,7 +664,7 @@ impl Server {
     pub fn bind_with(ep: &Endpoint, opts: Options) -> Result<Server> {
         let kind = match ep {
             Endpoint::Unix(p) => {
-                let (l, ino) = bind_unix(p)?;
+                let (l, ino) = bind_unix(p, 1)?;
                 ListenerKind::Unix {
                     l,
                     path: p.clone(),

@@ -63,7 +63,11 @@ impl fmt::Display for Endpoint {
 /// - the socket is made mode 0600 *between* `bind` and `listen`, so no other
 ///   user can connect even for an instant (std's `UnixListener::bind` listens
 ///   immediately, hence the raw calls).
-pub(crate) fn bind_unix(path: &Path) -> Result<(UnixListener, u64)> {
+///
+/// `backlog`: the connections the kernel holds before they are accepted
+/// (the thesis: 1; a world of N drones: N, so that a client may connect all
+/// its drones without blocking, DESIGN.md §15).
+pub(crate) fn bind_unix(path: &Path, backlog: u32) -> Result<(UnixListener, u64)> {
     remove_stale(path)?;
     let bytes = path.as_os_str().as_bytes();
     // SAFETY: plain socket syscalls on a zeroed sockaddr_un whose path we
@@ -110,8 +114,8 @@ pub(crate) fn bind_unix(path: &Path) -> Result<(UnixListener, u64)> {
             });
         }
         std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600))?;
-        // Backlog 1: one client at a time, as the thesis's listen(fd, 1).
-        if libc::listen(fd.as_raw_fd(), 1) != 0 {
+        let backlog = libc::c_int::try_from(backlog.max(1)).unwrap_or(libc::c_int::MAX);
+        if libc::listen(fd.as_raw_fd(), backlog) != 0 {
             let e = io::Error::last_os_error();
             let _ = std::fs::remove_file(path);
             return Err(e.into());

@@ -330,9 +330,16 @@ impl Listener {
     }
 
     pub async fn bind_with(ep: &Endpoint, max_frame: usize) -> Result<Listener> {
+        Self::bind_backlog(ep, max_frame, 1).await
+    }
+
+    /// As [`Listener::bind_with`], holding `backlog` connections not yet
+    /// accepted (UNIX; TCP keeps tokio's 1024). The thesis's listen(fd, 1)
+    /// is 1.
+    pub async fn bind_backlog(ep: &Endpoint, max_frame: usize, backlog: u32) -> Result<Listener> {
         let kind = match ep {
             Endpoint::Unix(p) => {
-                let (l, ino) = bind_unix(p)?;
+                let (l, ino) = bind_unix(p, backlog)?;
                 l.set_nonblocking(true)?;
                 Kind::Unix {
                     l: UnixListener::from_std(l)?,

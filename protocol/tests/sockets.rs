@@ -462,3 +462,43 @@ fn error_left_by_a_closed_world_is_reported() {
         "{e}"
     );
 }
+
+/// DESIGN.md §15: a world of N drones listens with a backlog of N, so that
+/// one client may connect every drone with non-blocking connects (tokio's,
+/// Python's asyncio) before the world accepts any. With the thesis's
+/// backlog of 1 the kernel holds two and the third connect fails with
+/// EAGAIN.
+#[test]
+fn the_backlog_holds_every_drone_s_connection() {
+    let dir = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let connect_all = |ep: &Endpoint, n: usize| -> Vec<std::io::Result<tokio::net::UnixStream>> {
+        let Endpoint::Unix(path) = ep else {
+            unreachable!()
+        };
+        // Nothing accepts: every connection waits in the backlog.
+        (0..n)
+            .map(|_| rt.block_on(tokio::net::UnixStream::connect(path)))
+            .collect()
+    };
+    let ep = sock(&dir, "eight.sock");
+    let l = rt
+        .block_on(Listener::bind_backlog(
+            &ep,
+            protocol::frame::DEFAULT_MAX_FRAME,
+            8,
+        ))
+        .unwrap();
+    for (k, c) in connect_all(&ep, 8).into_iter().enumerate() {
+        assert!(c.is_ok(), "connection {k}: {:?}", c.err());
+    }
+    drop(l);
+    let ep = sock(&dir, "one.sock");
+    let _l = rt.block_on(Listener::bind(&ep)).unwrap();
+    let conns = connect_all(&ep, 3);
+    let e = conns[2].as_ref().expect_err("a backlog of 1 holds two");
+    assert_eq!(e.kind(), std::io::ErrorKind::WouldBlock, "{e}");
+}

@@ -7,10 +7,20 @@
 //! platform is computing and its next request will have a time ≥ t_d. The
 //! time of a request is its drone's clock when it is processed. The head
 //! request with the smallest key (t, i) is processed only when every busy
-//! drone j has (t_j, j) > (t, i); before it is, the physics steps (lazily,
-//! one basicTimeStep at a time) until the world time T equals t. So every
+//! drone j has (t_j, j) > (t, i); before it is, the physics steps (one
+//! basicTimeStep at a time, when a request needs it or as soon as every
+//! flying clock is past T) until the world time T equals t. So every
 //! change to the world happens in (time, drone order) whatever the order in
 //! which the requests arrived, and T never passes a flying drone's clock.
+//!
+//! This order is the order of every *change* of the world (motor targets,
+//! transmissions, STOP, failures) and of the world's trace. A *query* needs
+//! less (DESIGN.md §15): it reads the world at T, which no change made at T
+//! can alter (motor targets act from the next step on, a transmission
+//! started at T ends after T), so the session answers a query as soon as
+//! its time equals T, before its turn; its turn then only writes its trace
+//! lines. So a busy drone never holds back another drone's reply at the
+//! same time, and one thread may drive several drones.
 //!
 //! STOP takes a drone out of the lockstep (it never holds the world back
 //! again); it is *stopping* until the server reports its propellers stopped.
@@ -111,6 +121,17 @@ impl<R> Lockstep<R> {
         self.slots[d].queue.len()
     }
 
+    /// Drone `d`'s `k`-th request not processed yet (0: its head).
+    pub fn queued_at(&self, d: usize, k: usize) -> Option<&R> {
+        self.slots[d].queue.get(k)
+    }
+
+    /// The same, to mark it (the session marks a query answered early,
+    /// DESIGN.md §15); the canonical order does not change.
+    pub fn queued_at_mut(&mut self, d: usize, k: usize) -> Option<&mut R> {
+        self.slots[d].queue.get_mut(k)
+    }
+
     /// The drones that are stopping, in world-file order.
     pub fn stopping(&self) -> impl Iterator<Item = usize> + '_ {
         self.slots
@@ -137,10 +158,13 @@ impl<R> Lockstep<R> {
         let mut head: Option<(Millis, usize)> = None;
         let mut busy: Option<(Millis, usize)> = None;
         let (mut flying, mut stopping) = (false, false);
+        // The smallest clock of a flying drone.
+        let mut earliest: Option<Millis> = None;
         for (i, s) in self.slots.iter().enumerate() {
             match s.phase {
                 Phase::Flying => {
                     flying = true;
+                    earliest = Some(earliest.map_or(s.clock, |e| e.min(s.clock)));
                     let key = Some((s.clock, i));
                     let slot = if s.queue.is_empty() {
                         &mut busy
@@ -166,6 +190,12 @@ impl<R> Lockstep<R> {
                     Next::Process { drone }
                 }
             }
+            // The head waits for a busy drone, but every flying clock is
+            // past T: the physics may step (nothing can happen at T any
+            // more), so that queries at the new T are answered before
+            // their turn (DESIGN.md §15). The same steps, in the same
+            // place among the requests, as stepping lazily.
+            Some(_) if earliest.is_some_and(|e| e > self.time) => Next::Step,
             Some(_) => Next::Wait,
             None if flying => Next::Wait,
             None if stopping => Next::Step,

@@ -24,6 +24,7 @@
 //!    ERROR frame rather than a broken pipe; outputs are flushed and the run
 //!    fails.
 
+use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::pin::Pin;
 use std::time::Duration;
@@ -102,8 +103,20 @@ fn describe_unclaimed(names: &[String]) -> String {
 type ReadHalf = Either<unix::OwnedReadHalf, tcp::OwnedReadHalf>;
 type WriteHalf = Either<unix::OwnedWriteHalf, tcp::OwnedWriteHalf>;
 type Frames = FramedRead<ReadHalf, FrameCodec>;
-/// One connection's inputs, tagged with its drone, ending with `Closed`.
-type Inputs = Pin<Box<dyn Stream<Item = (usize, Input)>>>;
+/// What the world waits for while it serves.
+enum Event {
+    /// An input of drone `.0`'s connection; its stream ends with `Closed`.
+    Input(usize, Input),
+    /// A connection after every drone was claimed: refused at once
+    /// (DESIGN.md §15).
+    Late(protocol::Result<protocol::tokio_transport::ServerFramed>),
+}
+
+/// One connection's inputs, or the listener's late connections.
+type Inputs = Pin<Box<dyn Stream<Item = Event>>>;
+
+/// What a connection made after every drone was claimed is told.
+pub const EVERY_DRONE_CLAIMED: &str = "every drone is claimed";
 
 /// Binds, waits for the claims, warms up, serves until the last STOP.
 /// Returns Ok only after every drone's STOP was answered.
@@ -148,7 +161,10 @@ async fn serve_session(
     session: &mut Session,
     trace: Option<&mut TraceQueue>,
 ) -> Result<(), ServerError> {
-    let listener = Listener::bind(&cfg.endpoint).await?;
+    // The backlog holds every drone's connection, so that one client may
+    // connect all of them without blocking (DESIGN.md §15).
+    let backlog = u32::try_from(cfg.world.drones.len()).unwrap_or(u32::MAX);
+    let listener = Listener::bind_backlog(&cfg.endpoint, DEFAULT_MAX_FRAME, backlog).await?;
     tracing::info!(
         endpoint = %listener.local_endpoint()?,
         world = %cfg.world.name,
@@ -170,6 +186,7 @@ async fn serve_session(
         encodings: vec![ImageEncoding::Array; n],
         outbox: Vec::new(),
         spare: vec![Vec::new(); n],
+        early: vec![VecDeque::new(); n],
         shm: (0..n).map(|_| None).collect(),
     };
     let mut writers: Vec<Option<WriteHalf>> = Vec::with_capacity(n);
@@ -179,6 +196,10 @@ async fn serve_session(
         writers.push(Some(c.write));
         inputs.push(tagged(d, c.read));
     }
+    inputs.push(Box::pin(stream::unfold(listener, |l| async move {
+        let conn = l.accept().await;
+        Some((Event::Late(conn), l))
+    })));
     let mut open = vec![true; n];
     let outcome = run_loop(
         session,
@@ -239,27 +260,33 @@ async fn run_loop(
         let trace = &mut wire.trace;
         let work = || trace.as_deref_mut().is_some_and(|t| t.work());
         match busy_poll.next_or_work(inputs, work).await {
-            Some((d, input)) => accept_input(session, writers, open, d, input)?,
-            None => unreachable!("every input stream ends with Closed, pushed above"),
+            Some(event) => accept_event(session, writers, open, event).await?,
+            None => unreachable!("the listener's stream never ends"),
         }
         // A pipelining platform sends an iteration's requests together
         // (docs/PROTOCOL.md "Pipelining"): take every frame already read,
         // so that their replies leave in one write and wake the platform
         // once. Frames buffered by the codec come without a system call.
-        while let Some(Some((d, input))) = inputs.next().now_or_never() {
-            accept_input(session, writers, open, d, input)?;
+        while let Some(Some(event)) = inputs.next().now_or_never() {
+            accept_event(session, writers, open, event).await?;
         }
     }
 }
 
-/// One input of drone `d` into the session.
-fn accept_input(
+/// One input of a drone into the session, or a late connection refused.
+async fn accept_event(
     session: &mut Session,
     writers: &mut [Option<WriteHalf>],
     open: &mut [bool],
-    d: usize,
-    input: Input,
+    event: Event,
 ) -> Result<(), SessionError> {
+    let (d, input) = match event {
+        Event::Input(d, input) => (d, input),
+        Event::Late(conn) => {
+            refuse_late(conn).await;
+            return Ok(());
+        }
+    };
     match input {
         // Gone: nothing more can be written to it either.
         Input::Closed => {
@@ -319,8 +346,9 @@ async fn drain(inputs: &mut SelectAll<Inputs>, open: &mut [bool]) {
     let until = tokio::time::Instant::now() + DRAIN;
     while open.iter().any(|&o| o) {
         match tokio::time::timeout_at(until, inputs.next()).await {
-            Ok(Some((d, Input::Closed | Input::Broken(_)))) => open[d] = false,
-            Ok(Some(_)) => {}
+            Ok(Some(Event::Input(d, Input::Closed | Input::Broken(_)))) => open[d] = false,
+            Ok(Some(Event::Late(conn))) => refuse_late(conn).await,
+            Ok(Some(Event::Input(..))) => {}
             Ok(None) | Err(_) => return,
         }
     }
@@ -338,6 +366,9 @@ struct Wire<'a> {
     outbox: Vec<(usize, Vec<u8>, bool)>,
     /// Per drone: a frame buffer to reuse.
     spare: Vec<Vec<u8>>,
+    /// Per drone: the replies sent early (DESIGN.md §15), frame body and
+    /// image, whose trace lines wait for their turn.
+    early: Vec<VecDeque<(Vec<u8>, Option<protocol::Image>)>>,
     /// Per drone: its shared-memory image file, if it negotiated "shm"
     /// (removed when the run ends).
     shm: Vec<Option<ShmWriter>>,
@@ -385,13 +416,62 @@ impl Outputs for Wire<'_> {
     }
 
     fn reply(&mut self, drone: usize, reply: Reply, now: Millis) -> Result<(), SessionError> {
-        if let Reply::InitData { image_encoding, .. } = &reply {
+        self.send(drone, &reply)?;
+        let image = match &reply {
+            Reply::Image(img) => Some(img),
+            _ => None,
+        };
+        // Out of the outbox while the trace (also in `self`) reads it.
+        let sent = self.outbox.pop().expect("sent above");
+        let traced = self.traced(&reply_event(&sent.1[HEADER_LEN..], image), drone, now);
+        self.outbox.push(sent);
+        traced
+    }
+
+    fn reply_early(
+        &mut self,
+        drone: usize,
+        reply: Reply,
+        _now: Millis,
+    ) -> Result<(), SessionError> {
+        self.send(drone, &reply)?;
+        let frame = self.outbox.last().expect("sent above").1[HEADER_LEN..].to_vec();
+        let image = match reply {
+            Reply::Image(img) => Some(img),
+            _ => None,
+        };
+        self.early[drone].push_back((frame, image));
+        Ok(())
+    }
+
+    fn trace_early(&mut self, drone: usize, now: Millis) -> Result<(), SessionError> {
+        let Some((frame, image)) = self.early[drone].pop_front() else {
+            return Ok(());
+        };
+        self.traced(&reply_event(&frame, image.as_ref()), drone, now)
+    }
+}
+
+/// The trace's view of a reply's frame body.
+fn reply_event<'a>(body: &'a [u8], image: Option<&'a protocol::Image>) -> FrameEvent<'a> {
+    FrameEvent {
+        dir: Direction::ToPlatform,
+        bytes: body,
+        image,
+        valid: true,
+    }
+}
+
+impl Wire<'_> {
+    /// Encodes `reply` into drone `drone`'s outbox (the last frame there).
+    fn send(&mut self, drone: usize, reply: &Reply) -> Result<(), SessionError> {
+        if let Reply::InitData { image_encoding, .. } = reply {
             self.encodings[drone] = *image_encoding;
         }
         let encoding = self.encodings[drone];
         // `"image_encoding":"shm"`: the pixels go to this connection's file,
         // the reply names it (protocol::shm).
-        let shm_reply = match (&reply, encoding) {
+        let shm_reply = match (reply, encoding) {
             (Reply::Image(img), ImageEncoding::Shm) => Some(Reply::ShmImage(
                 self.shm_frame(drone, img)
                     .map_err(|e| SessionError::Drone {
@@ -405,23 +485,13 @@ impl Outputs for Wire<'_> {
         let mut frame = std::mem::take(&mut self.spare[drone]);
         frame.clear();
         write_frame(&mut frame, DEFAULT_MAX_FRAME, |o| {
-            encode_reply(shm_reply.as_ref().unwrap_or(&reply), encoding, o)
+            encode_reply(shm_reply.as_ref().unwrap_or(reply), encoding, o)
         })
         .map_err(|e| SessionError::Drone {
             drone,
             name: self.names[drone].clone(),
             message: format!("cannot encode the {} reply: {e}", reply.command()),
         })?;
-        let ev = FrameEvent {
-            dir: Direction::ToPlatform,
-            bytes: &frame[HEADER_LEN..],
-            image: match &reply {
-                Reply::Image(img) => Some(img),
-                _ => None,
-            },
-            valid: true,
-        };
-        self.traced(&ev, drone, now)?;
         let close = matches!(reply, Reply::Stop { .. });
         self.outbox.push((drone, frame, close));
         Ok(())
@@ -471,7 +541,7 @@ fn tagged(d: usize, frames: Frames) -> Inputs {
         let mut frames = state?;
         let input = next_input(&mut frames).await;
         let more = matches!(input, Input::Frame { .. });
-        Some(((d, input), more.then_some(frames)))
+        Some((Event::Input(d, input), more.then_some(frames)))
     }))
 }
 
@@ -598,6 +668,25 @@ fn list(world: &WorldDesc) -> String {
 
 fn unknown(world: &WorldDesc, name: &str) -> String {
     format!("unknown drone {name:?} (this world has {})", list(world))
+}
+
+/// ERROR [`EVERY_DRONE_CLAIMED`] to a connection made after the claims,
+/// without reading from it, then close it (logged, not traced).
+async fn refuse_late(conn: protocol::Result<protocol::tokio_transport::ServerFramed>) {
+    match conn {
+        Ok(conn) => {
+            tracing::warn!("a connection after every drone was claimed: refused");
+            let (mut read, write) = split(conn);
+            refuse(write, EVERY_DRONE_CLAIMED).await;
+            // Read what it sent (its claim) until it closes, so that closing
+            // does not reset a TCP connection before it read the ERROR.
+            tokio::spawn(async move {
+                let mut sink = tokio::io::sink();
+                let _ = tokio::time::timeout(DRAIN, tokio::io::copy(&mut read, &mut sink)).await;
+            });
+        }
+        Err(e) => tracing::warn!("cannot accept a connection: {e}"),
+    }
 }
 
 /// ERROR to a refused connection, then close it (best effort).

@@ -61,6 +61,27 @@ pub trait Outputs {
     /// A reply to drone `drone` at world time `now`. After a STOP reply the
     /// connection is closed.
     fn reply(&mut self, drone: usize, reply: Reply, now: Millis) -> Result<(), SessionError>;
+    /// A query's reply sent before the query's turn in the canonical order
+    /// (DESIGN.md §15): it goes out now; its trace line waits for
+    /// [`Outputs::trace_early`]. Outputs without a trace may keep this
+    /// default, which is [`Outputs::reply`].
+    fn reply_early(&mut self, drone: usize, reply: Reply, now: Millis) -> Result<(), SessionError> {
+        self.reply(drone, reply, now)
+    }
+    /// The query answered early is in its turn: the trace line of drone
+    /// `drone`'s oldest early reply (its request's line came just before).
+    fn trace_early(&mut self, _drone: usize, _now: Millis) -> Result<(), SessionError> {
+        Ok(())
+    }
+}
+
+/// A request waiting in the lockstep. `answered`: its reply went out
+/// before its turn (a query at the world's time, DESIGN.md §15); its turn
+/// only traces it.
+#[derive(Debug)]
+pub struct Queued {
+    pub input: Input,
+    pub answered: bool,
 }
 
 /// Why a run ended badly.
@@ -122,9 +143,12 @@ struct Snapshot {
 pub struct Session {
     world: World,
     camera: Camera,
-    lockstep: Lockstep<Input>,
+    lockstep: Lockstep<Queued>,
     channel: Channel,
     names: Vec<String>,
+    /// Per drone: its radios (the checks of a RADIO_SEND that a query
+    /// answered early passes, see [`Session::answer_early`]).
+    radios: Vec<Vec<protocol::Radio>>,
     multi: bool,
     /// Positions at the last two step boundaries (radio interpolation).
     before: Snapshot,
@@ -189,6 +213,7 @@ impl Session {
             camera,
             channel,
             names: desc.drones.iter().map(|d| d.name.clone()).collect(),
+            radios: desc.drones.iter().map(|d| d.radios.clone()).collect(),
             multi,
             before: Snapshot {
                 time: world.time(),
@@ -210,7 +235,7 @@ impl Session {
         &self.world
     }
 
-    pub fn lockstep(&self) -> &Lockstep<Input> {
+    pub fn lockstep(&self) -> &Lockstep<Queued> {
         &self.lockstep
     }
 
@@ -255,7 +280,13 @@ impl Session {
         match (self.lockstep.phase(drone), &input) {
             (Phase::Flying, _) => self
                 .lockstep
-                .push(drone, input)
+                .push(
+                    drone,
+                    Queued {
+                        input,
+                        answered: false,
+                    },
+                )
                 .map_err(|e| self.fail(drone, e.to_string())),
             (Phase::Done, Input::Closed | Input::Broken(_)) => Ok(()),
             (Phase::Stopping { .. }, Input::Closed) => {
@@ -272,21 +303,98 @@ impl Session {
         }
     }
 
-    /// Processes everything the lockstep allows.
+    /// Processes everything the lockstep allows, then answers the queries
+    /// that need not wait for their turn.
     pub fn run(&mut self, out: &mut dyn Outputs) -> Result<Progress, SessionError> {
         loop {
             match self.lockstep.next() {
                 Next::Process { drone } => {
-                    let input = self
+                    let queued = self
                         .lockstep
                         .pop(drone)
                         .expect("the lockstep processes a queued request");
-                    self.process(drone, input, out)?;
+                    self.process(drone, queued, out)?;
                 }
                 Next::Step => self.step(out)?,
-                Next::Wait => return Ok(Progress::Waiting),
+                Next::Wait => {
+                    self.answer_early(out);
+                    return Ok(Progress::Waiting);
+                }
                 Next::Finished => return Ok(Progress::Finished),
             }
+        }
+    }
+
+    /// DESIGN.md §15: a query of drone d at time t is answered once every
+    /// flying drone's clock has reached t, never later because another drone
+    /// has not sent its next request. The world's time T never passes a
+    /// flying drone's clock, so that is when t = T. No change at T alters
+    /// what a query reads at T (motor targets act from the next step on; a
+    /// transmission started at T ends after T, and RADIO_RECV reports only
+    /// what ended by T), so the reply is the one its turn would give. A
+    /// query may pass its own drone's earlier RADIO_SEND and ADVANCE_TIME 0
+    /// (same time), when they will be served; anything else of its drone
+    /// before it (a step, STOP, a bad frame) makes it wait for its turn.
+    /// A query that would fail waits for its turn too, which fails the run
+    /// in the canonical order.
+    fn answer_early(&mut self, out: &mut dyn Outputs) {
+        use crate::lockstep::Phase;
+        let now = self.lockstep.time();
+        for d in 0..self.names.len() {
+            if self.lockstep.phase(d) != Phase::Flying || self.lockstep.clock(d) != now {
+                continue;
+            }
+            for k in 0..self.lockstep.queued(d) {
+                let queued = self.lockstep.queued_at(d, k).expect("k < queued");
+                if queued.answered {
+                    continue;
+                }
+                let Input::Frame {
+                    request: Ok(req), ..
+                } = &queued.input
+                else {
+                    break;
+                };
+                if !is_query(req) {
+                    if self.passes_at_same_time(d, req) {
+                        continue;
+                    }
+                    break;
+                }
+                let req = req.clone();
+                let answered = match self.query(d, req, now) {
+                    Ok(reply) => out.reply_early(d, reply, now).is_ok(),
+                    Err(_) => false,
+                };
+                if !answered {
+                    break;
+                }
+                self.lockstep
+                    .queued_at_mut(d, k)
+                    .expect("k < queued")
+                    .answered = true;
+            }
+        }
+    }
+
+    /// A change that leaves drone `d`'s clock where it is and will be
+    /// served (the checks of [`Session::process`] and `Channel::send`).
+    fn passes_at_same_time(&self, d: usize, req: &Request) -> bool {
+        match req {
+            Request::AdvanceTime { time } => *time == 0,
+            Request::RadioSend {
+                radio,
+                data,
+                offset_ps,
+            } => {
+                self.radios[d].contains(radio)
+                    && (1..=radio.max_payload()).contains(&data.len())
+                    && Picos::from_ms(self.lockstep.clock(d).0)
+                        .0
+                        .checked_add(*offset_ps)
+                        .is_some()
+            }
+            _ => false,
         }
     }
 
@@ -366,15 +474,20 @@ impl Session {
         )
     }
 
-    /// Serves drone `d`'s request at its clock (= the world time).
+    /// Serves drone `d`'s request at its clock (= the world time); one
+    /// answered early is only traced.
     fn process(
         &mut self,
         d: usize,
-        input: Input,
+        queued: Queued,
         out: &mut dyn Outputs,
     ) -> Result<(), SessionError> {
         let now = self.world.time();
-        let req = match input {
+        let req = match queued.input {
+            Input::Frame { body, .. } if queued.answered => {
+                out.request(d, &body, true, now)?;
+                return out.trace_early(d, now);
+            }
             Input::Closed => {
                 return Err(self.fail(d, "the platform disconnected before STOP"));
             }
@@ -384,7 +497,61 @@ impl Session {
                 request.map_err(|e| self.fail(d, e.to_string()))?
             }
         };
-        let reply = match req {
+        match req {
+            Request::SetVelocity { m1, m2, m3, m4 } => {
+                self.world
+                    .set_motor_commands(d, MotorCommands([m1, m2, m3, m4]))
+                    .map_err(|e| self.fail(d, e.to_string()))?;
+                let ts = self.world.config().timestep.0;
+                self.lockstep
+                    .advance(d, ts)
+                    .map_err(|e| self.fail(d, e.to_string()))
+            }
+            Request::AdvanceTime { time } => self
+                .lockstep
+                .advance(d, time)
+                .map_err(|e| self.fail(d, e.to_string())),
+            Request::RadioSend {
+                radio,
+                data,
+                offset_ps,
+            } => {
+                let start = Picos::from_ms(now.0)
+                    .0
+                    .checked_add(offset_ps)
+                    .ok_or_else(|| {
+                        self.fail(
+                            d,
+                            format!("RADIO_SEND offset_ps {offset_ps} is beyond the end of time"),
+                        )
+                    })?;
+                self.channel
+                    .send(d, radio, data, Picos(start))
+                    .map_err(|e| self.fail(d, format!("RADIO_SEND: {e}")))
+            }
+            Request::Stop => {
+                self.lockstep
+                    .begin_stop(d)
+                    .map_err(|e| self.fail(d, e.to_string()))?;
+                self.world.stop_propellers(d);
+                self.channel.retire(d);
+                if self.world.propellers_stopped(d) {
+                    self.answer_stop(d, out)?;
+                }
+                Ok(())
+            }
+            query => {
+                let reply = self.query(d, query, now)?;
+                out.reply(d, reply, now)
+            }
+        }
+    }
+
+    /// The reply to a query of drone `d` at world time `now` (= its clock):
+    /// what it reads does not depend on the changes made at `now`
+    /// ([`Session::answer_early`]).
+    fn query(&mut self, d: usize, req: Request, now: Millis) -> Result<Reply, SessionError> {
+        Ok(match req {
             Request::GetInitData {
                 image_encoding,
                 drone,
@@ -411,22 +578,6 @@ impl Session {
             }
             Request::GetSensors => Reply::Sensors(self.sensors(d)),
             Request::GetImage => Reply::Image(self.image(d)?),
-            Request::SetVelocity { m1, m2, m3, m4 } => {
-                self.world
-                    .set_motor_commands(d, MotorCommands([m1, m2, m3, m4]))
-                    .map_err(|e| self.fail(d, e.to_string()))?;
-                let ts = self.world.config().timestep.0;
-                self.lockstep
-                    .advance(d, ts)
-                    .map_err(|e| self.fail(d, e.to_string()))?;
-                return Ok(());
-            }
-            Request::AdvanceTime { time } => {
-                self.lockstep
-                    .advance(d, time)
-                    .map_err(|e| self.fail(d, e.to_string()))?;
-                return Ok(());
-            }
             Request::GetData2 => {
                 let s = self.world.state(d);
                 Reply::Data2 {
@@ -444,42 +595,12 @@ impl Session {
                 }
             }
             Request::GetState => Reply::State(self.state(d)),
-            Request::RadioSend {
-                radio,
-                data,
-                offset_ps,
-            } => {
-                let start = Picos::from_ms(now.0)
-                    .0
-                    .checked_add(offset_ps)
-                    .ok_or_else(|| {
-                        self.fail(
-                            d,
-                            format!("RADIO_SEND offset_ps {offset_ps} is beyond the end of time"),
-                        )
-                    })?;
-                self.channel
-                    .send(d, radio, data, Picos(start))
-                    .map_err(|e| self.fail(d, format!("RADIO_SEND: {e}")))?;
-                return Ok(());
-            }
             Request::RadioRecv => {
                 let (packets, tx_done) = self.channel.take(d, Picos::from_ms(now.0));
                 Reply::RadioRecv { packets, tx_done }
             }
-            Request::Stop => {
-                self.lockstep
-                    .begin_stop(d)
-                    .map_err(|e| self.fail(d, e.to_string()))?;
-                self.world.stop_propellers(d);
-                self.channel.retire(d);
-                if self.world.propellers_stopped(d) {
-                    self.answer_stop(d, out)?;
-                }
-                return Ok(());
-            }
-        };
-        out.reply(d, reply, now)
+            change => return Err(self.fail(d, format!("{} is not a query", change.command()))),
+        })
     }
 
     fn take_trajectory_error(&mut self) -> Result<(), SessionError> {
@@ -588,6 +709,12 @@ impl Session {
             data,
         })
     }
+}
+
+/// A request that only reads the world and has a reply (STOP has a reply
+/// but changes the world).
+fn is_query(req: &Request) -> bool {
+    req.expects_reply() && !matches!(req, Request::Stop)
 }
 
 /// Appends one trajectory row per drone, keeping the first error for the caller.

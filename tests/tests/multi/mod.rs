@@ -182,3 +182,23 @@ pub fn trace_lines(text: &str) -> Vec<serde_json::Value> {
         .map(|l| serde_json::from_str(l).unwrap())
         .collect()
 }
+
+/// Checks a multi-drone world trace's order: its requests by (time, drone
+/// in `names` order), the canonical order of docs/SWARM.md §2, each reply
+/// (but a STOP's, which comes when the propellers stopped) right after its
+/// request.
+pub fn assert_canonical_order(lines: &[serde_json::Value], names: &[&str]) {
+    let index = |l: &serde_json::Value| names.iter().position(|n| l["drone"] == *n).unwrap();
+    let mut last = (0, 0);
+    for (k, l) in lines.iter().enumerate() {
+        let key = (l["world_ms"].as_u64().unwrap(), index(l));
+        if l["dir"] == "to_world" {
+            assert!(key >= last, "line {k}: {key:?} after {last:?}");
+            last = key;
+        } else if l["msg"]["command"] != "STOP" {
+            assert_eq!(lines[k - 1]["dir"], "to_world", "line {k}");
+            assert_eq!(lines[k - 1]["drone"], l["drone"], "line {k}");
+            assert_eq!(lines[k - 1]["msg"]["command"], l["msg"]["command"]);
+        }
+    }
+}

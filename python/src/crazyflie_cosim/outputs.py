@@ -1,0 +1,181 @@
+"""Readers of a run's and a sweep's outputs (DESIGN.md §6, docs/COSIM.md).
+
+``Run(DIR)`` reads what ``cosim run --out DIR`` wrote: ``summary.json``,
+``power.csv``, ``trajectory.csv``, the three motor models' CSVs
+(``motor_empirical.csv``, ``motor_dandrea.csv``, ``motor_stolaroff.csv``),
+``console.log``, and for a swarm run the world's ``radio.csv`` and one
+``Run`` per drone (``run.drones``, the ``out/<scenario>/<drone>/``
+directories).  ``Sweep(DIR)`` reads ``cosim sweep``'s ``sweep.csv`` and
+opens its runs.
+
+Tables are pandas DataFrames when pandas is installed (``tables="pandas"``,
+the default ``"auto"``) and lists of dicts otherwise (``tables="rows"``):
+numbers become ``int``/``float``, empty cells ``None``, other text stays
+``str``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+MOTOR_MODELS = ("empirical", "dandrea", "stolaroff")
+
+
+class OutputError(ValueError):
+    """A missing or malformed output file."""
+
+
+def _have_pandas() -> bool:
+    try:
+        import pandas  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _cell(text: str) -> Any:
+    if text == "":
+        return None
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def read_csv(path: str | os.PathLike, tables: str = "auto"):
+    """One of our CSV files (a header line, then rows) as a DataFrame or
+    a list of dicts (see the module's documentation)."""
+    path = Path(path)
+    if not path.is_file():
+        raise OutputError(f"{path}: no such file")
+    use_pandas = tables == "pandas" or (tables == "auto" and _have_pandas())
+    if tables not in ("auto", "pandas", "rows"):
+        raise ValueError(f'tables must be "auto", "pandas" or "rows", not {tables!r}')
+    if use_pandas:
+        import pandas as pd
+
+        try:
+            return pd.read_csv(path)
+        except pd.errors.EmptyDataError:
+            raise OutputError(f"{path}: empty file (no header)") from None
+    with open(path, newline="") as f:
+        reader = csv.reader(f)
+        try:
+            header = next(reader)
+        except StopIteration:
+            raise OutputError(f"{path}: empty file (no header)") from None
+        rows = []
+        for lineno, row in enumerate(reader, start=2):
+            if len(row) != len(header):
+                raise OutputError(f"{path}:{lineno}: {len(row)} fields, the header has {len(header)}")
+            rows.append({k: _cell(v) for k, v in zip(header, row)})
+    # A column with any fractional number is a float column ("0" in a
+    # column of positions is 0.0), as pandas would type it.
+    for k in header:
+        if any(isinstance(r[k], float) for r in rows):
+            for r in rows:
+                if isinstance(r[k], int):
+                    r[k] = float(r[k])
+    return rows
+
+
+class Run:
+    """The outputs of one ``cosim run`` (or one drone of a swarm run)."""
+
+    def __init__(self, path: str | os.PathLike, tables: str = "auto"):
+        self.path = Path(path)
+        self.tables = tables
+        if not (self.path / "summary.json").is_file():
+            raise OutputError(f"{self.path}: not a run's directory (no summary.json)")
+
+    def file(self, name: str) -> Path:
+        return self.path / name
+
+    @property
+    def summary(self) -> dict[str, Any]:
+        """``summary.json`` (DESIGN.md §6; with a ``drones`` map for a swarm)."""
+        try:
+            return json.loads(self.file("summary.json").read_text())
+        except json.JSONDecodeError as e:
+            raise OutputError(f"{self.file('summary.json')}: invalid JSON ({e})") from None
+
+    @property
+    def is_swarm(self) -> bool:
+        return "drones" in self.summary
+
+    @property
+    def drones(self) -> dict[str, Run]:
+        """A swarm run's drones, each with its own outputs (empty for a
+        single-drone run)."""
+        names = self.summary.get("drones") or {}
+        return {n: Run(self.path / n, self.tables) for n in names if (self.path / n / "summary.json").is_file()}
+
+    def _csv(self, name: str):
+        return read_csv(self.file(name), self.tables)
+
+    def power(self):
+        """``power.csv``: 1 ms rows of bus currents, battery current, voltage
+        and SOC."""
+        return self._csv("power.csv")
+
+    def trajectory(self):
+        """``trajectory.csv``: one row per world step (and drone, with a
+        ``drone`` column, in a swarm run's top directory)."""
+        return self._csv("trajectory.csv")
+
+    def motors(self, model: str = "empirical"):
+        """``motor_<model>.csv`` of one of the thesis's three motor models."""
+        if model not in MOTOR_MODELS:
+            raise ValueError(f"motor model must be one of {MOTOR_MODELS}, not {model!r}")
+        return self._csv(f"motor_{model}.csv")
+
+    def radio(self):
+        """A swarm run's ``radio.csv`` (one row per frame and receiver)."""
+        return self._csv("radio.csv")
+
+    def console(self) -> str:
+        """What the firmware printed (``console.log``)."""
+        path = self.file("console.log")
+        if not path.is_file():
+            raise OutputError(f"{path}: no such file")
+        return path.read_text(errors="replace")
+
+    def __repr__(self) -> str:
+        return f"Run({str(self.path)!r})"
+
+
+class Sweep:
+    """The outputs of one ``cosim sweep``: ``sweep.csv`` and its runs."""
+
+    def __init__(self, path: str | os.PathLike, tables: str = "auto"):
+        self.path = Path(path)
+        self.tables = tables
+        if not (self.path / "sweep.csv").is_file():
+            raise OutputError(f"{self.path}: not a sweep's directory (no sweep.csv)")
+
+    def table(self):
+        """``sweep.csv``: one row per run, its parameters and results."""
+        return read_csv(self.path / "sweep.csv", self.tables)
+
+    def runs(self) -> list[Run]:
+        """The runs that wrote their outputs, in the table's order."""
+        rows = read_csv(self.path / "sweep.csv", "rows")
+        out = []
+        for row in rows:
+            d = Path(str(row.get("dir") or ""))
+            if not d.is_absolute():
+                d = self.path / d
+            if (d / "summary.json").is_file():
+                out.append(Run(d, self.tables))
+        return out
+
+    def __repr__(self) -> str:
+        return f"Sweep({str(self.path)!r})"

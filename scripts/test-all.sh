@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# The README's test command: every test, Rust and Python, on a fresh machine
+# with the Rust toolchain (issue 23 part 4). Installs what the tests need when
+# it is missing, then runs them:
+#   - GNU parallel (tests/tests/sweep_shards.rs, scripts/sweep-parallel.sh);
+#   - the RISC-V cross compiler and picolibc, clang-19 and lld-19 (firmware
+#     builds: `make -C sim-core/firmware check`, the cluster's kernels);
+#   - a Python venv in target/py-venv with python/requirements-test.txt
+#     (pytest, numpy, gymnasium, mcap, pandas) for python/tests.
+# System packages come from apt-get (root, or sudo when there is one); set
+# COSIM_NO_INSTALL=1 to only check and fail with what is missing.
+# Usage: scripts/test-all.sh [extra `cargo test` arguments]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+step() { printf '\n=== %s (%ss)\n' "$1" "$SECONDS"; }
+
+apt_install() {
+  if [ "${COSIM_NO_INSTALL:-0}" = 1 ]; then
+    echo "test-all: missing: $* (COSIM_NO_INSTALL=1: not installing)" >&2
+    exit 1
+  fi
+  local sudo=()
+  if [ "$(id -u)" != 0 ]; then
+    command -v sudo >/dev/null 2>&1 || {
+      echo "test-all: missing: $*; install them (apt-get install $*) or run as root" >&2
+      exit 1
+    }
+    sudo=(sudo)
+  fi
+  echo "test-all: installing $*"
+  export DEBIAN_FRONTEND=noninteractive
+  "${sudo[@]}" apt-get update -qq
+  "${sudo[@]}" apt-get install -y -qq "$@" >/dev/null
+}
+
+step "system packages"
+missing=()
+# moreutils ships another program called parallel: check for GNU's.
+parallel --version 2>/dev/null | grep -q '^GNU parallel' || missing+=(parallel)
+command -v riscv64-unknown-elf-gcc >/dev/null 2>&1 || missing+=(gcc-riscv64-unknown-elf)
+[ -f /usr/lib/picolibc/riscv64-unknown-elf/picolibc.specs ] || missing+=(picolibc-riscv64-unknown-elf)
+command -v clang-19 >/dev/null 2>&1 || missing+=(clang-19)
+command -v ld.lld-19 >/dev/null 2>&1 || missing+=(lld-19)
+python3 -c 'import venv, ensurepip' 2>/dev/null || missing+=(python3-venv)
+if [ ${#missing[@]} -gt 0 ]; then
+  apt_install "${missing[@]}"
+fi
+parallel --version | head -n 1
+
+step "Python venv (target/py-venv, python/requirements-test.txt)"
+venv=target/py-venv
+req=python/requirements-test.txt
+stamp=$venv/.requirements-test.txt
+if [ ! -x "$venv/bin/python" ]; then
+  python3 -m venv "$venv"
+fi
+if ! cmp -s "$req" "$stamp"; then
+  "$venv/bin/python" -m pip install -q --upgrade pip
+  "$venv/bin/python" -m pip install -q -r "$req"
+  # The package itself, when the checkout has it (pure Python).
+  if [ -f python/pyproject.toml ]; then
+    "$venv/bin/python" -m pip install -q -e ./python
+  fi
+  cp "$req" "$stamp"
+fi
+
+step "cargo test --workspace"
+cargo test --workspace "$@"
+
+if [ -d python/tests ]; then
+  step "python -m pytest python/tests"
+  # The Python tests start our binaries: release builds, as a user runs them.
+  cargo build --release -q -p world-server -p sim-core -p scenarios
+  COSIM_WORLD_SERVER="$PWD/target/release/world-server" \
+    "$venv/bin/python" -m pytest -q python/tests
+fi
+
+step "done"
