@@ -15,6 +15,8 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "../xcv.h"
+
 #define N 64
 #define MACS ((uint32_t)N * N * N)
 
@@ -27,12 +29,6 @@ struct work {
     int32_t *c;           /* in L1 */
     int cores;
 };
-
-static inline int32_t sdot4(int32_t acc, uint32_t a, uint32_t b)
-{
-    __asm__("cv.sdotsp.b %0, %1, %2" : "+r"(acc) : "r"(a), "r"(b));
-    return acc;
-}
 
 /* Rows [first, first + rows) of C, two rows by two columns at a time: per
  * word of k, 4 loads feed 4 dot products (16 MACs). */
@@ -48,10 +44,10 @@ static void rows_2x2(const struct work *w, int first, int rows)
 #pragma clang loop unroll(full)
             for (int k = 0; k < N / 4; k++) {
                 uint32_t x0 = a0[k], x1 = a1[k], y0 = b0[k], y1 = b1[k];
-                c00 = sdot4(c00, x0, y0);
-                c01 = sdot4(c01, x0, y1);
-                c10 = sdot4(c10, x1, y0);
-                c11 = sdot4(c11, x1, y1);
+                c00 = xcv_sdotsp_b(c00, x0, y0);
+                c01 = xcv_sdotsp_b(c01, x0, y1);
+                c10 = xcv_sdotsp_b(c10, x1, y0);
+                c11 = xcv_sdotsp_b(c11, x1, y1);
             }
             w->c[i * N + j] = c00;
             w->c[i * N + j + 1] = c01;
