@@ -10,6 +10,9 @@
  * (PI_PERF_CYCLES on core 0), MAC/cycle, speedup over one core, checksum.
  *
  * Built with clang-19 -march=rv32imc_xcv... (the Makefile's xcvprogram).
+ * With -DBENCH_REPS=R it is the variant `cosim bench cluster` runs once
+ * per core count: the kernel R times on every core the platform has, with
+ * no FC reference (this program's plain build checks the results).
  */
 #include <pmsis.h>
 #include <stdio.h>
@@ -22,7 +25,7 @@
 
 /* L2 copies (the FC fills and checks them) and the L1 working set. */
 static int8_t a_l2[N * N], bt_l2[N * N]; /* A row-major, B transposed */
-static int32_t c_l2[N * N], c_ref[N * N];
+static int32_t c_l2[N * N];
 
 struct work {
     const int8_t *a, *bt; /* in L1 */
@@ -75,6 +78,26 @@ static uint32_t checksum(const int32_t *c)
     return sum;
 }
 
+/* One measured run on n cores: cycles of the fork(s) on core 0's clock
+ * (the dispatch and the closing barrier included, as a caller sees it). */
+static void measure(int n, int reps)
+{
+    memset(work.c, 0, N * N * 4);
+    work.cores = n;
+    pi_perf_conf(1u << PI_PERF_CYCLES);
+    pi_perf_reset();
+    pi_perf_start();
+    for (int r = 0; r < reps; r++)
+        pi_cl_team_fork(n, share, &work);
+    pi_perf_stop();
+    cycles_of[n] = pi_perf_read(PI_PERF_CYCLES);
+    sum_of[n] = checksum(work.c);
+    /* Each run's result goes back to L2; the FC checks the last. */
+    pi_cl_dma_cmd_t cc;
+    pi_cl_dma_cmd((uint32_t)c_l2, (uint32_t)work.c, N * N * 4, PI_CL_DMA_DIR_LOC2EXT, &cc);
+    pi_cl_dma_cmd_wait(&cc);
+}
+
 static void bench(void *arg)
 {
     struct pi_device *cluster = arg;
@@ -91,23 +114,12 @@ static void bench(void *arg)
     pi_cl_dma_cmd_wait(&ca);
     pi_cl_dma_cmd_wait(&cb);
     work = (struct work){.a = a, .bt = bt, .c = c};
-
-    int all = pi_cl_team_nb_cores();
-    pi_perf_conf(1u << PI_PERF_CYCLES);
-    for (int n = 1; n <= all; n *= 2) {
-        memset(c, 0, N * N * 4);
-        work.cores = n;
-        pi_perf_reset();
-        pi_perf_start();
-        pi_cl_team_fork(n, share, &work);
-        pi_perf_stop();
-        cycles_of[n] = pi_perf_read(PI_PERF_CYCLES);
-        sum_of[n] = checksum(c);
-        /* Each run's result goes back to L2; the FC checks the last. */
-        pi_cl_dma_cmd_t cc;
-        pi_cl_dma_cmd((uint32_t)c_l2, (uint32_t)c, N * N * 4, PI_CL_DMA_DIR_LOC2EXT, &cc);
-        pi_cl_dma_cmd_wait(&cc);
-    }
+#ifdef BENCH_REPS
+    measure(pi_cl_team_nb_cores(), BENCH_REPS);
+#else
+    for (int n = 1; n <= pi_cl_team_nb_cores(); n *= 2)
+        measure(n, 1);
+#endif
 }
 
 /* Deterministic operands over the full int8 range, −128 included. */
@@ -121,6 +133,45 @@ static void fill(void)
         bt_l2[i] = (int8_t)(s >> 24);
     }
     a_l2[0] = bt_l2[0] = -128; /* the edge product −128·−128 */
+}
+
+/* Opens the cluster, runs bench() on it; the cluster's core count. */
+static int run_on_cluster(void)
+{
+    struct pi_device cluster;
+    struct pi_cluster_conf conf;
+    struct pi_cluster_task task;
+    pi_cluster_conf_init(&conf);
+    pi_open_from_conf(&cluster, &conf);
+    if (pi_cluster_open(&cluster) != 0) {
+        printf("cluster_matmul: cannot open the cluster\n");
+        return 0;
+    }
+    int all = (int)cl_read(CL_CTRL_BASE, CL_CTRL_NB_CORES);
+    printf("cluster_matmul: int8 %dx%dx%d in L1, cv.sdotsp.b 2x2, %d cores at %lu MHz\n", N, N,
+           N, all, (unsigned long)(cl_read(CL_CTRL_BASE, CL_CTRL_FREQ_HZ) / 1000000u));
+    pi_cluster_send_task_to_cl(&cluster, pi_cluster_task(&task, bench, &cluster));
+    pi_cluster_close(&cluster);
+    return all;
+}
+
+#ifdef BENCH_REPS
+int main(void)
+{
+    fill();
+    int all = run_on_cluster();
+    if (!all)
+        return 1;
+    printf("bench cores %d reps %d cycles %lu checksum %08lx\n", all, BENCH_REPS,
+           (unsigned long)cycles_of[all], (unsigned long)sum_of[all]);
+    return 0;
+}
+#else
+static int32_t c_ref[N * N];
+
+int main(void)
+{
+    fill();
     for (int i = 0; i < N; i++)
         for (int j = 0; j < N; j++) {
             int32_t acc = 0;
@@ -128,29 +179,10 @@ static void fill(void)
                 acc += a_l2[i * N + k] * bt_l2[j * N + k];
             c_ref[i * N + j] = acc;
         }
-}
-
-int main(void)
-{
-    struct pi_device cluster;
-    struct pi_cluster_conf conf;
-    struct pi_cluster_task task;
-
-    fill();
     uint32_t ref_sum = checksum(c_ref);
-
-    pi_cluster_conf_init(&conf);
-    pi_open_from_conf(&cluster, &conf);
-    if (pi_cluster_open(&cluster) != 0) {
-        printf("cluster_matmul: cannot open the cluster\n");
+    int all = run_on_cluster();
+    if (!all)
         return 1;
-    }
-    uint32_t hz = cl_read(CL_CTRL_BASE, CL_CTRL_FREQ_HZ);
-    int all = (int)cl_read(CL_CTRL_BASE, CL_CTRL_NB_CORES);
-    printf("cluster_matmul: int8 %dx%dx%d in L1, cv.sdotsp.b 2x2, cluster at %lu MHz\n", N, N, N,
-           (unsigned long)(hz / 1000000u));
-    pi_cluster_send_task_to_cl(&cluster, pi_cluster_task(&task, bench, &cluster));
-    pi_cluster_close(&cluster);
 
     uint32_t wrong = 0, bad_sums = 0;
     for (int i = 0; i < N * N; i++)
@@ -170,3 +202,4 @@ int main(void)
            (unsigned long)ref_sum, (unsigned long)wrong, fail ? "FAIL" : "PASS");
     return fail;
 }
+#endif
