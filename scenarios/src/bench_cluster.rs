@@ -1,0 +1,259 @@
+//! `cosim bench cluster`: the AI deck's cluster on the int8 matmul of
+//! issue 18 (docs/CLUSTER.md "Benchmark"). For each core count, one
+//! `sim-core run-elf --stats` of `cluster_matmul_bench.elf` (the kernel
+//! [`REPS`] times on every core of a cluster of that size), one after the
+//! other, never in parallel. Per row: simulated cycles per matmul,
+//! MAC/cycle, speedup over one core, the cluster's energy per MAC when
+//! `--stats` reports it, and the host's cost: wall time, MIPS (every core's
+//! instructions over the wall time) and host time per simulated cycle
+//! relative to one core (issue 18's goal: 8 busy cores cost at most 9× one
+//! core's host time). A measurement, not a test: the host figures depend on
+//! the machine and its load (the fastest of `repeat` runs is kept); the
+//! simulated ones do not.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+pub use crate::swarm::bench::BenchError;
+
+/// Core counts measured by default.
+pub const CORES: [u32; 4] = [1, 2, 4, 8];
+/// Matmuls per run: `-DBENCH_REPS` of the ELF's Makefile rule.
+pub const REPS: u64 = 16;
+/// Multiply-accumulates of one 64×64×64 matmul.
+pub const MACS: u64 = 64 * 64 * 64;
+
+/// The ELF, relative to the repository.
+pub const ELF: &str = "sim-core/firmware/bin/cluster_matmul_bench.elf";
+
+/// One core count's measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClusterRow {
+    pub cores: u32,
+    /// Simulated cluster cycles of one matmul (fork to barrier).
+    pub cycles: u64,
+    pub checksum: String,
+    /// Instructions of every core (FC included), from `--stats`.
+    pub instructions: Option<u64>,
+    /// The cluster's energy of the whole run, joules, from `--stats`.
+    pub cluster_energy_j: Option<f64>,
+    /// Host wall time of the process (the fastest of the repeats).
+    pub wall_s: f64,
+}
+
+impl ClusterRow {
+    pub fn mac_per_cycle(&self) -> f64 {
+        MACS as f64 / self.cycles as f64
+    }
+    pub fn mips(&self) -> Option<f64> {
+        self.instructions.map(|i| i as f64 / self.wall_s / 1e6)
+    }
+    /// Host seconds per simulated cluster cycle.
+    pub fn host_per_cycle(&self) -> f64 {
+        self.wall_s / (self.cycles * REPS) as f64
+    }
+    /// Energy per MAC over the whole run (the FC's setup included), pJ.
+    pub fn pj_per_mac(&self) -> Option<f64> {
+        self.cluster_energy_j
+            .map(|e| e / (MACS * REPS) as f64 * 1e12)
+    }
+}
+
+/// The default ELF: beside the repository's sources.
+pub fn default_elf() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(ELF)
+}
+
+/// Default output directory.
+pub fn default_out() -> PathBuf {
+    Path::new("out").join("bench-cluster")
+}
+
+/// The value after `key` on the first line that starts with it.
+fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
+    text.lines()
+        .find_map(|l| l.trim_start().strip_prefix(key))
+        .map(str::trim)
+}
+
+/// Reads the ELF's line `bench cores N reps R cycles C checksum X`.
+pub fn parse_bench_line(stdout: &str) -> Result<(u32, u64, u64, String), String> {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("bench "))
+        .ok_or_else(|| format!("no `bench` line in the program's output: {stdout:?}"))?;
+    let f: Vec<&str> = line.split_whitespace().collect();
+    let get = |key: &str| -> Result<&str, String> {
+        f.iter()
+            .position(|w| *w == key)
+            .and_then(|i| f.get(i + 1).copied())
+            .ok_or_else(|| format!("no {key} in {line:?}"))
+    };
+    let num = |key: &str| -> Result<u64, String> {
+        get(key)?
+            .parse()
+            .map_err(|e| format!("{key} in {line:?}: {e}"))
+    };
+    Ok((
+        num("cores")? as u32,
+        num("reps")?,
+        num("cycles")?,
+        get("checksum")?.to_string(),
+    ))
+}
+
+/// One run of `sim-core run-elf --stats` on a cluster of `cores` cores.
+fn run_once(sim_core: &Path, elf: &Path, cores: u32) -> Result<ClusterRow, BenchError> {
+    let err = |m: String| BenchError::Output(format!("{cores} cores: {m}"));
+    let started = Instant::now();
+    let o = Command::new(sim_core)
+        .arg("run-elf")
+        .arg(elf)
+        .arg("--stats")
+        .arg("--cluster-cores")
+        .arg(cores.to_string())
+        .output()
+        .map_err(|e| err(format!("cannot run {}: {e}", sim_core.display())))?;
+    let wall_s = started.elapsed().as_secs_f64();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    if !o.status.success() {
+        return Err(err(format!(
+            "sim-core run-elf failed ({}): {}",
+            o.status,
+            stderr.trim()
+        )));
+    }
+    let (got, reps, cycles, checksum) = parse_bench_line(&stdout).map_err(err)?;
+    if got != cores || reps != REPS || cycles == 0 {
+        return Err(err(format!(
+            "the program ran {reps} matmuls on {got} cores in {cycles} cycles"
+        )));
+    }
+    Ok(ClusterRow {
+        cores,
+        cycles: cycles / REPS,
+        checksum,
+        instructions: field(&stderr, "instructions:").and_then(|v| v.parse().ok()),
+        cluster_energy_j: field(&stderr, "cluster energy:")
+            .and_then(|v| v.trim_end_matches('J').trim().parse().ok()),
+        wall_s,
+    })
+}
+
+/// Runs the benchmark: `repeat` runs per core count, the fastest kept.
+pub fn bench_cluster(
+    sim_core: &Path,
+    elf: &Path,
+    cores: &[u32],
+    out: &Path,
+    repeat: usize,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<ClusterRow>, BenchError> {
+    if !elf.is_file() {
+        return Err(BenchError::Output(format!(
+            "no ELF at {} (make -C sim-core/firmware)",
+            elf.display()
+        )));
+    }
+    std::fs::create_dir_all(out)
+        .map_err(|e| BenchError::Output(format!("cannot create {}: {e}", out.display())))?;
+    let mut rows: Vec<ClusterRow> = Vec::new();
+    for &n in cores {
+        let mut best: Option<ClusterRow> = None;
+        for _ in 0..repeat.max(1) {
+            let r = run_once(sim_core, elf, n)?;
+            if let Some(b) = &best {
+                // Simulated results are deterministic: a change is a bug.
+                if b.cycles != r.cycles || b.checksum != r.checksum {
+                    return Err(BenchError::Output(format!(
+                        "{n} cores: two runs differ ({} vs {} cycles)",
+                        b.cycles, r.cycles
+                    )));
+                }
+            }
+            if best.as_ref().is_none_or(|b| r.wall_s < b.wall_s) {
+                best = Some(r);
+            }
+        }
+        let r = best.expect("at least one run");
+        progress(&format!(
+            "{n} cores: {} cycles, {:.2} MAC/cycle, {:.3} s",
+            r.cycles,
+            r.mac_per_cycle(),
+            r.wall_s
+        ));
+        if let Some(first) = rows.first() {
+            if first.checksum != r.checksum {
+                return Err(BenchError::Output(format!(
+                    "{n} cores: checksum {} differs from 1 core's {}",
+                    r.checksum, first.checksum
+                )));
+            }
+        }
+        rows.push(r);
+    }
+    std::fs::write(out.join("bench.md"), markdown(&rows))
+        .map_err(|e| BenchError::Output(format!("cannot write bench.md: {e}")))?;
+    Ok(rows)
+}
+
+/// The table, speedup and host cost relative to the first row.
+pub fn markdown(rows: &[ClusterRow]) -> String {
+    let mut s = String::from(
+        "| cores | cycles/matmul | MAC/cycle | speedup | pJ/MAC | host wall (s) | MIPS | host time per cycle vs 1st row |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    let Some(first) = rows.first() else {
+        return s;
+    };
+    let opt = |v: Option<f64>, prec: usize| v.map_or("n/a".to_string(), |v| format!("{v:.prec$}"));
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {:.2} | {:.2} | {} | {:.3} | {} | {:.2} |\n",
+            r.cores,
+            r.cycles,
+            r.mac_per_cycle(),
+            first.cycles as f64 / r.cycles as f64,
+            opt(r.pj_per_mac(), 2),
+            r.wall_s,
+            opt(r.mips(), 1),
+            r.host_per_cycle() / first.host_per_cycle(),
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_bench_line_is_read_and_bad_lines_are_errors() {
+        let out = "cluster_matmul: ...\nbench cores 8 reps 16 cycles 300000 checksum 1234abcd\n";
+        assert_eq!(
+            parse_bench_line(out).unwrap(),
+            (8, 16, 300_000, "1234abcd".to_string())
+        );
+        assert!(parse_bench_line("nothing\n").unwrap_err().contains("no `bench`"));
+        assert!(parse_bench_line("bench cores x reps 1 cycles 2 checksum 0\n")
+            .unwrap_err()
+            .contains("cores"));
+    }
+
+    #[test]
+    fn table_relates_rows_to_the_first() {
+        let row = |cores, cycles, wall_s| ClusterRow {
+            cores,
+            cycles,
+            checksum: "0".into(),
+            instructions: Some(1_000_000),
+            cluster_energy_j: None,
+            wall_s,
+        };
+        let t = markdown(&[row(1, 262_144, 1.0), row(8, 32_768, 1.0)]);
+        // 8× fewer cycles in the same wall time: 8× the host time per cycle.
+        assert!(t.contains("| 8 | 32768 | 8.00 | 8.00 | n/a | 1.000 | 1.0 | 8.00 |"), "{t}");
+        assert!(t.contains("| 1 | 262144 | 1.00 | 1.00 | n/a |"), "{t}");
+    }
+}
