@@ -2,6 +2,7 @@
 //!
 //! The thesis's boxes are modules you can find by name:
 //! - [`iss`]: the RV32IMC instruction-set simulator (GVSoC's fabric controller),
+//! - [`cluster`]: the AI deck's GAP8 cluster (8 cores, L1, DMA, event unit),
 //! - [`bus`]: the functional bus and the peripheral window,
 //! - [`peripherals`]: camera, STM32 (with the PID) and motors, each with a
 //!   functional side and a power side,
@@ -11,6 +12,7 @@
 //! - [`config`]: the platform file (MESSY's JSON shape) and the run configuration.
 
 pub mod bus;
+pub mod cluster;
 pub mod config;
 pub mod iss;
 pub mod kernel;

@@ -10,7 +10,7 @@ use crate::units::{Cycles, Hertz, Picos};
 use super::block::{FetchFault, Inst};
 use super::decode::{self, op, Decoded};
 use super::exec;
-use super::mem::{AccessSize, Memory, Mmio, MmioError};
+use super::mem::{AccessSize, MemTiming, Memory, Mmio, MmioError};
 use super::semihost::{self, Semihost};
 use super::timing::{self, BASE_CYCLES};
 
@@ -148,6 +148,10 @@ pub enum StopReason {
     /// The core sleeps (or, with idle skipping, spins on a device register
     /// that never changes) with nothing that could ever wake it.
     Idle,
+    /// An MMIO access answered [`MmioError::Wait`]: the instruction did
+    /// not execute (no cycle, no retirement), the pc is on it, and the next
+    /// `run_until` retries it.
+    Wait,
     /// The run cannot continue.
     Fatal(IssError),
 }
@@ -267,6 +271,11 @@ pub struct Cpu {
     tohost: Option<u32>,
     semihost: Semihost,
     poll: PollTracker,
+    /// Extra cycles and L1 arbitration of RAM accesses (cluster, §12).
+    mem_timing: MemTiming,
+    /// The current general-path instruction met [`MmioError::Wait`]: undo
+    /// its cycles (see [`Cpu::step`]).
+    waited: bool,
 }
 
 impl std::fmt::Debug for Cpu {
@@ -326,7 +335,36 @@ impl Cpu {
             tohost: None,
             semihost: Semihost::new(Box::new(std::io::stdout())),
             poll: PollTracker::default(),
+            mem_timing: MemTiming::default(),
+            waited: false,
         }
+    }
+
+    /// How this core's RAM accesses are timed (a cluster core's L2 latency
+    /// and L1 banks, the FC's view of L1; DESIGN.md §12).
+    pub fn set_mem_timing(&mut self, timing: MemTiming) {
+        self.mem_timing = timing;
+    }
+
+    /// Clock-gate the core until simulated time `t` (a cluster core asleep
+    /// in the event unit, or not started yet): its cycle count jumps to the
+    /// first edge at or after `t`, the cycles count as sleeping (not in
+    /// `mcycle`, no instruction). Nothing happens if the core is past `t`.
+    pub fn gate_until(&mut self, t: Picos) {
+        let c = self.cycle_of(t);
+        if c > self.cycles {
+            self.stats.sleep_cycles += c - self.cycles;
+            self.cycles = c;
+        }
+    }
+
+    /// Restart at `pc` with every register zero and no pending sleep or
+    /// load-use state (the cluster's FETCH_EN, docs/CLUSTER.md).
+    pub fn restart(&mut self, pc: u32) {
+        self.regs = [0; 32];
+        self.load_mask = 0;
+        self.privilege = Privilege::Machine;
+        self.set_pc(pc);
     }
 
     pub fn config(&self) -> &CpuConfig {
@@ -593,6 +631,7 @@ impl Cpu {
     /// unexecuted, with the core's state as it was just before it.
     fn exec_block(&mut self, mem: &mut Memory, first: usize) -> Exit {
         let mut run = exec::Run::new(&mut mem.regions, &mem.insts);
+        run.set_timing(self.mem_timing, mem.tcdm.as_mut());
         if self.code_size != 0 {
             run.set_code_region(self.code_idx);
         }
@@ -663,6 +702,17 @@ impl Cpu {
     /// may involve: device accesses at their simulated time, `tohost`,
     /// stores into code, CSRs, traps, semihosting.
     fn step(&mut self, mem: &mut Memory, dev: &mut dyn Mmio, inst: Inst) {
+        let (cycles, load_mask) = (self.cycles, self.load_mask);
+        self.step_inner(mem, dev, inst);
+        if self.waited {
+            // Not executed: it is retried with the same cost later.
+            self.waited = false;
+            self.cycles = cycles;
+            self.load_mask = load_mask;
+        }
+    }
+
+    fn step_inner(&mut self, mem: &mut Memory, dev: &mut dyn Mmio, inst: Inst) {
         let stall = (inst.reads() & self.load_mask != 0) as u64;
         self.cycles += BASE_CYCLES[inst.op as usize] as u64 + stall * timing::LOAD_USE_STALL;
         self.load_mask = 0;
@@ -677,6 +727,7 @@ impl Cpu {
                 let v = match mem.load_ram(addr, $size) {
                     Some(v) => {
                         self.cycles += timing::split_cost(addr, $size);
+                        self.cycles += self.ram_extra(mem, addr);
                         v
                     }
                     None => match self.load_slow(mem, dev, addr, $size, pc) {
@@ -695,6 +746,7 @@ impl Cpu {
                 let watched = self.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
                 if !watched && mem.store_ram(addr, $size, b) {
                     self.cycles += timing::split_cost(addr, $size);
+                    self.cycles += self.ram_extra(mem, addr);
                 } else if !self.store_slow(mem, dev, addr, $size, b, pc) {
                     return;
                 }
@@ -1019,6 +1071,15 @@ impl Cpu {
         self.cycles - 1
     }
 
+    /// Extra cycles of a general-path RAM access (see [`MemTiming`]).
+    fn ram_extra(&self, mem: &mut Memory, addr: u32) -> u64 {
+        if self.mem_timing.is_plain() {
+            return 0;
+        }
+        self.mem_timing
+            .extra(mem.tcdm.as_mut(), addr, self.issue_cycle())
+    }
+
     fn mmio_time(&self, issue: u64) -> Picos {
         Picos((issue + self.latency).saturating_mul(self.period))
     }
@@ -1043,6 +1104,11 @@ impl Cpu {
         match result {
             Ok(v) => Some(Ok(v)),
             Err(MmioError::AccessFault { .. }) => None,
+            Err(MmioError::Wait { .. }) => {
+                self.waited = true;
+                self.stop(StopReason::Wait);
+                Some(Err(()))
+            }
             Err(e) => {
                 self.stop(StopReason::Fatal(e.into()));
                 Some(Err(()))
@@ -1093,6 +1159,7 @@ impl Cpu {
         let issue = self.issue_cycle();
         if mem.store_ram(addr, size, value) {
             self.cycles += timing::split_cost(addr, size);
+            self.cycles += self.ram_extra(mem, addr);
             if let Some(th) = self.tohost {
                 // riscv-tests: a non-zero tohost ends the test; 1 is a pass,
                 // any other odd value v a failure of test v >> 1.

@@ -18,8 +18,9 @@
 
 use super::block::Inst;
 use super::decode::op;
-use super::mem::{ram_load, ram_store_data, AccessSize, Region};
+use super::mem::{ram_load, ram_store_data, AccessSize, MemTiming, Region};
 use super::timing;
+use crate::cluster::tcdm::Tcdm;
 
 /// What one [`run`] leaves for the core.
 pub(super) struct Run<'a> {
@@ -56,6 +57,10 @@ pub(super) struct Run<'a> {
     chain: *const Inst,
     /// The RAM region the code runs from, where most data lives too.
     fast: FastRam,
+    /// The core's view of memory (extra cycles, L1 banks); the default
+    /// costs nothing.
+    timing: MemTiming,
+    tcdm: Option<&'a mut Tcdm>,
 }
 
 /// Direct access to one RAM region, for the loads and stores of the hot
@@ -73,6 +78,8 @@ struct FastRam {
     /// take the general path, which keeps the block cache coherent.
     code_lo: u32,
     code_hi: u32,
+    /// Extra cycles of every access (a cluster core's L2 latency).
+    extra: u64,
 }
 
 impl FastRam {
@@ -141,8 +148,28 @@ impl<'a> Run<'a> {
                 size: 0,
                 code_lo: 0,
                 code_hi: 0,
+                extra: 0,
             },
+            timing: MemTiming::default(),
+            tcdm: None,
         }
+    }
+
+    /// The core's memory timing and the L1 arbiter (cluster cores).
+    pub fn set_timing(&mut self, timing: MemTiming, tcdm: Option<&'a mut Tcdm>) {
+        self.timing = timing;
+        self.tcdm = tcdm;
+    }
+
+    /// Extra cycles of a RAM access at `addr` by the instruction `inst`
+    /// whose cost is already in `cycles`.
+    #[inline(always)]
+    fn extra(&mut self, addr: u32, inst: &Inst, cycles: u64) -> u64 {
+        if self.timing.is_plain() {
+            return 0;
+        }
+        self.timing
+            .extra(self.tcdm.as_deref_mut(), addr, cycles - inst.cost as u64)
     }
 
     /// Region `idx` holds the code: chain its blocks directly, and give
@@ -153,12 +180,16 @@ impl<'a> Run<'a> {
             self.code_size = reg.size;
             // `block_at` has one entry per halfword: `size / 2` entries.
             self.block_at = reg.block_at.as_ptr();
+            // L1 code would bypass the bank arbiter: its data then takes
+            // the other-region path (a cluster core normally runs from L2).
+            let banked = self.timing.l1_port.is_some() && reg.base == self.timing.l1.0;
             self.fast = FastRam {
                 ptr: reg.data.as_mut_ptr(),
                 base: reg.base,
-                size: reg.size,
+                size: if banked { 0 } else { reg.size },
                 code_lo: reg.code_lo.min(u32::MAX as usize) as u32,
                 code_hi: reg.code_hi as u32,
+                extra: self.timing.extra(None, reg.base, 0),
             };
         }
     }
@@ -372,7 +403,7 @@ macro_rules! loads {
             // SAFETY: `off + N` is within the fast region's buffer (see
             // `FastRam`).
             unsafe { std::ptr::copy_nonoverlapping(r.fast.ptr.add(off), b.as_mut_ptr(), N as usize) };
-            cycles += timing::split_cost(addr, $size);
+            cycles += timing::split_cost(addr, $size) + r.fast.extra;
             reg!(regs, inst.rd) = $conv(u32::from_le_bytes(b));
             regs[0] = 0;
         });
@@ -386,7 +417,7 @@ macro_rules! loads {
             let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
             match ram_load(r.regions, addr, $size) {
                 Some(v) => {
-                    cycles += timing::split_cost(addr, $size);
+                    cycles += timing::split_cost(addr, $size) + r.extra(addr, inst, cycles);
                     reg!(regs, inst.rd) = $conv(v);
                     regs[0] = 0;
                     next(r, regs, p, cycles, deadline)
@@ -418,7 +449,7 @@ macro_rules! stores {
             // SAFETY: `off + N` is within the fast region's buffer (see
             // `FastRam`).
             unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), r.fast.ptr.add(off), N as usize) };
-            cycles += timing::split_cost(addr, $size);
+            cycles += timing::split_cost(addr, $size) + r.fast.extra;
         });
 
         /// The store outside the fast region, near code or to `tohost`
@@ -434,7 +465,7 @@ macro_rules! stores {
             if watched || in_fast || !ram_store_data(r.regions, addr, $size, reg!(regs, inst.rs2)) {
                 return general(r, p, cycles);
             }
-            cycles += timing::split_cost(addr, $size);
+            cycles += timing::split_cost(addr, $size) + r.extra(addr, inst, cycles);
             next(r, regs, p, cycles, deadline)
         }
     )*};

@@ -30,6 +30,7 @@ use thiserror::Error;
 use crate::units::Picos;
 
 use super::block::Inst;
+use crate::cluster::tcdm::Tcdm;
 
 /// Width of a memory access in bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -56,6 +57,55 @@ pub enum MmioError {
     /// a blocking exchange): the run stops with this error.
     #[error("device failure at {addr:#010x}: {message}")]
     Device { addr: u32, message: String },
+    /// The access cannot happen yet (a cluster core reading an event-unit
+    /// register that sleeps, or any core touching state shared with
+    /// another that has not caught up in simulated time): the instruction
+    /// does not execute, the core stops with
+    /// [`StopReason::Wait`](super::StopReason::Wait) with its pc on it, and
+    /// the platform retries it later (see `crate::cluster`).
+    #[error("access at {addr:#010x} must wait")]
+    Wait { addr: u32 },
+}
+
+/// How a core's RAM accesses are timed beyond the instruction's own cycle:
+/// the cluster's view of memory (DESIGN.md §12, `crate::cluster`). The
+/// default (no extra cycles, no arbitration) is the FC of a platform
+/// without a cluster.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MemTiming {
+    /// L2 `(base, size)` and the extra cycles of every access to it.
+    pub l2: (u32, u32),
+    pub l2_extra: u64,
+    /// L1 `(base, size)` and the extra cycles of every access to it.
+    pub l1: (u32, u32),
+    pub l1_extra: u64,
+    /// The L1 arbiter's port of this core: its accesses wait for their
+    /// bank ([`Memory::tcdm`]); `None`: no arbitration (the FC's view).
+    pub l1_port: Option<u8>,
+}
+
+impl MemTiming {
+    /// Whether an access may cost more than the instruction's cycle.
+    #[inline(always)]
+    pub fn is_plain(&self) -> bool {
+        self.l2_extra == 0 && self.l1_extra == 0 && self.l1_port.is_none()
+    }
+
+    /// Extra cycles of an access to `addr` issued at `cycle`.
+    #[inline]
+    pub(crate) fn extra(&self, tcdm: Option<&mut Tcdm>, addr: u32, cycle: u64) -> u64 {
+        if addr.wrapping_sub(self.l1.0) < self.l1.1 {
+            let stall = match (self.l1_port, tcdm) {
+                (Some(port), Some(t)) => t.access(port, addr, cycle),
+                _ => 0,
+            };
+            self.l1_extra + stall
+        } else if addr.wrapping_sub(self.l2.0) < self.l2.1 {
+            self.l2_extra
+        } else {
+            0
+        }
+    }
 }
 
 /// The device side of the bus, implemented by the platform (the peripheral
@@ -219,6 +269,9 @@ pub struct Memory {
     windows: Vec<(u32, u32)>,
     /// The cached blocks' instructions, block after block (see `block.rs`).
     pub(crate) insts: Vec<Inst>,
+    /// The L1 bank arbiter when the platform has a cluster: the cores'
+    /// [`MemTiming::l1_port`] accesses go through it.
+    pub tcdm: Option<Tcdm>,
 }
 
 fn check_range(base: u32, size: u32) -> Result<(), MemError> {

@@ -95,7 +95,7 @@ pub mod timing;
 
 pub use cpu::{cause, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason};
 pub use elf::{load_elf, ElfError, LoadedElf, Segment};
-pub use mem::{AccessSize, MemError, Memory, Mmio, MmioError, NoDevices};
+pub use mem::{AccessSize, MemError, MemTiming, Memory, Mmio, MmioError, NoDevices};
 
 /// The GAP8-like memory map (DESIGN.md §4).
 pub mod map {

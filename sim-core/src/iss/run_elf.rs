@@ -6,7 +6,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 
-use crate::units::Picos;
+use crate::cluster::{Cluster, ClusterConfig};
+use crate::units::{Hertz, Picos};
 
 use super::{load_elf, map, Cpu, CpuConfig, Memory, NoDevices, StopReason};
 
@@ -83,6 +84,17 @@ pub struct RunElfArgs {
     /// Disable idle skipping (for comparisons; results are identical).
     #[arg(long)]
     pub no_idle_skip: bool,
+    /// Cluster cores (1-8) beside the FC (DESIGN.md §12, docs/CLUSTER.md);
+    /// the cluster is off until the program powers it.
+    #[arg(long, value_name = "N", default_value_t = 8)]
+    pub cluster_cores: usize,
+    /// The cluster clock in MHz.
+    #[arg(long, value_name = "MHZ", default_value_t = 175)]
+    pub cluster_mhz: u64,
+    /// Run the FC alone, as before the cluster existed (its mhartid is
+    /// then 0, and 0x1000_0000 is free for --ram).
+    #[arg(long)]
+    pub no_cluster: bool,
 }
 
 /// Build the memory map for `run-elf`: the given regions (or the default
@@ -115,18 +127,45 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
     elf.load_into(&mut mem)
         .with_context(|| format!("loading {}", args.file.display()))?;
 
-    let mut cpu = Cpu::new(CpuConfig {
+    let fc_cfg = CpuConfig {
         idle_skip: !args.no_idle_skip,
         ..CpuConfig::default()
+    };
+    let mut cluster = if args.no_cluster {
+        None
+    } else {
+        let cfg = ClusterConfig {
+            cores: args.cluster_cores,
+            clock: Hertz(args.cluster_mhz.saturating_mul(1_000_000)),
+            idle_skip: !args.no_idle_skip,
+            ..ClusterConfig::default()
+        };
+        Some(
+            Cluster::new(cfg, &mut mem)
+                .context("the cluster (--no-cluster to run the FC alone)")?,
+        )
+    };
+    let mut cpu = Cpu::new(match cluster {
+        Some(_) => Cluster::fc_config(fc_cfg),
+        None => fc_cfg,
     });
+    if cluster.is_some() {
+        Cluster::attach_fc(&mut cpu);
+    }
     cpu.set_pc(elf.entry);
     cpu.set_tohost(elf.symbol("tohost"));
     cpu.set_instruction_limit(args.max_instructions);
 
     let wall = Instant::now();
-    let reason = cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+    let reason = match cluster.as_mut() {
+        Some(c) => c.run_until(&mut cpu, &mut mem, &mut NoDevices, Picos::MAX),
+        None => cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX),
+    };
     let wall = wall.elapsed();
     cpu.flush_console().context("flushing the console")?;
+    if let Some(c) = cluster.as_mut() {
+        c.flush_console().context("flushing the console")?;
+    }
 
     let code = match reason {
         StopReason::Exit { code } => code,
@@ -163,8 +202,28 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
             "sleep cycles: {}, polling cycles: {}, skipped instructions: {}",
             s.sleep_cycles, s.poll_cycles, s.skipped_instructions
         );
+        if let Some(c) = &cluster {
+            print_cluster_stats(c, &mem, secs);
+        }
     }
     Ok(code)
+}
+
+/// One line per cluster core (`--stats`): what it ran, how long it was
+/// awake and gated, its L1 accesses and bank-conflict stalls; then the DMA.
+fn print_cluster_stats(c: &Cluster, mem: &Memory, secs: f64) {
+    let reports = c.report(mem);
+    let mut total = 0;
+    for (i, r) in reports.iter().enumerate() {
+        total += r.instructions;
+        eprintln!(
+            "cluster core {i}: instructions {}, cycles {} (gated {}), L1 accesses {}, L1 stall cycles {}",
+            r.instructions, r.active_cycles, r.gated_cycles, r.l1_accesses, r.l1_stall_cycles
+        );
+    }
+    let (bytes, cycles) = c.dma_totals();
+    eprintln!("cluster DMA: {bytes} bytes, {cycles} transfer cycles");
+    eprintln!("cluster MIPS: {:.1}", total as f64 / secs.max(1e-9) / 1e6);
 }
 
 /// The RISCOF/Spike signature: one word per line, 8 lowercase hex digits.

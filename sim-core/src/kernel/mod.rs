@@ -321,7 +321,10 @@ impl<W: WorldLink> Run<W> {
             self.drain_device_console();
             let now = self.cpu.now();
             match stop {
-                StopReason::Limit | StopReason::Event | StopReason::DeviceRequest => {}
+                StopReason::Limit
+                | StopReason::Event
+                | StopReason::DeviceRequest
+                | StopReason::Wait => {}
                 StopReason::Exit { code } => {
                     self.exit_code = Some(code);
                     let trap = self.default_trap(code);

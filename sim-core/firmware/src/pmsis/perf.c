@@ -2,8 +2,7 @@
  * Performance counters per core, PMSIS style (conf, reset, start, stop,
  * read), from the core's own CSRs: minstret, mcycle (cycles awake; a core
  * asleep in the event unit or in wfi does not count) and, for
- * PI_PERF_CYCLES, the wall clock of the core's domain: the FC's `time`
- * (CLINT mtime, counting FC cycles) or the cluster's cycle counter.
+ * PI_PERF_CYCLES, the wall clock of the core's domain (the `time` CSR).
  */
 #include "pmsis_internal.h"
 
@@ -22,19 +21,13 @@ static struct perf *mine(void)
     return &perf[pi_is_fc() ? CL_MAX_CORES : pi_core_id()];
 }
 
+/* The `time` CSR counts every cycle of the core's clock, asleep or not:
+ * the FC's CLINT mtime, a cluster core's cluster clock (docs/CLUSTER.md). */
 static uint32_t wall_cycles(void)
 {
     uint32_t v;
-    if (pi_is_fc()) {
-        __asm__ volatile("csrr %0, time" : "=r"(v));
-        return v;
-    }
-#ifdef CL_CTRL_CYCLES
-    return cl_read(CL_CTRL_BASE, CL_CTRL_CYCLES);
-#else
-    __asm__ volatile("csrr %0, mcycle" : "=r"(v));
+    __asm__ volatile("csrr %0, time" : "=r"(v));
     return v;
-#endif
 }
 
 static void sample(uint32_t v[CNT_N])

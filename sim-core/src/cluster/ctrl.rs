@@ -1,0 +1,99 @@
+//! The cluster control unit (docs/CLUSTER.md "CTRL"): power, the cores'
+//! boot address and fetch enable, the FC mailbox and the cluster-to-FC
+//! event counter (gap_sdk's cluster control unit and FC event line, with
+//! our layout).
+
+use super::{CoreState, Shared};
+
+pub const POWER: u32 = 0x00;
+pub const NB_CORES: u32 = 0x04;
+pub const FREQ_HZ: u32 = 0x08;
+pub const BOOT_ADDR: u32 = 0x0C;
+pub const FETCH_EN: u32 = 0x10;
+pub const RUNNING: u32 = 0x14;
+pub const FC_EVENT: u32 = 0x18;
+pub const HALT: u32 = 0x1C;
+pub const MAILBOX: u32 = 0x20;
+
+/// The unit's own registers.
+#[derive(Debug, Clone, Default)]
+pub struct Ctrl {
+    pub power: bool,
+    pub boot_addr: u32,
+    pub fc_events: u32,
+    pub mailbox: u32,
+    pub freq_hz: u32,
+}
+
+/// Who accesses the unit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Who {
+    Fc,
+    Core(usize),
+}
+
+impl Shared {
+    /// Bit i: core i started and not halted (asleep counts as running).
+    pub fn running_mask(&self) -> u32 {
+        (0..self.n)
+            .filter(|&i| matches!(self.state[i], CoreState::Running | CoreState::Gated))
+            .fold(0, |m, i| m | 1 << i)
+    }
+
+    /// A CTRL read; `None`: access fault.
+    pub fn ctrl_read(&mut self, who: Who, off: u32) -> Option<u32> {
+        let c = &mut self.ctrl;
+        Some(match (off, who) {
+            (POWER, _) => c.power as u32,
+            (NB_CORES, _) => self.n as u32,
+            (FREQ_HZ, _) => c.freq_hz,
+            (BOOT_ADDR, _) => c.boot_addr,
+            (RUNNING, _) => self.running_mask(),
+            (FC_EVENT, Who::Fc) => std::mem::take(&mut c.fc_events),
+            (MAILBOX, _) => c.mailbox,
+            _ => return None,
+        })
+    }
+
+    /// A CTRL write at time `t`; `false`: access fault.
+    pub fn ctrl_write(&mut self, who: Who, off: u32, v: u32, t: crate::units::Picos) -> bool {
+        match (off, who) {
+            (POWER, Who::Fc) => {
+                let on = v & 1 != 0;
+                if self.ctrl.power && !on {
+                    for i in 0..self.n {
+                        self.halt(i);
+                    }
+                }
+                self.ctrl.power = on;
+            }
+            (BOOT_ADDR, _) => self.ctrl.boot_addr = v & !1,
+            (FETCH_EN, _) if self.ctrl.power => {
+                for i in 0..self.n {
+                    if v & (1 << i) != 0 {
+                        self.eu.reset_core(i);
+                        self.state[i] = CoreState::Running;
+                        self.time[i] = t;
+                        self.start[i] = Some(self.ctrl.boot_addr);
+                    }
+                }
+            }
+            (FC_EVENT, Who::Core(_)) => self.ctrl.fc_events += 1,
+            (HALT, Who::Core(i)) => {
+                self.halt(i);
+                self.stop = true;
+            }
+            (MAILBOX, _) => self.ctrl.mailbox = v,
+            _ => return false,
+        }
+        true
+    }
+
+    fn halt(&mut self, i: usize) {
+        if self.state[i] != CoreState::Off {
+            self.state[i] = CoreState::Halted;
+        }
+        self.eu.reset_core(i);
+        self.start[i] = None;
+    }
+}

@@ -1,0 +1,1 @@
+//! The cluster's energy (placeholder filled below).
