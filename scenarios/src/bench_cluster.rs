@@ -77,6 +77,21 @@ fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
         .map(str::trim)
 }
 
+/// Every core's instructions from `run-elf --stats`: the FC's
+/// `instructions: N` plus each `cluster core I: instructions N, ...`.
+pub fn total_instructions(stats: &str) -> Option<u64> {
+    let fc: u64 = field(stats, "instructions:")?.parse().ok()?;
+    let cluster: u64 = stats
+        .lines()
+        .filter(|l| l.starts_with("cluster core "))
+        .filter_map(|l| {
+            let (_, rest) = l.split_once(": instructions ")?;
+            rest.split(',').next()?.trim().parse::<u64>().ok()
+        })
+        .sum();
+    Some(fc + cluster)
+}
+
 /// Reads the ELF's line `bench cores N reps R cycles C checksum X`.
 pub fn parse_bench_line(stdout: &str) -> Result<(u32, u64, u64, String), String> {
     let line = stdout
@@ -135,7 +150,7 @@ fn run_once(sim_core: &Path, elf: &Path, cores: u32) -> Result<ClusterRow, Bench
         cores,
         cycles: cycles / REPS,
         checksum,
-        instructions: field(&stderr, "instructions:").and_then(|v| v.parse().ok()),
+        instructions: total_instructions(&stderr),
         cluster_energy_j: field(&stderr, "cluster energy:")
             .and_then(|v| v.trim_end_matches('J').trim().parse().ok()),
         wall_s,
@@ -239,6 +254,13 @@ mod tests {
         assert!(parse_bench_line("bench cores x reps 1 cycles 2 checksum 0\n")
             .unwrap_err()
             .contains("cores"));
+    }
+
+    #[test]
+    fn instructions_of_every_core_are_summed() {
+        let stats = "instructions: 100\ncycles: 5\ncluster core 0: instructions 20, cycles 9 (gated 1), L1 accesses 0, L1 stall cycles 0\ncluster core 1: instructions 3, cycles 9 (gated 1), L1 accesses 0, L1 stall cycles 0\ncluster MIPS: 1.0\n";
+        assert_eq!(total_instructions(stats), Some(123));
+        assert_eq!(total_instructions("cycles: 5\n"), None);
     }
 
     #[test]
