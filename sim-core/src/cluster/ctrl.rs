@@ -4,6 +4,7 @@
 //! our layout).
 
 use super::{CoreState, Shared};
+use crate::units::Picos;
 
 pub const POWER: u32 = 0x00;
 pub const NB_CORES: u32 = 0x04;
@@ -23,6 +24,9 @@ pub struct Ctrl {
     pub fc_events: u32,
     pub mailbox: u32,
     pub freq_hz: u32,
+    /// Powered time before the current power-on, and when it began.
+    pub powered_before: Picos,
+    pub powered_since: Option<Picos>,
 }
 
 /// Who accesses the unit.
@@ -56,7 +60,7 @@ impl Shared {
     }
 
     /// A CTRL write at time `t`; `false`: access fault.
-    pub fn ctrl_write(&mut self, who: Who, off: u32, v: u32, t: crate::units::Picos) -> bool {
+    pub fn ctrl_write(&mut self, who: Who, off: u32, v: u32, t: Picos) -> bool {
         match (off, who) {
             (POWER, Who::Fc) => {
                 let on = v & 1 != 0;
@@ -64,6 +68,14 @@ impl Shared {
                     for i in 0..self.n {
                         self.halt(i);
                     }
+                }
+                match (self.ctrl.powered_since, on) {
+                    (None, true) => self.ctrl.powered_since = Some(t),
+                    (Some(since), false) => {
+                        self.ctrl.powered_before += t - since;
+                        self.ctrl.powered_since = None;
+                    }
+                    _ => {}
                 }
                 self.ctrl.power = on;
             }

@@ -484,6 +484,14 @@ impl Cluster {
         self.sh.ctrl.power
     }
 
+    /// How long the cluster has been powered by time `t`.
+    pub fn powered_time(&self, t: Picos) -> Picos {
+        let c = &self.sh.ctrl;
+        c.powered_before
+            + c.powered_since
+                .map_or(Picos::ZERO, |s| Picos(t.0.saturating_sub(s.0)))
+    }
+
     /// DMA totals: (bytes copied, transfer cycles).
     pub fn dma_totals(&self) -> (u64, u64) {
         (self.sh.dma.bytes, self.sh.dma.busy_cycles)

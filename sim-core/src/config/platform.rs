@@ -120,8 +120,49 @@ pub struct PlatformConfig {
     pub bus: BusConfig,
     /// The core (GAP8's fabric controller in the thesis).
     pub core: CoreConfig,
+    /// The GAP8's cluster (DESIGN.md §12, docs/CLUSTER.md); absent: the
+    /// FC alone, as the thesis's platform.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cluster: Option<ClusterSection>,
     /// Sensors and harvesters.
     pub peripherals: PeripheralsConfig,
+}
+
+/// The platform file's `"cluster"` (beside `"core"`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClusterSection {
+    /// Cluster cores, 1–8 (GAP8: 8).
+    #[serde(default = "default_cluster_cores")]
+    pub cores: usize,
+    /// Cluster clock in MHz (GAP8's maximum: 175, GreenWaves).
+    #[serde(default = "default_cluster_mhz")]
+    pub mhz: u64,
+    /// Cluster supply voltage in V (GAP8 at 175 MHz: 1.2 V).
+    #[serde(default = "default_cluster_vref")]
+    pub vref: f64,
+}
+
+fn default_cluster_cores() -> usize {
+    8
+}
+fn default_cluster_mhz() -> u64 {
+    175
+}
+fn default_cluster_vref() -> f64 {
+    1.2
+}
+
+impl ClusterSection {
+    /// The cluster's configuration for `crate::cluster`.
+    pub fn cluster_config(&self, idle_skip: bool) -> crate::cluster::ClusterConfig {
+        crate::cluster::ClusterConfig {
+            cores: self.cores,
+            clock: Hertz(self.mhz.saturating_mul(1_000_000)),
+            vref: self.vref,
+            idle_skip,
+        }
+    }
 }
 
 /// The VCC power bus (`bus` in MESSY).
@@ -437,6 +478,15 @@ impl PlatformConfig {
             return Err("core.frequency must be a positive number of Hz".into());
         }
         check_states(&self.core.states, &CORE_STATES, "core")?;
+        if let Some(c) = &self.cluster {
+            if !(1..=8).contains(&c.cores) {
+                return Err(format!("cluster.cores must be 1 to 8, got {}", c.cores));
+            }
+            if c.mhz == 0 {
+                return Err("cluster.mhz must be a positive number of MHz".into());
+            }
+            check_positive(c.vref, "cluster.vref")?;
+        }
         build_converter(&self.core.converter, "core")?;
         for required in ["camera", "stm32"] {
             if !self.peripherals.sensors.contains_key(required) {

@@ -29,6 +29,8 @@ use protocol::ImageEncoding;
 use thiserror::Error;
 
 use crate::bus::{Platform, PERIPHERAL_BASE, WINDOW_SIZE};
+use crate::cluster::power::{Meter, Totals};
+use crate::cluster::Cluster;
 use crate::config::{PlatformConfig, RunConfig};
 use crate::iss::{load_elf, Cpu, CpuConfig, ElfError, Memory, StopReason};
 use crate::peripherals::radio::{self, RadioDevice};
@@ -184,6 +186,9 @@ struct Run<W: WorldLink> {
     end_time: Picos,
     /// The firmware's map image, copied to `map.cfog` at the end.
     map: Option<map_dump::MapSymbols>,
+    /// The GAP8 cluster, when the platform file has one (DESIGN.md §12),
+    /// and its energy meter.
+    cluster: Option<(Cluster, Meter)>,
 }
 
 impl<W: WorldLink> Run<W> {
@@ -198,12 +203,27 @@ impl<W: WorldLink> Run<W> {
         elf.load_into(&mut mem)?;
         firmware_params::apply(&elf, &mut mem, &cfg.run.firmware_params)?;
 
-        let mut cpu = Cpu::new(CpuConfig {
+        let cluster = match &cfg.platform.cluster {
+            Some(section) => {
+                let c = Cluster::new(section.cluster_config(cfg.idle_skip), &mut mem)
+                    .map_err(|e| KernelError::Config(e.to_string()))?;
+                Some((c, Meter::new(section.vref)))
+            }
+            None => None,
+        };
+        let fc_cfg = CpuConfig {
             clock: Hertz(cfg.platform.core.frequency),
             mmio_latency: Cycles(cfg.mmio_latency),
             idle_skip: cfg.idle_skip,
             ..CpuConfig::default()
+        };
+        let mut cpu = Cpu::new(match cluster {
+            Some(_) => Cluster::fc_config(fc_cfg),
+            None => fc_cfg,
         });
+        if cluster.is_some() {
+            Cluster::attach_fc(&mut cpu);
+        }
         cpu.set_pc(elf.entry);
         if let Some(sp) = elf.symbol("__stack") {
             cpu.set_reg(2, sp);
@@ -211,6 +231,10 @@ impl<W: WorldLink> Run<W> {
         cpu.set_tohost(elf.symbol("tohost"));
         let console = Console::create(cfg.out_dir.as_deref(), cfg.echo_console)?;
         cpu.set_console(Box::new(console.writer()));
+        let mut cluster = cluster;
+        if let Some((c, _)) = cluster.as_mut() {
+            c.set_console(|| Box::new(console.writer()));
+        }
 
         let camera = Camera::new(
             capture_time(&cfg.platform),
@@ -227,7 +251,8 @@ impl<W: WorldLink> Run<W> {
 
         let mut power = PowerNetwork::new(&cfg.platform, &cfg.run)?;
         if let Some(dir) = &cfg.out_dir {
-            let logger = PowerLogger::create(dir, cfg.reports_radios())?;
+            let logger =
+                PowerLogger::create_with_cluster(dir, cfg.reports_radios(), cluster.is_some())?;
             // The logs are written while the link waits for the world.
             world.add_idle_work(logger.idle_work());
             power.attach_logger(logger);
@@ -242,6 +267,7 @@ impl<W: WorldLink> Run<W> {
             exit_code: None,
             end_time: Picos::ZERO,
             map,
+            cluster,
         })
     }
 
@@ -268,6 +294,11 @@ impl<W: WorldLink> Run<W> {
                 *i = r.power.take_mean(t);
             }
             let motor = self.platform.motors.state;
+            if let Some((c, meter)) = &mut self.cluster {
+                // The counters as the cores stand (within a quantum of t).
+                let p = meter.sample(Totals::of(c, &self.mem, t), t);
+                self.power.set_cluster_power(p);
+            }
             let sample = self.power.sample(t, &loads, &motor)?;
             self.platform.battery_low = sample.low_battery;
         }
@@ -317,7 +348,12 @@ impl<W: WorldLink> Run<W> {
             let irq = self.platform.irq_level();
             self.platform.irq_line = irq;
             self.cpu.set_external_irq(irq);
-            let stop = self.cpu.run_until(&mut self.mem, &mut self.platform, limit);
+            let stop = match &mut self.cluster {
+                Some((c, _)) => {
+                    c.run_until(&mut self.cpu, &mut self.mem, &mut self.platform, limit)
+                }
+                None => self.cpu.run_until(&mut self.mem, &mut self.platform, limit),
+            };
             self.drain_device_console();
             let now = self.cpu.now();
             match stop {
@@ -386,6 +422,11 @@ impl<W: WorldLink> Run<W> {
         }
         if let Err(e) = self.cpu.flush_console() {
             error.get_or_insert(KernelError::Io(e));
+        }
+        if let Some((c, _)) = &mut self.cluster {
+            if let Err(e) = c.flush_console() {
+                error.get_or_insert(KernelError::Io(e));
+            }
         }
         if let Err(e) = self.power.flush() {
             error.get_or_insert(KernelError::Power(e));

@@ -53,6 +53,17 @@ const POWER_HEADER: [&str; 16] = [
 
 const RADIO_HEADER: [&str; 2] = ["i_uwb_a", "i_p2p_a"];
 
+/// The cluster's columns (a platform with a cluster, `crate::cluster::power`):
+/// mean power over the sample's interval, W.
+const CLUSTER_HEADER: [&str; 6] = [
+    "p_cluster_cores_active_w",
+    "p_cluster_cores_gated_w",
+    "p_cluster_l1_w",
+    "p_cluster_dma_w",
+    "p_cluster_leakage_w",
+    "p_cluster_w",
+];
+
 const MODEL_HEADER: [&str; 10] = [
     "t_ps",
     "time_s",
@@ -114,6 +125,7 @@ struct Files {
     power: CsvFile,
     models: [CsvFile; 3],
     radio_columns: bool,
+    cluster_columns: bool,
 }
 
 /// Samples queued before [`PowerLogger::log`] writes them itself (a
@@ -179,15 +191,23 @@ impl PowerLogger {
     /// Creates (truncates) the four files in `dir`, headers written;
     /// `radio_columns` adds the radios' columns to `power.csv`.
     pub fn create(dir: &Path, radio_columns: bool) -> Result<PowerLogger, PowerError> {
-        let header: Vec<&str> = if radio_columns {
-            POWER_HEADER
-                .iter()
-                .chain(RADIO_HEADER.iter())
-                .copied()
-                .collect()
-        } else {
-            POWER_HEADER.to_vec()
-        };
+        Self::create_with_cluster(dir, radio_columns, false)
+    }
+
+    /// As [`PowerLogger::create`]; `cluster_columns` adds the cluster's
+    /// columns after all others.
+    pub fn create_with_cluster(
+        dir: &Path,
+        radio_columns: bool,
+        cluster_columns: bool,
+    ) -> Result<PowerLogger, PowerError> {
+        let mut header: Vec<&str> = POWER_HEADER.to_vec();
+        if radio_columns {
+            header.extend(RADIO_HEADER);
+        }
+        if cluster_columns {
+            header.extend(CLUSTER_HEADER);
+        }
         let power = CsvFile::create(dir.join(POWER_CSV), &header)?;
         let model = |k: PowerModelKind| CsvFile::create(dir.join(model_csv_name(k)), &MODEL_HEADER);
         let files = Files {
@@ -198,6 +218,7 @@ impl PowerLogger {
                 model(PowerModelKind::Stolaroff)?,
             ],
             radio_columns,
+            cluster_columns,
         };
         let paths = std::iter::once(&files.power)
             .chain(files.models.iter())
@@ -294,6 +315,15 @@ impl Files {
             .ident(s.selected.name());
         if self.radio_columns {
             l.f64(i_uwb.0).f64(i_p2p.0);
+        }
+        if self.cluster_columns {
+            let c = s.cluster.unwrap_or_default();
+            l.f64(c.cores_active_w)
+                .f64(c.cores_gated_w)
+                .f64(c.l1_w)
+                .f64(c.dma_w)
+                .f64(c.leakage_w)
+                .f64(c.total_w());
         }
         self.power.finish()?;
         for (kind, file) in PowerModelKind::ALL.iter().zip(self.models.iter_mut()) {

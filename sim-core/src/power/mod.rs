@@ -182,6 +182,9 @@ pub struct PowerSample {
     pub low_battery: bool,
     /// True only at the sample where the SOC first went under the threshold.
     pub low_battery_crossed: bool,
+    /// The cluster's mean power over the interval, on a platform with a
+    /// cluster (`crate::cluster::power`; its own `power.csv` columns).
+    pub cluster: Option<crate::cluster::power::ClusterPower>,
 }
 
 impl PowerSample {
@@ -246,6 +249,8 @@ pub struct PowerNetwork {
     empty_reported: bool,
     logger: Option<PowerLogger>,
     last: Option<PowerSample>,
+    /// The cluster's power for the next sample ([`PowerNetwork::set_cluster_power`]).
+    cluster: Option<crate::cluster::power::ClusterPower>,
 }
 
 impl fmt::Debug for PowerNetwork {
@@ -382,7 +387,14 @@ impl PowerNetwork {
             empty_reported: false,
             logger: None,
             last: None,
+            cluster: None,
         })
+    }
+
+    /// The cluster's mean power over the interval the next sample closes
+    /// (the kernel's hook; logged in `power.csv`'s cluster columns).
+    pub fn set_cluster_power(&mut self, p: crate::cluster::power::ClusterPower) {
+        self.cluster = Some(p);
     }
 
     /// Logs every sample to `logger` from now on.
@@ -531,6 +543,7 @@ impl PowerNetwork {
             selected: self.selected,
             low_battery,
             low_battery_crossed,
+            cluster: self.cluster.take(),
         };
         self.last_t = t;
         self.next_sample = Picos((t.0 / SAMPLE_PERIOD.0 + 1) * SAMPLE_PERIOD.0);

@@ -202,21 +202,30 @@ void cl_main(uint32_t id)
         CTRL_FC_EVENT = 1;
 }
 
+/* REPEAT > 1 (the kernel test's variant): run the whole test that many
+ * times, powering the cluster on and off each time, so that several 1 ms
+ * power samples see it. */
+#ifndef REPEAT
+#define REPEAT 1
+#endif
+
 int main(void)
 {
     for (int i = 0; i < 2048; i++)
         src[i] = (uint8_t)(i * 7 + 3);
     __asm__ volatile("csrr %0, mhartid" : "=r"(results.fc_hartid));
-    CTRL_POWER = 1;
-    results.ncores = CTRL_NB_CORES;
-    uint32_t all = (1u << results.ncores) - 1;
-    CTRL_BOOT_ADDR = (uint32_t)cl_entry;
-    CTRL_FETCH_EN = all;
-    while (CTRL_FC_EVENT == 0)
-        ;
-    while (CTRL_RUNNING != 0)
-        ;
-    CTRL_POWER = 0;
+    for (int rep = 0; rep < REPEAT; rep++) {
+        CTRL_POWER = 1;
+        results.ncores = CTRL_NB_CORES;
+        uint32_t all = (1u << results.ncores) - 1;
+        CTRL_BOOT_ADDR = (uint32_t)cl_entry;
+        CTRL_FETCH_EN = all;
+        while (CTRL_FC_EVENT == 0)
+            ;
+        while (CTRL_RUNNING != 0)
+            ;
+        CTRL_POWER = 0;
+    }
     printf("cluster: %lu cores, counter %lu, dma %lu cycles\n",
            (unsigned long)results.ncores, (unsigned long)results.counter,
            (unsigned long)(results.dma_end - results.dma_start));
