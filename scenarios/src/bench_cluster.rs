@@ -15,12 +15,16 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
+use sim_core::cluster::power::{EnergyModel, REF_VOLTS};
+
 pub use crate::swarm::bench::BenchError;
 
 /// Core counts measured by default.
 pub const CORES: [u32; 4] = [1, 2, 4, 8];
 /// Matmuls per run: `-DBENCH_REPS` of the ELF's Makefile rule.
 pub const REPS: u64 = 16;
+/// The cluster clock of every run (MHz, DESIGN.md §12's default).
+pub const MHZ: u64 = 175;
 /// Multiply-accumulates of one 64×64×64 matmul.
 pub const MACS: u64 = 64 * 64 * 64;
 
@@ -34,10 +38,8 @@ pub struct ClusterRow {
     /// Simulated cluster cycles of one matmul (fork to barrier).
     pub cycles: u64,
     pub checksum: String,
-    /// Instructions of every core (FC included), from `--stats`.
-    pub instructions: Option<u64>,
-    /// The cluster's energy of the whole run, joules, from `--stats`.
-    pub cluster_energy_j: Option<f64>,
+    /// Every core's counters from `--stats`.
+    pub stats: RunStats,
     /// Host wall time of the process (the fastest of the repeats).
     pub wall_s: f64,
 }
@@ -46,17 +48,17 @@ impl ClusterRow {
     pub fn mac_per_cycle(&self) -> f64 {
         MACS as f64 / self.cycles as f64
     }
-    pub fn mips(&self) -> Option<f64> {
-        self.instructions.map(|i| i as f64 / self.wall_s / 1e6)
+    pub fn mips(&self) -> f64 {
+        self.stats.instructions as f64 / self.wall_s / 1e6
     }
     /// Host seconds per simulated cluster cycle.
     pub fn host_per_cycle(&self) -> f64 {
         self.wall_s / (self.cycles * REPS) as f64
     }
-    /// Energy per MAC over the whole run (the FC's setup included), pJ.
-    pub fn pj_per_mac(&self) -> Option<f64> {
-        self.cluster_energy_j
-            .map(|e| e / (MACS * REPS) as f64 * 1e12)
+    /// The cluster's energy per MAC over the whole time it was on (boot,
+    /// DMA and the dispatches included), pJ.
+    pub fn pj_per_mac(&self) -> f64 {
+        self.stats.cluster_energy_j(MHZ) / (MACS * REPS) as f64 * 1e12
     }
 }
 
@@ -77,19 +79,62 @@ fn field<'a>(text: &'a str, key: &str) -> Option<&'a str> {
         .map(str::trim)
 }
 
-/// Every core's instructions from `run-elf --stats`: the FC's
-/// `instructions: N` plus each `cluster core I: instructions N, ...`.
-pub fn total_instructions(stats: &str) -> Option<u64> {
-    let fc: u64 = field(stats, "instructions:")?.parse().ok()?;
-    let cluster: u64 = stats
-        .lines()
-        .filter(|l| l.starts_with("cluster core "))
-        .filter_map(|l| {
-            let (_, rest) = l.split_once(": instructions ")?;
-            rest.split(',').next()?.trim().parse::<u64>().ok()
-        })
-        .sum();
-    Some(fc + cluster)
+/// What `run-elf --stats` reports: the FC's `instructions: N`, each
+/// `cluster core I: instructions N, cycles C (gated G), L1 accesses A, ...`
+/// and `cluster DMA: B bytes, ...`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RunStats {
+    /// Every core's, the FC's included.
+    pub instructions: u64,
+    pub active_cycles: u64,
+    pub gated_cycles: u64,
+    pub l1_accesses: u64,
+    pub dma_bytes: u64,
+    /// The longest core's awake + gated cycles: how long the cluster ran.
+    pub powered_cycles: u64,
+}
+
+impl RunStats {
+    /// The cluster's energy with the model of `power.csv` (docs/CLUSTER.md
+    /// "Power", sim_core::cluster::power) at its reference voltage.
+    pub fn cluster_energy_j(&self, mhz: u64) -> f64 {
+        let m = EnergyModel::at(REF_VOLTS);
+        self.active_cycles as f64 * m.core_active_j
+            + self.gated_cycles as f64 * m.core_gated_j
+            + self.l1_accesses as f64 * m.l1_access_j
+            + self.dma_bytes as f64 * m.dma_byte_j
+            + m.leakage_w * self.powered_cycles as f64 / (mhz as f64 * 1e6)
+    }
+}
+
+/// Reads `--stats` (stderr); None without the FC's instruction count.
+pub fn parse_stats(stats: &str) -> Option<RunStats> {
+    let mut r = RunStats {
+        instructions: field(stats, "instructions:")?.parse().ok()?,
+        ..RunStats::default()
+    };
+    // The number after `key` in a comma-separated line.
+    let after = |l: &str, key: &str| -> Option<u64> {
+        let (_, rest) = l.split_once(key)?;
+        rest.split([',', ' ', ')'])
+            .find(|w| !w.is_empty())?
+            .parse()
+            .ok()
+    };
+    for l in stats.lines() {
+        if l.starts_with("cluster core ") {
+            let active = after(l, "cycles ")?;
+            let gated = after(l, "(gated ")?;
+            r.instructions += after(l, ": instructions ")?;
+            r.active_cycles += active;
+            r.gated_cycles += gated;
+            r.l1_accesses += after(l, "L1 accesses ")?;
+            r.powered_cycles = r.powered_cycles.max(active + gated);
+        } else if let Some(rest) = l.strip_prefix("cluster DMA: ") {
+            r.dma_bytes = after(rest, "")?;
+        }
+    }
+    Some(r)
 }
 
 /// Reads the ELF's line `bench cores N reps R cycles C checksum X`.
@@ -128,6 +173,8 @@ fn run_once(sim_core: &Path, elf: &Path, cores: u32) -> Result<ClusterRow, Bench
         .arg("--stats")
         .arg("--cluster-cores")
         .arg(cores.to_string())
+        .arg("--cluster-mhz")
+        .arg(MHZ.to_string())
         .output()
         .map_err(|e| err(format!("cannot run {}: {e}", sim_core.display())))?;
     let wall_s = started.elapsed().as_secs_f64();
@@ -150,9 +197,8 @@ fn run_once(sim_core: &Path, elf: &Path, cores: u32) -> Result<ClusterRow, Bench
         cores,
         cycles: cycles / REPS,
         checksum,
-        instructions: total_instructions(&stderr),
-        cluster_energy_j: field(&stderr, "cluster energy:")
-            .and_then(|v| v.trim_end_matches('J').trim().parse().ok()),
+        stats: parse_stats(&stderr)
+            .ok_or_else(|| err(format!("no statistics in {stderr:?}")))?,
         wall_s,
     })
 }
@@ -222,17 +268,16 @@ pub fn markdown(rows: &[ClusterRow]) -> String {
     let Some(first) = rows.first() else {
         return s;
     };
-    let opt = |v: Option<f64>, prec: usize| v.map_or("n/a".to_string(), |v| format!("{v:.prec$}"));
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {:.2} | {:.2} | {} | {:.3} | {} | {:.2} |\n",
+            "| {} | {} | {:.2} | {:.2} | {:.1} | {:.3} | {:.1} | {:.2} |\n",
             r.cores,
             r.cycles,
             r.mac_per_cycle(),
             first.cycles as f64 / r.cycles as f64,
-            opt(r.pj_per_mac(), 2),
+            r.pj_per_mac(),
             r.wall_s,
-            opt(r.mips(), 1),
+            r.mips(),
             r.host_per_cycle() / first.host_per_cycle(),
         ));
     }
@@ -257,10 +302,31 @@ mod tests {
     }
 
     #[test]
-    fn instructions_of_every_core_are_summed() {
-        let stats = "instructions: 100\ncycles: 5\ncluster core 0: instructions 20, cycles 9 (gated 1), L1 accesses 0, L1 stall cycles 0\ncluster core 1: instructions 3, cycles 9 (gated 1), L1 accesses 0, L1 stall cycles 0\ncluster MIPS: 1.0\n";
-        assert_eq!(total_instructions(stats), Some(123));
-        assert_eq!(total_instructions("cycles: 5\n"), None);
+    fn stats_of_every_core_are_summed() {
+        let stats = "instructions: 100\ncycles: 5\n\
+            cluster core 0: instructions 20, cycles 90 (gated 10), L1 accesses 7, L1 stall cycles 0\n\
+            cluster core 1: instructions 3, cycles 9 (gated 41), L1 accesses 1, L1 stall cycles 2\n\
+            cluster DMA: 512 bytes, 70 transfer cycles\ncluster MIPS: 1.0\n";
+        let r = parse_stats(stats).unwrap();
+        assert_eq!(
+            r,
+            RunStats {
+                instructions: 123,
+                active_cycles: 99,
+                gated_cycles: 51,
+                l1_accesses: 8,
+                dma_bytes: 512,
+                powered_cycles: 100,
+            }
+        );
+        let m = EnergyModel::at(REF_VOLTS);
+        let want = 99.0 * m.core_active_j
+            + 51.0 * m.core_gated_j
+            + 8.0 * m.l1_access_j
+            + 512.0 * m.dma_byte_j
+            + m.leakage_w * 100.0 / 175e6;
+        assert!((r.cluster_energy_j(175) - want).abs() < 1e-18);
+        assert_eq!(parse_stats("cycles: 5\n"), None);
     }
 
     #[test]
@@ -269,13 +335,15 @@ mod tests {
             cores,
             cycles,
             checksum: "0".into(),
-            instructions: Some(1_000_000),
-            cluster_energy_j: None,
+            stats: RunStats {
+                instructions: 1_000_000,
+                ..RunStats::default()
+            },
             wall_s,
         };
         let t = markdown(&[row(1, 262_144, 1.0), row(8, 32_768, 1.0)]);
         // 8× fewer cycles in the same wall time: 8× the host time per cycle.
-        assert!(t.contains("| 8 | 32768 | 8.00 | 8.00 | n/a | 1.000 | 1.0 | 8.00 |"), "{t}");
-        assert!(t.contains("| 1 | 262144 | 1.00 | 1.00 | n/a |"), "{t}");
+        assert!(t.contains("| 8 | 32768 | 8.00 | 8.00 | 0.0 | 1.000 | 1.0 | 8.00 |"), "{t}");
+        assert!(t.contains("| 1 | 262144 | 1.00 | 1.00 | 0.0 |"), "{t}");
     }
 }
