@@ -197,8 +197,7 @@ fn run_once(sim_core: &Path, elf: &Path, cores: u32) -> Result<ClusterRow, Bench
         cores,
         cycles: cycles / REPS,
         checksum,
-        stats: parse_stats(&stderr)
-            .ok_or_else(|| err(format!("no statistics in {stderr:?}")))?,
+        stats: parse_stats(&stderr).ok_or_else(|| err(format!("no statistics in {stderr:?}")))?,
         wall_s,
     })
 }
@@ -295,10 +294,14 @@ mod tests {
             parse_bench_line(out).unwrap(),
             (8, 16, 300_000, "1234abcd".to_string())
         );
-        assert!(parse_bench_line("nothing\n").unwrap_err().contains("no `bench`"));
-        assert!(parse_bench_line("bench cores x reps 1 cycles 2 checksum 0\n")
+        assert!(parse_bench_line("nothing\n")
             .unwrap_err()
-            .contains("cores"));
+            .contains("no `bench`"));
+        assert!(
+            parse_bench_line("bench cores x reps 1 cycles 2 checksum 0\n")
+                .unwrap_err()
+                .contains("cores")
+        );
     }
 
     #[test]
@@ -343,7 +346,10 @@ mod tests {
         };
         let t = markdown(&[row(1, 262_144, 1.0), row(8, 32_768, 1.0)]);
         // 8× fewer cycles in the same wall time: 8× the host time per cycle.
-        assert!(t.contains("| 8 | 32768 | 8.00 | 8.00 | 0.0 | 1.000 | 1.0 | 8.00 |"), "{t}");
+        assert!(
+            t.contains("| 8 | 32768 | 8.00 | 8.00 | 0.0 | 1.000 | 1.0 | 8.00 |"),
+            "{t}"
+        );
         assert!(t.contains("| 1 | 262144 | 1.00 | 1.00 | 0.0 |"), "{t}");
     }
 }

@@ -160,5 +160,9 @@ int main(void)
         .output()
         .unwrap();
     assert!(!bad.status.success());
-    assert!(stderr(&bad).contains("app: no such file"), "{}", stderr(&bad));
+    assert!(
+        stderr(&bad).contains("app: no such file"),
+        "{}",
+        stderr(&bad)
+    );
 }
