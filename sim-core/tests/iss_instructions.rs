@@ -466,21 +466,25 @@ proptest::proptest! {
     #[test]
     fn blocks_and_single_steps_agree(
         raw in proptest::collection::vec(proptest::prelude::any::<u32>(), 48),
-        opcodes in proptest::collection::vec(0usize..12, 48),
+        opcodes in proptest::collection::vec(0usize..16, 48),
         regs in proptest::collection::vec(0u32..0x200, 30),
     ) {
         // Real major opcodes with random fields, registers x0..x7 only (so
         // results are often used by the next instruction: load-use stalls),
         // registers holding BASE + a small value and loads and stores with
         // small positive offsets, so most accesses hit the program's own
-        // 4 KiB and some rewrite code.
-        const MAJOR: [u32; 11] = [0x13, 0x33, 0x03, 0x23, 0x63, 0x37, 0x17, 0x6f, 0x67, 0x73, 0x0f];
+        // 4 KiB and some rewrite code. The four custom opcodes are the
+        // CORE-V XCV instructions (post-increment loads and stores move
+        // their base by small amounts; dot products, MACs, SIMD).
+        const MAJOR: [u32; 15] = [
+            0x13, 0x33, 0x03, 0x23, 0x63, 0x37, 0x17, 0x6f, 0x67, 0x73, 0x0f, 0x0b, 0x2b, 0x5b, 0x7b,
+        ];
         const HIGH_REG_BITS: u32 = 0x18 << 7 | 0x18 << 15 | 0x18 << 20;
         let words: Vec<u32> = raw
             .iter()
             .zip(&opcodes)
             .map(|(&w, &k)| match MAJOR.get(k) {
-                Some(&m @ (0x03 | 0x23)) => (w & !0x7f & !HIGH_REG_BITS & 0x0fff_ffff) | m,
+                Some(&m @ (0x03 | 0x23 | 0x0b | 0x2b)) => (w & !0x7f & !HIGH_REG_BITS & 0x0fff_ffff) | m,
                 Some(&m) => (w & !0x7f & !HIGH_REG_BITS) | m,
                 None => w,
             })

@@ -11,36 +11,25 @@
 
 #include <stdint.h>
 
-/* acc + a[0]*b[0] + ... + a[3]*b[3], signed bytes (cv.sdotsp.b). */
-static inline int32_t xcv_sdotsp_b(int32_t acc, uint32_t a, uint32_t b)
-{
-    __asm__("cv.sdotsp.b %0, %1, %2" : "+r"(acc) : "r"(a), "r"(b));
-    return acc;
-}
-/* acc + a[0]*b[0] + a[1]*b[1], signed halfwords (cv.sdotsp.h). */
-static inline int32_t xcv_sdotsp_h(int32_t acc, uint32_t a, uint32_t b)
-{
-    __asm__("cv.sdotsp.h %0, %1, %2" : "+r"(acc) : "r"(a), "r"(b));
-    return acc;
-}
-/* a unsigned bytes times b signed bytes, accumulated (cv.sdotusp.b). */
-static inline int32_t xcv_sdotusp_b(int32_t acc, uint32_t a, uint32_t b)
-{
-    __asm__("cv.sdotusp.b %0, %1, %2" : "+r"(acc) : "r"(a), "r"(b));
-    return acc;
-}
-/* Unsigned bytes, accumulated (cv.sdotup.b). */
-static inline uint32_t xcv_sdotup_b(uint32_t acc, uint32_t a, uint32_t b)
-{
-    __asm__("cv.sdotup.b %0, %1, %2" : "+r"(acc) : "r"(a), "r"(b));
-    return acc;
-}
-/* acc + a * b (cv.mac). */
-static inline int32_t xcv_mac(int32_t acc, int32_t a, int32_t b)
-{
-    __asm__("cv.mac %0, %1, %2" : "+r"(acc) : "r"(a), "r"(b));
-    return acc;
-}
+/* `static inline T name(T acc, A a, B b)`: acc updated by one instruction
+ * that reads and writes its destination. */
+#define XCV_ACC_OP(name, insn, T, A, B)                              \
+    static inline T name(T acc, A a, B b)                            \
+    {                                                                \
+        __asm__(insn " %0, %1, %2" : "+r"(acc) : "r"(a), "r"(b));  \
+        return acc;                                                  \
+    }
+/* acc + a[0]*b[0] + ... + a[3]*b[3], signed bytes. */
+XCV_ACC_OP(xcv_sdotsp_b, "cv.sdotsp.b", int32_t, uint32_t, uint32_t)
+/* acc + a[0]*b[0] + a[1]*b[1], signed halfwords. */
+XCV_ACC_OP(xcv_sdotsp_h, "cv.sdotsp.h", int32_t, uint32_t, uint32_t)
+/* a unsigned bytes times b signed bytes, accumulated. */
+XCV_ACC_OP(xcv_sdotusp_b, "cv.sdotusp.b", int32_t, uint32_t, uint32_t)
+/* Unsigned bytes, accumulated. */
+XCV_ACC_OP(xcv_sdotup_b, "cv.sdotup.b", uint32_t, uint32_t, uint32_t)
+/* acc + a * b. */
+XCV_ACC_OP(xcv_mac, "cv.mac", int32_t, int32_t, int32_t)
+
 /* x clipped to the signed range of `bits` bits, [-2^(bits-1), 2^(bits-1)-1]
  * (cv.clip; bits is an immediate, 1..31). */
 #define xcv_clip(x, bits)                                              \

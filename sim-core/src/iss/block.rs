@@ -30,6 +30,7 @@ use super::decode::{self, op, Decoded};
 use super::exec::{handler, Handler};
 use super::mem::{Memory, Region};
 use super::timing::BASE_CYCLES;
+use super::xcv;
 
 /// Longest block. Long enough that the per-block entry cost is noise,
 /// short enough that a block built past a rarely taken exit wastes little.
@@ -73,7 +74,9 @@ impl Inst {
     /// Registers read (one-hot mask; unused fields are x0).
     #[inline(always)]
     pub fn reads(&self) -> u32 {
-        (1u32 << (self.rs1 & 31)) | (1u32 << (self.rs2 & 31))
+        (1u32 << (self.rs1 & 31))
+            | (1u32 << (self.rs2 & 31))
+            | ((READS_RD[self.op as usize] as u32) << (self.rd & 31))
     }
 
     /// One-hot mask of the register this instruction loads (0 if it is not
@@ -103,8 +106,20 @@ impl Inst {
 }
 
 pub(crate) fn is_load(o: u8) -> bool {
-    (op::LB..=op::LHU).contains(&o)
+    (op::LB..=op::LHU).contains(&o) || xcv::is_load(o)
 }
+
+/// Ops that read rd as a source (XCV accumulators, inserts, the rs3 of
+/// stores; `xcv::reads_rd`), indexed by op.
+static READS_RD: [bool; 256] = {
+    let mut t = [false; 256];
+    let mut o = 0;
+    while o < 256 {
+        t[o] = xcv::reads_rd(o as u8);
+        o += 1;
+    }
+    t
+};
 
 /// Instructions after which a block ends.
 fn ends_block(o: u8) -> bool {
@@ -116,6 +131,7 @@ fn pure(o: u8) -> bool {
     matches!(o, op::LUI | op::AUIPC)
         || (op::ADDI..=op::AND).contains(&o)
         || (op::MUL..=op::MULHU).contains(&o)
+        || xcv::pure(o)
 }
 
 /// The first instruction at `pc` cannot be fetched; the address that faulted.
@@ -188,7 +204,9 @@ impl Memory {
                     inst.imm = ipc.wrapping_add(inst.imm);
                 }
                 op::JAL => inst.imm = ipc.wrapping_add(inst.imm),
-                o if (op::BEQ..=op::BGEU).contains(&o) => inst.imm = ipc.wrapping_add(inst.imm),
+                o if (op::BEQ..=op::BGEU).contains(&o) || o == op::CV_BEQIMM || o == op::CV_BNEIMM => {
+                    inst.imm = ipc.wrapping_add(inst.imm)
+                }
                 _ => {}
             }
             if inst.rd == 0 && pure(inst.op) {

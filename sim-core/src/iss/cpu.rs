@@ -13,6 +13,7 @@ use super::exec;
 use super::mem::{AccessSize, MemTiming, Memory, Mmio, MmioError};
 use super::semihost::{self, Semihost};
 use super::timing::{self, BASE_CYCLES};
+use super::xcv;
 
 /// The machine timer, a CLINT at its customary address (the GAP8 map has
 /// nothing there, DESIGN.md §4). `mtime` counts core clock cycles.
@@ -721,9 +722,22 @@ impl Cpu {
         let a = self.regs[(inst.rs1 & 31) as usize];
         let b = self.regs[(inst.rs2 & 31) as usize];
         let mut next = pc.wrapping_add(inst.len as u32);
+        // Address and base write-back of a load or store (RV32I: rs1 + imm;
+        // the XCV forms: `xcv::mem`, register operand rs2 for loads, rs3 =
+        // the rd field for stores).
+        let (o, mode) = match xcv::mem::base_op(inst.op) {
+            Some(base) => (base, xcv::mem::mode(inst.op)),
+            None => (inst.op, xcv::mem::Mode::Offset),
+        };
+        let reg = if (op::SB..=op::SW).contains(&o) {
+            self.regs[rd]
+        } else {
+            b
+        };
+        let (addr, wb) = xcv::mem::address(mode, a, reg, inst.imm);
+        let rs1 = (inst.rs1 & 31) as usize;
         macro_rules! load {
             ($size:expr, $conv:expr) => {{
-                let addr = a.wrapping_add(inst.imm);
                 let v = match mem.load_ram(addr, $size) {
                     Some(v) => {
                         self.cycles += timing::split_cost(addr, $size);
@@ -735,6 +749,9 @@ impl Cpu {
                         None => return,
                     },
                 };
+                if let Some(w) = wb {
+                    self.regs[rs1] = w;
+                }
                 self.regs[rd] = $conv(v);
                 self.regs[0] = 0;
                 self.load_mask = inst.load_mask();
@@ -742,7 +759,6 @@ impl Cpu {
         }
         macro_rules! store {
             ($size:expr) => {{
-                let addr = a.wrapping_add(inst.imm);
                 let watched = self.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
                 if !watched && mem.store_ram(addr, $size, b) {
                     self.cycles += timing::split_cost(addr, $size);
@@ -750,9 +766,13 @@ impl Cpu {
                 } else if !self.store_slow(mem, dev, addr, $size, b, pc) {
                     return;
                 }
+                if let Some(w) = wb {
+                    self.regs[rs1] = w;
+                    self.regs[0] = 0;
+                }
             }};
         }
-        match inst.op {
+        match o {
             op::LB => load!(AccessSize::Byte, |v: u32| v as u8 as i8 as i32 as u32),
             op::LH => load!(AccessSize::Half, |v: u32| v as u16 as i16 as i32 as u32),
             op::LW => load!(AccessSize::Word, |v: u32| v),

@@ -39,6 +39,21 @@ pub mod op {
         // a computation whose result goes to x0, the end of a block that
         // has no control transfer, a `jal` the block follows.
         NOP, END, JUMP,
+        // CORE-V XCV (`xcv/`): post-increment loads (immediate, register)
+        // and register-offset loads; the same for stores (the third
+        // register, `rs3`, sits in `rd`).
+        CV_LB_PI, CV_LH_PI, CV_LW_PI, CV_LBU_PI, CV_LHU_PI,
+        CV_LB_PR, CV_LH_PR, CV_LW_PR, CV_LBU_PR, CV_LHU_PR,
+        CV_LB_RR, CV_LH_RR, CV_LW_RR, CV_LBU_RR, CV_LHU_RR,
+        CV_SB_PI, CV_SH_PI, CV_SW_PI, CV_SB_PR, CV_SH_PR, CV_SW_PR, CV_SB_RR, CV_SH_RR, CV_SW_RR,
+        // Immediate branches: `rd` holds the 5-bit immediate.
+        CV_BEQIMM, CV_BNEIMM,
+        // Computations: `imm` holds the function and its immediates
+        // (`xcv::alu`, `xcv::mac`, `xcv::simd`); the `_RD` forms also
+        // read rd.
+        CV_ALU, CV_ALU_RD, CV_MAC, CV_MSU, CV_MULN, CV_MACN, CV_SIMD, CV_SIMD_RD,
+        // The dot products of the NN inner loops, with their own handlers.
+        CV_SDOTSP_B, CV_SDOTSP_H, CV_SDOTUSP_B, CV_SDOTUP_B, CV_DOTSP_B,
     );
 }
 
@@ -81,11 +96,11 @@ const fn illegal(raw: u32) -> Decoded {
 }
 
 #[inline]
-fn bits(x: u32, hi: u32, lo: u32) -> u32 {
+pub(super) fn bits(x: u32, hi: u32, lo: u32) -> u32 {
     (x >> lo) & ((1u32 << (hi - lo + 1)) - 1)
 }
 
-fn sext(x: u32, width: u32) -> i32 {
+pub(super) fn sext(x: u32, width: u32) -> i32 {
     let s = 32 - width;
     ((x << s) as i32) >> s
 }
@@ -223,6 +238,7 @@ pub fn decode32(inst: u32) -> Decoded {
                 _ => illegal(inst),
             }
         }
+        0x0b | 0x2b | 0x5b | 0x7b => super::xcv::decode(inst).unwrap_or(illegal(inst)),
         _ => illegal(inst),
     }
 }

@@ -20,6 +20,7 @@ use super::block::Inst;
 use super::decode::op;
 use super::mem::{ram_load, ram_store_data, AccessSize, MemTiming, Region};
 use super::timing;
+use super::xcv::mem::{address, Mode};
 use crate::cluster::tcdm::Tcdm;
 
 /// What one [`run`] leaves for the core.
@@ -390,11 +391,13 @@ fn general(r: &mut Run, p: *const Inst, cycles: u64) -> Flow {
 
 /// The hot load and store handlers only touch the fast region; everything
 /// else continues in a cold twin with the same signature, entered by a tail
-/// call, so the hot handler needs no stack frame.
+/// call, so the hot handler needs no stack frame. `$mode` is the addressing
+/// mode (`xcv::mem`; a constant, so the RV32I forms compile to `rs1 + imm`
+/// with no write-back) and `$reg` the field of its register operand.
 macro_rules! loads {
-    ($($name:ident, $slow:ident: $size:expr, $conv:expr;)*) => {$(
+    ($($name:ident, $slow:ident: $size:expr, $conv:expr, $mode:expr, $reg:ident;)*) => {$(
         handler!($name, |r, regs, inst, cycles, p, deadline| {
-            let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
+            let (addr, wb) = address($mode, reg!(regs, inst.rs1), reg!(regs, inst.$reg), inst.imm);
             const N: u32 = $size.bytes();
             let Some(off) = r.fast.offset(addr, N) else {
                 return $slow(r, regs, p, cycles, deadline);
@@ -404,6 +407,9 @@ macro_rules! loads {
             // `FastRam`).
             unsafe { std::ptr::copy_nonoverlapping(r.fast.ptr.add(off), b.as_mut_ptr(), N as usize) };
             cycles += timing::split_cost(addr, $size) + r.fast.extra;
+            if let Some(v) = wb {
+                reg!(regs, inst.rs1) = v;
+            }
             reg!(regs, inst.rd) = $conv(u32::from_le_bytes(b));
             regs[0] = 0;
         });
@@ -414,10 +420,13 @@ macro_rules! loads {
         fn $slow(r: &mut Run, regs: &mut [u32; 32], p: *const Inst, mut cycles: u64, deadline: u64) -> Flow {
             // SAFETY: `p` points into the running block.
             let inst = unsafe { &*p };
-            let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
+            let (addr, wb) = address($mode, reg!(regs, inst.rs1), reg!(regs, inst.$reg), inst.imm);
             match ram_load(r.regions, addr, $size) {
                 Some(v) => {
                     cycles += timing::split_cost(addr, $size) + r.extra(addr, inst, cycles);
+                    if let Some(v) = wb {
+                        reg!(regs, inst.rs1) = v;
+                    }
                     reg!(regs, inst.rd) = $conv(v);
                     regs[0] = 0;
                     next(r, regs, p, cycles, deadline)
@@ -428,17 +437,32 @@ macro_rules! loads {
     )*};
 }
 loads! {
-    h_lb, h_lb_other: AccessSize::Byte, |v: u32| v as u8 as i8 as i32 as u32;
-    h_lh, h_lh_other: AccessSize::Half, |v: u32| v as u16 as i16 as i32 as u32;
-    h_lw, h_lw_other: AccessSize::Word, |v: u32| v;
-    h_lbu, h_lbu_other: AccessSize::Byte, |v: u32| v;
-    h_lhu, h_lhu_other: AccessSize::Half, |v: u32| v;
+    h_lb, h_lb_other: AccessSize::Byte, sext8, Mode::Offset, rs2;
+    h_lh, h_lh_other: AccessSize::Half, sext16, Mode::Offset, rs2;
+    h_lw, h_lw_other: AccessSize::Word, same, Mode::Offset, rs2;
+    h_lbu, h_lbu_other: AccessSize::Byte, same, Mode::Offset, rs2;
+    h_lhu, h_lhu_other: AccessSize::Half, same, Mode::Offset, rs2;
+}
+
+/// Load conversions.
+#[inline(always)]
+fn sext8(v: u32) -> u32 {
+    v as u8 as i8 as i32 as u32
+}
+#[inline(always)]
+fn sext16(v: u32) -> u32 {
+    v as u16 as i16 as i32 as u32
+}
+#[inline(always)]
+fn same(v: u32) -> u32 {
+    v
 }
 
 macro_rules! stores {
-    ($($name:ident, $slow:ident: $size:expr;)*) => {$(
+    ($($name:ident, $slow:ident: $size:expr, $mode:expr;)*) => {$(
+        // The register operand of the XCV forms (rs3) is in the rd field.
         handler!($name, |r, regs, inst, cycles, p, deadline| {
-            let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
+            let (addr, wb) = address($mode, reg!(regs, inst.rs1), reg!(regs, inst.rd), inst.imm);
             const N: u32 = $size.bytes();
             let watched = r.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
             let off = match r.fast.offset(addr, N) {
@@ -450,6 +474,10 @@ macro_rules! stores {
             // `FastRam`).
             unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), r.fast.ptr.add(off), N as usize) };
             cycles += timing::split_cost(addr, $size) + r.fast.extra;
+            if let Some(v) = wb {
+                reg!(regs, inst.rs1) = v;
+                regs[0] = 0;
+            }
         });
 
         /// The store outside the fast region, near code or to `tohost`
@@ -459,21 +487,25 @@ macro_rules! stores {
         fn $slow(r: &mut Run, regs: &mut [u32; 32], p: *const Inst, mut cycles: u64, deadline: u64) -> Flow {
             // SAFETY: `p` points into the running block.
             let inst = unsafe { &*p };
-            let addr = reg!(regs, inst.rs1).wrapping_add(inst.imm);
+            let (addr, wb) = address($mode, reg!(regs, inst.rs1), reg!(regs, inst.rd), inst.imm);
             let watched = r.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
             let in_fast = r.fast.offset(addr, $size.bytes()).is_some();
             if watched || in_fast || !ram_store_data(r.regions, addr, $size, reg!(regs, inst.rs2)) {
                 return general(r, p, cycles);
             }
             cycles += timing::split_cost(addr, $size) + r.extra(addr, inst, cycles);
+            if let Some(v) = wb {
+                reg!(regs, inst.rs1) = v;
+                regs[0] = 0;
+            }
             next(r, regs, p, cycles, deadline)
         }
     )*};
 }
 stores! {
-    h_sb, h_sb_other: AccessSize::Byte;
-    h_sh, h_sh_other: AccessSize::Half;
-    h_sw, h_sw_other: AccessSize::Word;
+    h_sb, h_sb_other: AccessSize::Byte, Mode::Offset;
+    h_sh, h_sh_other: AccessSize::Half, Mode::Offset;
+    h_sw, h_sw_other: AccessSize::Word, Mode::Offset;
 }
 
 /// A control transfer from the instruction at `p` to `to` retired: go on
@@ -633,5 +665,8 @@ static HANDLERS: [Handler; 256] = {
     t[op::FENCE as usize] = h_nop;
     t[op::FENCE_I as usize] = h_nop;
     t[op::END as usize] = h_end;
+    xcv::install(&mut t);
     t
 };
+
+mod xcv;

@@ -92,6 +92,7 @@ pub mod mem;
 pub mod run_elf;
 pub mod semihost;
 pub mod timing;
+pub mod xcv;
 
 pub use cpu::{cause, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason};
 pub use elf::{load_elf, ElfError, LoadedElf, Segment};

@@ -1,0 +1,98 @@
+/* xcvsimd (CV32E40P manual, "SIMD"): every family in vector, .sc and .sci
+ * form, the dot products at their edges (-128 * -128, 255 * 255, the
+ * 32-bit wrap of the accumulator), shuffles, packs, comparisons and the
+ * complex-number operations. */
+#include "xcvtest.h"
+
+XCV_CODE_BEGIN
+    /* Dot products. -128 * -128 * 4 = 65536. */
+    TEST_RR(2, cv.dotsp.b, 65536, 0x80808080, 0x80808080)
+    TEST_DRR(3, cv.sdotsp.b, 65546, 10, 0x80808080, 0x80808080)
+    TEST_DRR(4, cv.sdotsp.b, 0x8000ffff, 0x7fffffff, 0x80808080, 0x80808080)
+    TEST_RR(5, cv.dotup.b, 260100, 0xffffffff, 0xffffffff)
+    TEST_DRR(6, cv.sdotup.b, 260101, 1, 0xffffffff, 0xffffffff)
+    TEST_RR(7, cv.dotusp.b, -1020, 0xffffffff, 0xffffffff)
+    TEST_DRR(8, cv.sdotusp.b, -1019, 1, 0xffffffff, 0xffffffff)
+    /* Halfwords: 2 * (-32768)^2 = 2^31 wraps. */
+    TEST_RR(9, cv.dotsp.h, 0x80000000, 0x80008000, 0x80008000)
+    TEST_DRR(10, cv.sdotsp.h, 0x80000001, 1, 0x80008000, 0x80008000)
+    TEST_RR(11, cv.dotup.h, 0xfffc0002, 0xffffffff, 0xffffffff)
+    TEST_RR(12, cv.dotusp.h, -131070, 0xffffffff, 0xffffffff)
+    TEST_DRR(13, cv.sdotup.h, 11, 0, 0x00020003, 0x00010003)
+    TEST_DRR(14, cv.sdotusp.h, -1, 0, 0x00010001, 0xffff0000)
+    /* .sc: rs2's lowest lane; .sci: Imm6 (sign-extended, dotup: zero). */
+    TEST_RR(15, cv.dotsp.sc.b, 20, 0x04030201, 0xdead0002)
+    TEST_RI(16, cv.dotsp.sci.b, -10, 0x04030201, -1)
+    TEST_RI(17, cv.dotup.sci.b, 630, 0x04030201, 63)
+    TEST_DRR(18, cv.sdotsp.sc.h, 85, 5, 0x00030005, 0xffff000a)
+    TEST_DRI(19, cv.sdotsp.sci.h, -11, 5, 0x00030005, -2)
+    TEST_DRI(20, cv.sdotusp.sci.b, 12, 2, 0x04030201, 1)
+    TEST_DRR(21, cv.sdotup.sc.b, 0x3fc, 0, 0xffffffff, 0x101)
+    /* Lane ALU. */
+    TEST_RR(22, cv.add.h, 0x00000002, 0xffff0001, 0x00010001)
+    TEST_RR(23, cv.add.b, 0x00ff0000, 0x7f800100, 0x817fff00)
+    TEST_RR(24, cv.sub.b, 0xff010080, 0x00020000, 0x01010080)
+    TEST_RI(25, cv.sub.sci.h, 0x00040003, 0x00020001, -2)
+    TEST_RR(26, cv.add.sc.b, 0x04030201, 0x03020100, 0x00000001)
+    TEST_RR(27, cv.avg.b, 0x0100e4ff, 0x010064fc, 0x01006402)
+    TEST_RR(28, cv.avgu.h, 0x7fff0001, 0xfffe0001, 0x00000001)
+    TEST_RR(29, cv.min.h, 0x8000fffe, 0x8000fffe, 0x7fff0001)
+    TEST_RR(30, cv.minu.h, 0x7fff0001, 0x8000fffe, 0x7fff0001)
+    TEST_RR(31, cv.max.b, 0x7f017f01, 0x80017f80, 0x7f800001)
+    TEST_RI(32, cv.maxu.sci.b, 0x3f403f3f, 0x00400001, 63)
+    TEST_RI(33, cv.min.sci.h, 0xffe0ffe0, 0x12340005, -32)
+    TEST_RR(34, cv.srl.h, 0x40000010, 0x80000020, 0x00010001)
+    TEST_RI(35, cv.sra.sci.h, 0xe0000004, 0x80000010, 2)
+    TEST_RR(36, cv.sll.b, 0x80020408, 0x01010101, 0x07010203)
+    TEST_RR(37, cv.sra.sc.b, 0xf0f0f0f0, 0x80808080, 0x0000000b)
+    TEST_RR(38, cv.or.h, 0xffff00ff, 0xff0000f0, 0x00ff000f)
+    TEST_RI(39, cv.xor.sci.b, 0xfefefefe, 0x01010101, -1)
+    TEST_RR(40, cv.and.sc.h, 0x000f000f, 0xffff00ff, 0x1234000f)
+    TEST_R(41, cv.abs.h, 0x80000001, 0x8000ffff)
+    TEST_R(42, cv.abs.b, 0x80017f01, 0x80ff8101)
+    /* Lanes in and out. */
+    TEST_RI(43, cv.extract.h, 0xffff8000, 0x80001234, 1)
+    TEST_RI(44, cv.extractu.h, 0x8000, 0x80001234, 1)
+    TEST_RI(45, cv.extract.b, 0xffffff80, 0x80ffffff, 3)
+    TEST_RI(46, cv.extractu.b, 0xfe, 0x0000fe00, 1)
+    TEST_DRI(47, cv.insert.h, 0x5678ffff, 0xffffffff, 0x12345678, 1)
+    TEST_DRI(48, cv.insert.b, 0xffabffff, 0xffffffff, 0xab, 2)
+    TEST_RR(49, cv.shuffle.h, 0x22114433, 0x44332211, 0x00000001)
+    TEST_RR(50, cv.shuffle.b, 0x11223344, 0x44332211, 0x00010203)
+    TEST_RI(51, cv.shuffle.sci.h, 0x22114433, 0x44332211, 1)
+    TEST_RI(52, cv.shufflei0.sci.b, 0x11443322, 0x44332211, 0x39)
+    TEST_RI(53, cv.shufflei1.sci.b, 0x22111111, 0x44332211, 0)
+    TEST_RI(54, cv.shufflei2.sci.b, 0x33112244, 0x44332211, 7)
+    TEST_RI(55, cv.shufflei3.sci.b, 0x44444444, 0x44332211, 63)
+    TEST_DRR(56, cv.shuffle2.h, 0xbbbbcccc, 0xccccdddd, 0xaaaabbbb, 0x00020001)
+    TEST_DRR(57, cv.shuffle2.b, 0x44dd11aa, 0xddccbbaa, 0x44332211, 0x07030400)
+    TEST_RR(58, cv.pack, 0x56789abc, 0x12345678, 0xdef09abc)
+    TEST_RR(59, cv.pack.h, 0x12349abc, 0x12345678, 0x9abcdef0)
+    TEST_DRR(60, cv.packhi.b, 0x11224444, 0x33334444, 0x11, 0x22)
+    TEST_DRR(61, cv.packlo.b, 0x33331122, 0x33334444, 0x11, 0x22)
+    /* Comparisons: all ones where true. */
+    TEST_RR(62, cv.cmpeq.h, 0xffff0000, 0x12345678, 0x12340000)
+    TEST_RR(63, cv.cmpne.b, 0x00ff00ff, 0x01020304, 0x01000300)
+    TEST_RR(64, cv.cmpgt.b, 0x00ffffff, 0x80017f01, 0x7f00ff00)
+    TEST_RR(65, cv.cmpge.sc.h, 0xffff0000, 0x0005fffb, 0x00000005)
+    TEST_RI(66, cv.cmplt.sci.b, 0xff00ff00, 0xff05ff07, 0)
+    TEST_RI(67, cv.cmple.sci.h, 0xffff0000, 0xfffe0000, -1)
+    TEST_RR(68, cv.cmpgtu.b, 0xff00ff00, 0x80017f01, 0x7f027e02)
+    TEST_RR(69, cv.cmpgeu.h, 0x0000ffff, 0x0001ffff, 0x0002ffff)
+    TEST_RI(70, cv.cmpltu.sci.b, 0x00ff00ff, 0x40014002, 63)
+    TEST_RR(71, cv.cmpleu.sc.b, 0xffffff00, 0x00010203, 0x00000002)
+    /* Complex numbers in Q15: (0.5 + 0.5j)(0.5 - 0.5j) = 0.5. */
+    TEST_DRR(72, cv.cplxmul.r, 0xffff4000, 0xffff0000, 0x40004000, 0xc0004000)
+    TEST_DRR(73, cv.cplxmul.i, 0x00001234, 0x00001234, 0x40004000, 0xc0004000)
+    TEST_DRR(74, cv.cplxmul.i.div2, 0x20000000, 0, 0x40004000, 0x40004000)
+    TEST_DRR(75, cv.cplxmul.r.div8, 0x00000400, 0, 0x00004000, 0x00004000)
+    TEST_R(76, cv.cplxconj, 0xffff0002, 0x00010002)
+    TEST_RR(77, cv.subrotmj, 0xfffe0003, 0x00050004, 0x00020002)
+    TEST_RR(78, cv.subrotmj.div2, 0xffff0001, 0x00050004, 0x00020002)
+    TEST_RR(79, cv.add.div2, 0x0010fff8, 0x0010fff0, 0x00100000)
+    TEST_RR(80, cv.add.div4, 0x0008fffc, 0x0010fff0, 0x00100000)
+    TEST_RR(81, cv.sub.div8, 0x0001fffe, 0x0010fff0, 0x00080000)
+    XCV_TEST_END
+
+RVTEST_DATA_BEGIN
+RVTEST_DATA_END
