@@ -48,13 +48,25 @@ fn cluster_hello_prints_each_core_once() {
     assert_eq!(stdout(&again), out, "same ELF, same output");
 }
 
+/// The self-test on the default 8 cores and on clusters of 1 and 3 (the
+/// runtime sizes its forks, stacks and teams from `NB_CORES`).
 #[test]
 fn runtime_selftest_passes() {
-    let o = run_elf(&firmware("cluster_selftest"), &[]);
-    let out = stdout(&o);
-    assert_eq!(o.status.code(), Some(0), "{out}{}", stderr(&o));
-    assert!(out.contains(", 0 failures: PASS"), "{out}");
-    assert!(!out.contains("FAIL"), "{out}");
+    for (cores, checks) in [("8", 50), ("1", 44), ("3", 46)] {
+        let o = run_elf(&firmware("cluster_selftest"), &["--cluster-cores", cores]);
+        let out = stdout(&o);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{cores} cores: {out}{}",
+            stderr(&o)
+        );
+        assert_eq!(
+            out,
+            format!("cluster_selftest: {checks} checks, 0 failures: PASS\n"),
+            "{cores} cores"
+        );
+    }
 }
 
 /// The benchmark's own checks: every run's checksum equals the FC's plain
