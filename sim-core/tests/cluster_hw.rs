@@ -10,7 +10,9 @@ use std::process::Command;
 use iss_util::{firmware, Console};
 use sim_core::cluster::dma::SETUP_CYCLES;
 use sim_core::cluster::event_unit::WAKE_LATENCY_CYCLES;
-use sim_core::cluster::{Cluster, ClusterConfig, CoreReport, FC_HART_ID, L2_EXTRA_CYCLES};
+use sim_core::cluster::{
+    Cluster, ClusterConfig, CoreReport, FC_HART_ID, FC_L1_EXTRA_CYCLES, L2_EXTRA_CYCLES,
+};
 use sim_core::iss::run_elf::build_memory;
 use sim_core::iss::{load_elf, Cpu, CpuConfig, NoDevices, StopReason};
 use sim_core::units::Picos;
@@ -39,7 +41,11 @@ mod r {
     pub const INSTRET_BEFORE: usize = 62;
     pub const INSTRET_AFTER: usize = 63;
     pub const FC_HARTID: usize = 64;
-    pub const WORDS: usize = 65;
+    pub const FC_L1: usize = 65;
+    pub const FC_L2: usize = 66;
+    pub const CORE_L1: usize = 67;
+    pub const CORE_L2: usize = 68;
+    pub const WORDS: usize = 69;
 }
 
 struct Outcome {
@@ -50,16 +56,24 @@ struct Outcome {
 }
 
 fn run(cores: usize) -> Outcome {
+    run_with(cores, true)
+}
+
+fn run_with(cores: usize, idle_skip: bool) -> Outcome {
     let bytes = std::fs::read(firmware("cluster_hw_test")).unwrap();
     let elf = load_elf(&bytes).unwrap();
     let mut mem = build_memory(&[], elf.lowest_address()).unwrap();
     elf.load_into(&mut mem).unwrap();
     let cfg = ClusterConfig {
         cores,
+        idle_skip,
         ..ClusterConfig::default()
     };
     let mut cluster = Cluster::new(cfg, &mut mem).unwrap();
-    let mut fc = Cpu::new(Cluster::fc_config(CpuConfig::default()));
+    let mut fc = Cpu::new(Cluster::fc_config(CpuConfig {
+        idle_skip,
+        ..CpuConfig::default()
+    }));
     Cluster::attach_fc(&mut fc);
     fc.set_pc(elf.entry);
     let console = Console::default();
@@ -96,6 +110,19 @@ fn cores_boot_with_their_hart_ids_and_dispatch_reaches_each() {
             .console
             .contains(&format!("cluster: {n} cores, counter {}", 100 * n)));
     }
+}
+
+#[test]
+fn l2_costs_cluster_cores_extra_cycles_and_l1_costs_the_fc() {
+    let o = run(2);
+    let w = &o.words;
+    // One load between two mcycle reads: the first read's 3 extra cycles
+    // (a 4-cycle CSR, CV32E40P), the load's 1 and the second read's 1; a
+    // cluster core's L1 load and the FC's L2 load cost the same.
+    let base = 3 + 1 + 1;
+    assert_eq!((w[r::CORE_L1], w[r::FC_L2]), (base, base));
+    assert_eq!(w[r::CORE_L2] as u64, base as u64 + L2_EXTRA_CYCLES);
+    assert_eq!(w[r::FC_L1] as u64, base as u64 + FC_L1_EXTRA_CYCLES);
 }
 
 #[test]
@@ -188,6 +215,12 @@ fn same_elf_same_cycles_and_results() {
     assert_eq!(a.words, b.words);
     assert_eq!(a.reports, b.reports);
     assert_eq!(a.fc_cycles, b.fc_cycles);
+    // Idle skipping of the FC's polling (FC_EVENT, RUNNING) is exact: a
+    // step-by-step run lands on the same cycles.
+    let c = run_with(8, false);
+    assert_eq!(a.words, c.words);
+    assert_eq!(a.reports, c.reports);
+    assert_eq!(a.fc_cycles, c.fc_cycles);
 }
 
 #[test]
@@ -220,5 +253,22 @@ fn run_elf_prints_each_core_in_stats_and_rejects_bad_core_counts() {
     assert_ne!(bad.status.code(), Some(0));
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("cluster.cores must be 1 to 8"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+}
+
+#[test]
+fn a_dma_command_outside_l1_is_a_clear_error_naming_the_core() {
+    let bin = env!("CARGO_BIN_EXE_sim-core");
+    let fw = firmware("cluster_bad_dma");
+    let o = Command::new(bin)
+        .args(["run-elf", fw.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_ne!(o.status.code(), Some(0));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("cluster core 0") && err.contains("store access fault"),
+        "{err}"
+    );
     assert_eq!(err.trim().lines().count(), 1, "{err}");
 }

@@ -11,6 +11,8 @@ use sim_core::kernel::{simulate, KernelConfig};
 use sim_core::peripherals::SoloWorld;
 use sim_core::units::{Millis, Picos};
 
+const FULL: f64 = sim_core::cluster::power::FULL_LOAD_W;
+
 fn firmware(name: &str) -> Vec<u8> {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("firmware/bin")
@@ -75,17 +77,26 @@ fn the_kernel_runs_the_cluster_and_logs_its_power() {
     // power stays below the full-load figure (96 mW, 8 busy cores).
     let first = &rows[0];
     assert!(first[active] > 0.0 && first[total] > first[active]);
-    assert!(first[total] < sim_core::cluster::power::FULL_LOAD_W);
+    assert!(first[total] < FULL);
+    // summary.json's cluster energy is the sum of the logged samples'.
+    let logged: f64 = rows.iter().map(|r| r[total] * 1e-3).sum();
+    let e = out.summary.energy_j.cluster.unwrap();
+    assert!((e - logged).abs() < 1e-9 * logged, "{e} vs {logged}");
 }
 
 #[test]
 fn without_a_cluster_section_power_csv_keeps_its_columns() {
     let (dir, out) = run("hello", PlatformConfig::default_crazyflie());
     assert!(out.error.is_none(), "{:?}", out.error);
+    assert_eq!(out.summary.energy_j.cluster, None);
     let csv = std::fs::read_to_string(dir.path().join("power.csv")).unwrap();
     assert!(!csv.lines().next().unwrap().contains("cluster"));
-    // And a cluster program on that platform is a clear failure, not a hang.
+    // And a cluster program on that platform is a clear failure, not a
+    // hang: its first L1 access faults.
     let (_dir, out) = run("cluster_hw_test", PlatformConfig::default_crazyflie());
     let err = out.error.map(|e| e.to_string()).unwrap_or_default();
-    assert!(err.contains("store access fault"), "{err}");
+    assert!(
+        err.contains("load access fault") && err.contains("mtval 0x10008000"),
+        "{err}"
+    );
 }

@@ -44,7 +44,9 @@ pub mod tcdm;
 
 use std::io::Write;
 
-use crate::iss::{AccessSize, Cpu, CpuConfig, MemTiming, Memory, Mmio, MmioError, StopReason};
+use crate::iss::{
+    AccessSize, Cpu, CpuConfig, IssError, MemTiming, Memory, Mmio, MmioError, StopReason,
+};
 use crate::units::{Hertz, Picos};
 
 use ctrl::{Ctrl, Who};
@@ -530,12 +532,10 @@ impl Cluster {
                     .and_then(|()| mem.write_bytes(to, &buf));
                 if let Err(e) = copied {
                     let msg = format!("cluster DMA command {}: {e}", c.id);
-                    return Err(StopReason::Fatal(crate::iss::IssError::Device(
-                        MmioError::Device {
-                            addr: from,
-                            message: msg,
-                        },
-                    )));
+                    return Err(StopReason::Fatal(IssError::Device(MmioError::Device {
+                        addr: from,
+                        message: msg,
+                    })));
                 }
             }
             self.sh
@@ -587,9 +587,6 @@ impl Cluster {
             if floor >= limit {
                 return StopReason::Limit;
             }
-            if let Some(t) = mem.tcdm.as_mut() {
-                t.retire_below(floor.0 / self.sh.period.0);
-            }
             let who = pick.2;
             let others = (0..self.sh.n)
                 .filter(|&j| j != who && self.sh.state[j] == CoreState::Running)
@@ -630,9 +627,13 @@ impl Cluster {
                 let stop = core.run_until(mem, &mut bus, horizon);
                 self.sh.time[who] = core.now();
                 match stop {
-                    StopReason::Exit { .. }
-                    | StopReason::Fatal(_)
-                    | StopReason::Breakpoint { .. } => return stop,
+                    StopReason::Exit { .. } | StopReason::Breakpoint { .. } => return stop,
+                    StopReason::Fatal(e) => {
+                        return StopReason::Fatal(IssError::ClusterCore {
+                            core: who,
+                            source: Box::new(e),
+                        })
+                    }
                     _ => {}
                 }
             }

@@ -18,7 +18,7 @@
 //! | item | value | derivation |
 //! |---|---|---|
 //! | active core | 48.0 pJ/cycle | 0.70 × 96 mW / (8 × 175 MHz) |
-//! | gated core | 2.4 pJ/cycle | 5 % of active: the clock tree stub left running (assumption) |
+//! | gated core | 0 dynamic; its leakage share, 0.36 mW | DESIGN.md §12: a gated core costs no dynamic energy; 60 % of the leakage is the 8 cores' (assumption) |
 //! | L1 access | 34.3 pJ | 0.25 × 96 mW / (8 × 87.5 M accesses/s) |
 //! | DMA | 17.1 pJ/byte | one L1 word access (34.3 pJ / 4 B) plus the L2 side's, taken equal (assumption) |
 //! | leakage | 4.8 mW | 0.05 × 96 mW while the cluster is powered |
@@ -39,8 +39,9 @@ const REF_HZ: f64 = 175e6;
 const CORES_SHARE: f64 = 0.70;
 const L1_SHARE: f64 = 0.25;
 const LEAK_SHARE: f64 = 0.05;
-/// Gated core energy relative to an active cycle (assumption).
-const GATED_FRACTION: f64 = 0.05;
+/// The cores' share of the cluster's leakage (the rest: L1 and the
+/// interconnect; assumption).
+const CORES_LEAK_SHARE: f64 = 0.60;
 /// L1 accesses per core cycle at the calibration load.
 const L1_PER_CYCLE: f64 = 0.5;
 
@@ -48,7 +49,8 @@ const L1_PER_CYCLE: f64 = 0.5;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EnergyModel {
     pub core_active_j: f64,
-    pub core_gated_j: f64,
+    /// Leakage of one core (what a gated core costs), W.
+    pub core_leak_w: f64,
     pub l1_access_j: f64,
     pub dma_byte_j: f64,
     pub leakage_w: f64,
@@ -60,12 +62,13 @@ impl EnergyModel {
         let dyn_scale = (vref / REF_VOLTS).powi(2);
         let core_active_j = CORES_SHARE * FULL_LOAD_W / (8.0 * REF_HZ);
         let l1_access_j = L1_SHARE * FULL_LOAD_W / (8.0 * REF_HZ * L1_PER_CYCLE);
+        let leakage_w = LEAK_SHARE * FULL_LOAD_W * (vref / REF_VOLTS);
         EnergyModel {
             core_active_j: core_active_j * dyn_scale,
-            core_gated_j: core_active_j * GATED_FRACTION * dyn_scale,
+            core_leak_w: CORES_LEAK_SHARE * leakage_w / 8.0,
             l1_access_j: l1_access_j * dyn_scale,
             dma_byte_j: 2.0 * l1_access_j / 4.0 * dyn_scale,
-            leakage_w: LEAK_SHARE * FULL_LOAD_W * (vref / REF_VOLTS),
+            leakage_w,
         }
     }
 }
@@ -96,7 +99,9 @@ impl Totals {
     }
 }
 
-/// Mean power of each part over an interval, W (the `power.csv` columns).
+/// Mean power of each part over an interval, W (the `power.csv` columns):
+/// the active cores' dynamic power, the gated cores' leakage, L1, DMA,
+/// and the rest of the leakage (shared parts, cores not gated).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ClusterPower {
     pub cores_active_w: f64,
@@ -116,6 +121,8 @@ impl ClusterPower {
 #[derive(Debug, Clone)]
 pub struct Meter {
     model: EnergyModel,
+    /// The cluster clock's period, s.
+    period_s: f64,
     last: Totals,
     last_t: Picos,
     /// Energy so far, J.
@@ -123,9 +130,10 @@ pub struct Meter {
 }
 
 impl Meter {
-    pub fn new(vref: f64) -> Meter {
+    pub fn new(vref: f64, clock: crate::units::Hertz) -> Meter {
         Meter {
             model: EnergyModel::at(vref),
+            period_s: 1.0 / clock.0.max(1) as f64,
             last: Totals::default(),
             last_t: Picos::ZERO,
             energy_j: 0.0,
@@ -137,12 +145,15 @@ impl Meter {
         let dt = (t.0.saturating_sub(self.last_t.0)) as f64 * 1e-12;
         let d = |a: u64, b: u64| a.saturating_sub(b) as f64;
         let m = &self.model;
+        let leak = d(now.powered.0, self.last.powered.0) * 1e-12 * m.leakage_w;
+        let gated = d(now.gated_cycles, self.last.gated_cycles) * self.period_s * m.core_leak_w;
+        let gated = gated.min(leak);
         let e = ClusterPower {
             cores_active_w: d(now.active_cycles, self.last.active_cycles) * m.core_active_j,
-            cores_gated_w: d(now.gated_cycles, self.last.gated_cycles) * m.core_gated_j,
+            cores_gated_w: gated,
             l1_w: d(now.l1_accesses, self.last.l1_accesses) * m.l1_access_j,
             dma_w: d(now.dma_bytes, self.last.dma_bytes) * m.dma_byte_j,
-            leakage_w: d(now.powered.0, self.last.powered.0) * 1e-12 * m.leakage_w,
+            leakage_w: leak - gated,
         };
         self.energy_j += e.total_w();
         self.last = now;
@@ -177,16 +188,21 @@ mod tests {
 
     #[test]
     fn meter_turns_counts_into_mean_power() {
-        let mut meter = Meter::new(REF_VOLTS);
+        let mut meter = Meter::new(REF_VOLTS, crate::units::Hertz(175_000_000));
         let one_ms = Picos::from_ms(1);
+        // 1 ms: one core active all along, one gated all along.
         let t = Totals {
             active_cycles: 175_000,
+            gated_cycles: 175_000,
             powered: one_ms,
             ..Totals::default()
         };
         let p = meter.sample(t, one_ms);
         let m = EnergyModel::at(REF_VOLTS);
         assert!((p.cores_active_w - 175_000.0 * m.core_active_j / 1e-3).abs() < 1e-12);
-        assert!((p.leakage_w - m.leakage_w).abs() < 1e-12);
+        assert!((p.cores_gated_w - m.core_leak_w).abs() < 1e-12);
+        // The leakage is counted once: gated share + the rest.
+        assert!((p.cores_gated_w + p.leakage_w - m.leakage_w).abs() < 1e-12);
+        assert!((meter.energy_j - (p.total_w() * 1e-3)).abs() < 1e-15);
     }
 }

@@ -1,29 +1,28 @@
 //! The cluster's L1 (TCDM, DESIGN.md §12): 64 KiB at 0x1000_0000 in 16
-//! word-interleaved banks (bank = `(addr >> 2) & 15`, as the PULP cluster's
-//! logarithmic interconnect and gap_sdk `ARCHI_TCDM_NB_BANKS`... the GAP8
-//! has 16 banks of 4 KiB). Each bank serves one access per cluster cycle;
-//! a core asking for a bank already granted in that cycle waits one cycle
-//! and asks again (the stall is added to its load or store).
+//! word-interleaved banks (bank = `(addr >> 2) & 15`: the PULP cluster's
+//! logarithmic interconnect, 16 banks of 4 KiB on the GAP8). Each bank
+//! serves one access per cluster cycle; a core asking for a bank already
+//! granted in that cycle waits one cycle and asks again (the stall is
+//! added to its load or store).
 //!
 //! # Why the counts are exact and deterministic
 //!
 //! Every access carries its exact cluster cycle (the core's issue cycle).
 //! The arbiter keeps, per bank, one bit per cycle of a sliding window:
-//! "granted in this cycle". An access at cycle `c` takes the first free
-//! cycle `g >= c` of its bank and stalls `g - c`. The cluster scheduler
-//! (`mod.rs`) runs the cores one after another in quanta (at most
-//! [`super::QUANTUM_CYCLES`] ahead of the slowest runnable one, in a fixed
-//! order), so a bank's bits for a cycle are always filled before any later
-//! core asks for it, and the window ([`WINDOW`] cycles, twice the quantum
-//! plus margin) never drops a cycle a core may still reach. What the
-//! quantum decides is only *which* of two cores that ask for one bank in
-//! one cycle wins: the one the scheduler runs first in that quantum, and
-//! the scheduler rotates that order every quantum (round robin per
-//! quantum rather than per cycle). The number of stalled cycles of a
-//! saturated bank, and everything else, is the same on every host.
+//! "granted in this cycle" (slices of 64 cycles tagged with their number,
+//! so a slot from a window ago reads as free without being cleared). An
+//! access at cycle `c` takes the first free cycle `g >= c` of its bank and
+//! stalls `g - c`. The cluster scheduler (`mod.rs`) runs the cores one
+//! after another in quanta (at most [`super::QUANTUM_CYCLES`] ahead of the
+//! slowest runnable one, in a fixed order), so the window ([`WINDOW`]
+//! cycles, four quanta) always holds every cycle a core may still reach.
+//! What the quantum decides is only *which* of two cores that ask for one
+//! bank in one cycle wins: the one the scheduler runs first in that
+//! quantum, and the scheduler rotates that order every quantum (round
+//! robin per quantum rather than per cycle). The number of stalled cycles
+//! of a saturated bank, and everything else, is the same on every host.
 
-/// Banks of the L1 (GAP8: 16 banks, gap_sdk `ARCHI_CLUSTER_NB_TCDM_BANKS`...
-/// the interleaving is one 32-bit word per bank).
+/// Banks of the L1 (GAP8: 16, one 32-bit word per bank in turn).
 pub const BANKS: usize = 16;
 /// L1 base address and size (DESIGN.md §12, docs/CLUSTER.md).
 pub const L1_BASE: u32 = 0x1000_0000;
@@ -44,22 +43,28 @@ pub struct PortStats {
     pub stall_cycles: u64,
 }
 
+/// One 64-cycle slice of a bank's grants: which cycles of slice `tag`
+/// (cycle / 64) are taken. A slot holding another slice is stale (older
+/// than the window) and reads as free, so nothing ever has to be cleared.
+#[derive(Debug, Clone, Copy, Default)]
+struct Slice {
+    tag: u64,
+    bits: u64,
+}
+
 /// The bank arbiter.
 #[derive(Debug, Clone)]
 pub struct Tcdm {
-    /// Per bank, one bit per cycle `c` at `c % WINDOW`, for cycles in
-    /// `[floor, floor + WINDOW)`.
-    granted: Box<[[u64; WORDS]; BANKS]>,
-    /// Cycles below are forgotten (every future access is at or after it).
-    floor: u64,
+    /// Per bank, the slices of the last [`WINDOW`] cycles, slice `k` at
+    /// `k % (WINDOW / 64)`.
+    granted: Box<[[Slice; WORDS]; BANKS]>,
     pub stats: [PortStats; PORTS],
 }
 
 impl Default for Tcdm {
     fn default() -> Self {
         Tcdm {
-            granted: Box::new([[0; WORDS]; BANKS]),
-            floor: 0,
+            granted: Box::new([[Slice::default(); WORDS]; BANKS]),
             stats: [PortStats::default(); PORTS],
         }
     }
@@ -77,15 +82,17 @@ impl Tcdm {
     #[inline]
     pub fn access(&mut self, port: u8, addr: u32, cycle: u64) -> u64 {
         let bank = &mut self.granted[Self::bank(addr)];
-        let mut g = cycle.max(self.floor);
-        debug_assert!(
-            cycle + WINDOW / 2 > self.floor,
-            "access below the arbiter's floor"
-        );
-        while g < self.floor + WINDOW {
-            let (w, b) = (((g % WINDOW) / 64) as usize, g % 64);
-            if bank[w] & (1 << b) == 0 {
-                bank[w] |= 1 << b;
+        let mut g = cycle;
+        loop {
+            let tag = g / 64;
+            let slot = &mut bank[(tag % WORDS as u64) as usize];
+            if slot.tag != tag {
+                // A stale slice: older than the window, free.
+                *slot = Slice { tag, bits: 0 };
+            }
+            let bit = 1u64 << (g % 64);
+            if slot.bits & bit == 0 {
+                slot.bits |= bit;
                 break;
             }
             g += 1;
@@ -95,26 +102,6 @@ impl Tcdm {
         s.accesses += 1;
         s.stall_cycles += stall;
         stall
-    }
-
-    /// Forget the cycles below `floor` (no core can access before it).
-    pub fn retire_below(&mut self, floor: u64) {
-        if floor <= self.floor {
-            return;
-        }
-        if floor - self.floor >= WINDOW {
-            for bank in self.granted.iter_mut() {
-                *bank = [0; WORDS];
-            }
-        } else {
-            for c in self.floor..floor {
-                let (w, b) = (((c % WINDOW) / 64) as usize, c % 64);
-                for bank in self.granted.iter_mut() {
-                    bank[w] &= !(1 << b);
-                }
-            }
-        }
-        self.floor = floor;
     }
 }
 
@@ -130,10 +117,10 @@ mod tests {
         assert_eq!(t.access(2, L1_BASE + 4, 10), 0); // bank 1
         assert_eq!(t.access(3, L1_BASE, 10), 2);
         assert_eq!(t.stats[3].stall_cycles, 2);
-        t.retire_below(11);
-        // Cycle 11 and 12 of bank 0 are still taken.
+        // Cycles 11 and 12 of bank 0 are taken.
         assert_eq!(t.access(4, L1_BASE, 11), 2);
-        t.retire_below(10_000);
-        assert_eq!(t.access(4, L1_BASE, 10_000), 0);
+        // A cycle a window later reuses the slot: free again.
+        assert_eq!(t.access(4, L1_BASE, 10 + WINDOW), 0);
+        assert_eq!(t.access(5, L1_BASE, 10 + WINDOW), 1);
     }
 }

@@ -171,6 +171,9 @@ pub enum IssError {
     Device(#[from] MmioError),
     #[error("console output failed: {0}")]
     Console(String),
+    /// An error of one of the cluster's cores (`crate::cluster`).
+    #[error("cluster core {core}: {source}")]
+    ClusterCore { core: usize, source: Box<IssError> },
 }
 
 /// Human name of an mcause value.

@@ -8,6 +8,12 @@
 //! - [`Memory`] / [`Mmio`]: RAM regions owned by the ISS and the device
 //!   window(s) the platform implements (see [`mem`] for the access-time and
 //!   idle-skip contracts).
+//! - [`MemTiming`]: extra cycles of RAM accesses and the L1 bank arbiter
+//!   ([`Memory::tcdm`]) for the cluster's cores and the FC beside them
+//!   (`crate::cluster`); the default costs nothing. A device may answer
+//!   [`MmioError::Wait`]: the instruction is undone and the core stops with
+//!   [`StopReason::Wait`], to retry it later (the cluster's synchronising
+//!   and sleeping accesses).
 //! - [`elf`]: ELF loading with the `object` crate (segments at their
 //!   physical addresses, symbols for `tohost` and the signature).
 //! - [`semihost`]: the semihosting calls picolibc uses; output goes to a

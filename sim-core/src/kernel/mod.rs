@@ -205,9 +205,10 @@ impl<W: WorldLink> Run<W> {
 
         let cluster = match &cfg.platform.cluster {
             Some(section) => {
-                let c = Cluster::new(section.cluster_config(cfg.idle_skip), &mut mem)
-                    .map_err(|e| KernelError::Config(e.to_string()))?;
-                Some((c, Meter::new(section.vref)))
+                let cc = section.cluster_config(cfg.idle_skip);
+                let c =
+                    Cluster::new(cc, &mut mem).map_err(|e| KernelError::Config(e.to_string()))?;
+                Some((c, Meter::new(cc.vref, cc.clock)))
             }
             None => None,
         };
@@ -448,6 +449,8 @@ impl<W: WorldLink> Run<W> {
             error.as_ref(),
             wall.elapsed().as_secs_f64(),
         );
+        let mut summary = summary;
+        summary.energy_j.cluster = self.cluster.as_ref().map(|(_, meter)| meter.energy_j);
         if let Some(dir) = &cfg.out_dir {
             if let Err(e) = summary.write(&dir.join("summary.json")) {
                 error.get_or_insert(KernelError::Io(e));

@@ -33,6 +33,10 @@ pub struct EnergySummary {
     /// The P2P radio's energy at the VCC bus (same).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub p2p: Option<f64>,
+    /// The GAP8 cluster's energy (platforms with a cluster only;
+    /// `crate::cluster::power`, the sum of its `power.csv` columns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cluster: Option<f64>,
 }
 
 /// What each radio did (platforms that report their radios only).
@@ -165,6 +169,7 @@ impl Summary {
                 total: 0.0,
                 uwb: None,
                 p2p: None,
+                cluster: None,
             },
             power_model: cfg.run.power_model.name().to_string(),
             sync: format!("{:?}", cfg.run.sync).to_lowercase(),
@@ -247,6 +252,7 @@ impl Summary {
             total: energy.battery.0,
             uwb: None,
             p2p: None,
+            cluster: None,
         };
         if cfg.reports_radios() {
             s.energy_j.uwb = Some(energy.radios[0].0);

@@ -7,7 +7,7 @@
 #include "cluster_regs.h"
 
 #ifndef ITER
-#define ITER 2000
+#define ITER 20000
 #endif
 
 uint32_t stacks[8][256];

@@ -24,6 +24,8 @@ struct results {
     uint32_t overlap_start, overlap_cmd_done, overlap_end, compute_only;
     uint32_t gated_instret_before, gated_instret_after;
     uint32_t fc_hartid;
+    /* mcycle around one load from L1 and from L2: by the FC, by core 0. */
+    uint32_t fc_l1, fc_l2, core_l1, core_l2;
 };
 volatile struct results results;
 
@@ -45,6 +47,21 @@ __asm__(".text\n.globl cl_entry\ncl_entry:\n"
         "li t0, 0x1020001C\nsw zero, 0(t0)\n1: j 1b\n");
 
 static void barrier(void) { (void)EU_BARRIER_WAIT; }
+
+/* mcycle around one load of `p` (its result unused: no load-use stall). */
+static uint32_t one_load(volatile uint32_t *p)
+{
+    uint32_t a, b;
+    __asm__ volatile("csrr %0, mcycle\n"
+                     "lw t1, 0(%2)\n"
+                     "csrr %1, mcycle\n"
+                     : "=&r"(a), "=&r"(b)
+                     : "r"(p)
+                     : "t1", "memory");
+    return b - a;
+}
+
+static volatile uint32_t l2_word;
 
 /* mcycle around HAMMER back-to-back loads of `p`. */
 static uint32_t hammer(volatile uint32_t *p)
@@ -129,8 +146,18 @@ static void dma_tests(void)
 
 void cl_main(uint32_t id)
 {
+#ifdef BAD_DMA
+    /* A command past the end of L1: the CMD store faults (no handler on
+     * the cluster core: the run ends with a clear error). */
+    if (id == 0)
+        dma((uint32_t)src, L1_BASE + 0xff00, 1024, DMA_EXT2LOC);
+#endif
     uint32_t n = CTRL_NB_CORES;
     results.hartid[id] = hartid();
+    if (id == 0) {
+        results.core_l1 = one_load((volatile uint32_t *)(L1_BASE + 0x8000));
+        results.core_l2 = one_load(&l2_word);
+    }
     /* Dispatch: core 0 pushes one word per core; each pops its own. */
     if (id == 0) {
         EU_TEAM_CONFIG = (1u << n) - 1;
@@ -214,6 +241,8 @@ int main(void)
     for (int i = 0; i < 2048; i++)
         src[i] = (uint8_t)(i * 7 + 3);
     __asm__ volatile("csrr %0, mhartid" : "=r"(results.fc_hartid));
+    results.fc_l1 = one_load((volatile uint32_t *)(L1_BASE + 0x8000));
+    results.fc_l2 = one_load(&l2_word);
     for (int rep = 0; rep < REPEAT; rep++) {
         CTRL_POWER = 1;
         results.ncores = CTRL_NB_CORES;
