@@ -73,6 +73,13 @@ fn benches(c: &mut Criterion) {
     report_mips("bench.elf (timing on)", &bench, true);
     report_mips("idle.elf, idle skipping on", &idle, true);
     report_mips("idle.elf, idle skipping off", &idle, false);
+    // The NN inner loop on the CORE-V extensions: cv.lw post-increment +
+    // cv.sdotsp.b (docs/CLUSTER.md "Instructions").
+    report_mips(
+        "xcv_bench.elf (cv.lw + cv.sdotsp.b)",
+        &elf("xcv_bench"),
+        true,
+    );
 
     let mut g = c.benchmark_group("iss");
     g.sample_size(10);

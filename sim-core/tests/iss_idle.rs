@@ -26,12 +26,16 @@ struct Outcome {
 /// Run `idle.elf`; `slices` cuts the run into `run_until` calls that many
 /// picoseconds apart (None: one call).
 fn run(skip: bool, eventful: bool, latency: u64, slice: Option<u64>) -> Outcome {
+    run_elf("idle", skip, eventful, latency, slice)
+}
+
+fn run_elf(name: &str, skip: bool, eventful: bool, latency: u64, slice: Option<u64>) -> Outcome {
     let cfg = CpuConfig {
         idle_skip: skip,
         mmio_latency: Cycles(latency),
         ..CpuConfig::default()
     };
-    let (mut cpu, mut mem, _, _) = iss_util::load("idle", cfg, &[]);
+    let (mut cpu, mut mem, _, _) = iss_util::load(name, cfg, &[]);
     cpu.set_instruction_limit(Some(50_000_000));
     let mut dev = OpDevice::default();
     dev.eventful = eventful;
@@ -92,6 +96,21 @@ fn skipping_is_exact_and_actually_skips() {
     // Almost all of the ~15 ms is idle: polling or asleep.
     let idle = stepped.stats.poll_cycles + stepped.stats.sleep_cycles;
     assert!(stepped.stats.running_cycles() < idle / 100);
+    assert_eq!(without_skip_count(skipped), without_skip_count(stepped));
+}
+
+#[test]
+fn clang_xcv_polling_loops_are_skipped_exactly() {
+    // idle.c built by clang-19 with the XCV extensions polls with
+    // `lbu` + `cv.bneimm` and `lw` + `cv.bneimm`.
+    let stepped = run_elf("xcv_idle", false, false, 0, None);
+    let skipped = run_elf("xcv_idle", true, false, 0, None);
+    assert_eq!(skipped.code, run(false, false, 0, None).code);
+    assert!(
+        skipped.stats.skipped_instructions > 1_000_000,
+        "{:?}",
+        skipped.stats
+    );
     assert_eq!(without_skip_count(skipped), without_skip_count(stepped));
 }
 

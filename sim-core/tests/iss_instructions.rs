@@ -410,13 +410,16 @@ proptest::proptest! {
     #[test]
     fn random_code_never_panics(
         raw in proptest::collection::vec(proptest::prelude::any::<u32>(), 64),
-        opcodes in proptest::collection::vec(0usize..12, 64),
+        opcodes in proptest::collection::vec(0usize..16, 64),
         regs in proptest::collection::vec(proptest::prelude::any::<u32>(), 31),
     ) {
         // Mostly well-formed instructions: random fields under a real major
         // opcode (OP-IMM, OP, LOAD, STORE, BRANCH, LUI, AUIPC, JAL, JALR,
-        // SYSTEM, MISC-MEM), or a random 16-bit pair.
-        const MAJOR: [u32; 11] = [0x13, 0x33, 0x03, 0x23, 0x63, 0x37, 0x17, 0x6f, 0x67, 0x73, 0x0f];
+        // SYSTEM, MISC-MEM, the four CORE-V XCV custom opcodes), or a
+        // random 16-bit pair.
+        const MAJOR: [u32; 15] = [
+            0x13, 0x33, 0x03, 0x23, 0x63, 0x37, 0x17, 0x6f, 0x67, 0x73, 0x0f, 0x0b, 0x2b, 0x5b, 0x7b,
+        ];
         let words: Vec<u32> = raw
             .iter()
             .zip(&opcodes)

@@ -47,7 +47,10 @@ fn clang_o2_kernels_use_post_increment_loads_and_compute_what_rust_does() {
         let mut at = 0;
         while at + 2 <= seg.data.len() {
             let lo = u16::from_le_bytes([seg.data[at], seg.data[at + 1]]);
-            let hi = seg.data.get(at + 2..at + 4).map(|b| u16::from_le_bytes([b[0], b[1]]));
+            let hi = seg
+                .data
+                .get(at + 2..at + 4)
+                .map(|b| u16::from_le_bytes([b[0], b[1]]));
             let Some(d) = decode(lo, || hi) else { break };
             ops.push(d.op);
             at += d.len() as usize;
@@ -62,7 +65,8 @@ fn clang_o2_kernels_use_post_increment_loads_and_compute_what_rust_does() {
 
     const N: usize = 256;
     let mut r = Lcg(12345);
-    let (mut a8, mut b8, mut a16, mut b16) = (vec![0i8; N], vec![0i8; N], vec![0i16; N], vec![0i16; N]);
+    let (mut a8, mut b8, mut a16, mut b16) =
+        (vec![0i8; N], vec![0i8; N], vec![0i16; N], vec![0i16; N]);
     let (mut a32, mut b32, mut y32) = (vec![0i32; N], vec![0i32; N], vec![0i32; N]);
     for i in 0..N {
         a8[i] = r.next() as i8;
@@ -140,9 +144,11 @@ fn run(prog: &[u32], n: u64) -> (Cpu, Memory, u64) {
     let mut mem = Memory::new();
     mem.add_ram(BASE, 0x2000).unwrap();
     for (k, w) in prog.iter().chain(&[0x6f]).enumerate() {
-        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes()).unwrap();
+        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes())
+            .unwrap();
     }
-    mem.write_bytes(DATA, &0x0203_0405u32.to_le_bytes()).unwrap();
+    mem.write_bytes(DATA, &0x0203_0405u32.to_le_bytes())
+        .unwrap();
     let mut cpu = Cpu::new(CpuConfig::default());
     cpu.set_pc(BASE);
     cpu.set_reg(6, DATA);
@@ -195,7 +201,10 @@ fn immediate_branches_cost_as_branches() {
     let (_, _, c) = run(&[bimm(7, 8, 3, 8), NOP], 2);
     assert_eq!(c, 2);
     // A negative immediate is sign-extended: x9 = -16.
-    let (cpu, _, _) = run(&[addi(9, 0, -16), bimm(6, 9, -16, 8), addi(10, 0, 1), NOP], 3);
+    let (cpu, _, _) = run(
+        &[addi(9, 0, -16), bimm(6, 9, -16, 8), addi(10, 0, 1), NOP],
+        3,
+    );
     assert_eq!(cpu.reg(10), 0);
 }
 
@@ -207,9 +216,18 @@ fn reserved_encodings_raise_illegal_instruction() {
         ("hardware loop (xcvhwlp)", i(0, 0, 4, 0, 0x2b)),
         ("SIMD funct3 010", r(0, 1, 5, 2, 5, 0x7b)),
         ("cv.add.h with funct1", r(1, 1, 5, 0, 5, 0x7b)),
-        ("cv.sll.sci.h, Imm6[5:4] set", r(0b010_1000, 0b10000, 5, 6, 5, 0x7b)),
-        ("cv.extract.h, Imm6[5:1] set", r(0b101_1100, 1, 5, 0, 5, 0x7b)),
-        ("undefined SIMD funct5 01111", r(0b011_1100, 1, 5, 0, 5, 0x7b)),
+        (
+            "cv.sll.sci.h, Imm6[5:4] set",
+            r(0b010_1000, 0b10000, 5, 6, 5, 0x7b),
+        ),
+        (
+            "cv.extract.h, Imm6[5:1] set",
+            r(0b101_1100, 1, 5, 0, 5, 0x7b),
+        ),
+        (
+            "undefined SIMD funct5 01111",
+            r(0b011_1100, 1, 5, 0, 5, 0x7b),
+        ),
         ("cv.bitrev with Is3 > 3", r(0b110_0100, 0, 5, 1, 5, 0x5b)),
         ("custom-1 funct7 1111111", r(0x7f, 1, 5, 3, 5, 0x2b)),
     ] {
@@ -218,7 +236,12 @@ fn reserved_encodings_raise_illegal_instruction() {
         let mut mem = Memory::new();
         mem.add_ram(BASE, 0x2000).unwrap();
         let jal_back = 0xf01f_f06f; // at 0x104: jal x0, -0x100
-        for (at, w) in [(4, word), (0x100, 0x305f_9073), (0x104, jal_back), (0x800, 0x6f)] {
+        for (at, w) in [
+            (4, word),
+            (0x100, 0x305f_9073),
+            (0x104, jal_back),
+            (0x800, 0x6f),
+        ] {
             mem.write_bytes(BASE + at, &u32::to_le_bytes(w)).unwrap();
         }
         let mut cpu = Cpu::new(CpuConfig::default());
@@ -241,16 +264,18 @@ fn post_increment_accesses_off_the_fast_path_update_the_base_too() {
     let prog = [
         cv_lw_pi(5, 11, 4),
         13 << 20 | 12 << 15 | 2 << 12 | 4 << 7 | 0x2b, // cv.sw x13, (x12), 4
-        addi(10, 0, 1),                    // overwritten before it runs
+        addi(10, 0, 1),                                // overwritten before it runs
         NOP,
     ];
     let mut mem = Memory::new();
     mem.add_ram(BASE, 0x2000).unwrap();
     mem.add_ram(0x9000_0000, 0x100).unwrap();
     for (k, w) in prog.iter().enumerate() {
-        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes()).unwrap();
+        mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes())
+            .unwrap();
     }
-    mem.write_bytes(0x9000_0000, &0xfeed_beefu32.to_le_bytes()).unwrap();
+    mem.write_bytes(0x9000_0000, &0xfeed_beefu32.to_le_bytes())
+        .unwrap();
     let mut cpu = Cpu::new(CpuConfig::default());
     cpu.set_pc(BASE);
     cpu.set_reg(11, 0x9000_0000);
@@ -261,4 +286,86 @@ fn post_increment_accesses_off_the_fast_path_update_the_base_too() {
     assert_eq!((cpu.reg(5), cpu.reg(11)), (0xfeed_beef, 0x9000_0004));
     assert_eq!((cpu.reg(12), cpu.reg(10)), (BASE + 12, 42));
     assert_eq!(mem.read_u32(BASE + 8), Some(new));
+}
+
+#[test]
+fn the_xcv_benchmark_sums_what_rust_sums() {
+    // xcv_bench.c: 2000 int8 dot products of 4096 elements (cv.lw
+    // post-increment + cv.sdotsp.b), about 10 M instructions.
+    let dot: i32 = (0..4096i32)
+        .map(|i| (i * 7 + 3) as i8 as i32 * (i * 13 - 100) as i8 as i32)
+        .sum();
+    let want = (0..2000).fold(0i32, |s, _| s.wrapping_add(dot));
+    let (code, out, cpu) = run_firmware("xcv_bench");
+    assert_eq!((code, out), (0, format!("sum {want}\n")));
+    // 5 instructions per 4 MACs, 7 cycles (a taken cv.bneimm costs 3).
+    let loop_insts = 2000 * 1024 * 5;
+    assert!(cpu.instret() > loop_insts && cpu.instret() < loop_insts + 200_000);
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(300))]
+    /// XCV loads and stores give the same registers, cycles, traps and
+    /// memory whether their data is in the code's RAM region (the
+    /// executor's raw-pointer path) or in a region of its own at the same
+    /// addresses (the cold path through the region list).
+    #[test]
+    fn xcv_memory_ops_agree_on_the_fast_and_the_slow_path(
+        raw in proptest::collection::vec(proptest::prelude::any::<u32>(), 40),
+        kinds in proptest::collection::vec(0usize..4, 40),
+        regs in proptest::collection::vec(0u32..0x1000, 7),
+    ) {
+        // Registers x0..x7, small immediates; custom-0 loads (funct3 0, 1,
+        // 2, 4, 5), custom-1 stores (funct3 0..2) and the register forms
+        // (funct3 3 with the load/store funct7s).
+        const RR_F7: [u32; 16] = [0, 1, 2, 8, 9, 4, 5, 6, 12, 13, 16, 17, 18, 20, 21, 22];
+        let words: Vec<u32> = raw
+            .iter()
+            .zip(&kinds)
+            .map(|(&w, &k)| {
+                let (rd, rs1, rs2) = (w & 7, (w >> 3) & 7, (w >> 6) & 7);
+                let imm = (((w >> 9) & 0x7f) as i32 - 64) as u32 & 0xfff;
+                let f3 = (w >> 16) % 5;
+                match k {
+                    0 => i(imm as i32, rs1, [0, 1, 2, 4, 5][f3 as usize], rd, 0x0b),
+                    1 => (imm >> 5) << 25 | rs2 << 20 | rs1 << 15 | (f3 % 3) << 12 | (imm & 31) << 7 | 0x2b,
+                    _ => r(RR_F7[(w >> 27) as usize % 16], rs2, rs1, 3, rd, 0x2b),
+                }
+            })
+            .collect();
+        // Data at 0..0x8000, code at 0x8000 (one region, or two); the
+        // registers hold addresses and increments in the data.
+        const CODE: u32 = 0x8000;
+        let run = |split: bool| {
+            let mut mem = Memory::new();
+            if split {
+                mem.add_ram(0, CODE).unwrap();
+                mem.add_ram(CODE, 0x8000).unwrap();
+            } else {
+                mem.add_ram(0, 0x1_0000).unwrap();
+            }
+            for (k, w) in words.iter().chain(&[0x6f]).enumerate() {
+                mem.write_bytes(CODE + 4 * k as u32, &w.to_le_bytes()).unwrap();
+            }
+            // At CODE + 0x700: csrw mtvec, x31 (a spin at CODE + 0x800);
+            // jal x0, CODE.
+            for (at, w) in [(0x700, 0x305f_9073u32), (0x704, 0x8fdf_f06f), (0x800, 0x6f)] {
+                mem.write_bytes(CODE + at, &w.to_le_bytes()).unwrap();
+            }
+            let fill: Vec<u8> = (0..CODE).map(|x| (x * 37 + 11) as u8).collect();
+            mem.write_bytes(0, &fill).unwrap();
+            let mut cpu = Cpu::new(CpuConfig::default());
+            cpu.set_pc(CODE + 0x700);
+            cpu.set_reg(31, CODE + 0x800);
+            for (k, v) in regs.iter().enumerate() {
+                cpu.set_reg(k + 1, *v);
+            }
+            cpu.set_instruction_limit(Some(60));
+            let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+            let mut data = vec![0u8; CODE as usize];
+            mem.read_bytes(0, &mut data).unwrap();
+            (stop, *cpu.regs(), cpu.pc(), cpu.cycles(), cpu.csr(0x342), data)
+        };
+        proptest::prop_assert_eq!(run(false), run(true));
+    }
 }

@@ -204,7 +204,10 @@ impl Memory {
                     inst.imm = ipc.wrapping_add(inst.imm);
                 }
                 op::JAL => inst.imm = ipc.wrapping_add(inst.imm),
-                o if (op::BEQ..=op::BGEU).contains(&o) || o == op::CV_BEQIMM || o == op::CV_BNEIMM => {
+                o if (op::BEQ..=op::BGEU).contains(&o)
+                    || o == op::CV_BEQIMM
+                    || o == op::CV_BNEIMM =>
+                {
                     inst.imm = ipc.wrapping_add(inst.imm)
                 }
                 _ => {}

@@ -1400,15 +1400,23 @@ fn straight_line_body(mem: &Memory, target: u32, branch: u32) -> Option<u64> {
                 .map(|h| h as u16)
         })?;
         n += 1;
+        // clang's XCV code polls with `cv.bneimm`/`cv.beqimm` and may read
+        // or compute with the XCV forms (register-offset loads, ALU, SIMD);
+        // post-increment loads change their base, so an iteration with one
+        // never ends with its starting registers and is rejected later.
+        let branch_op =
+            (op::BEQ..=op::BGEU).contains(&d.op) || matches!(d.op, op::CV_BEQIMM | op::CV_BNEIMM);
         if pc == branch {
-            return (op::BEQ..=op::BGEU).contains(&d.op).then_some(n);
+            return branch_op.then_some(n);
         }
         let pure = matches!(
             d.op,
             op::LUI | op::AUIPC | op::LB | op::LH | op::LW | op::LBU | op::LHU
         ) || (op::ADDI..=op::AND).contains(&d.op)
             || (op::MUL..=op::REMU).contains(&d.op)
-            || (op::BEQ..=op::BGEU).contains(&d.op);
+            || branch_op
+            || xcv::pure(d.op)
+            || xcv::is_load(d.op);
         if !pure {
             return None;
         }

@@ -30,7 +30,7 @@ pub mod op {
             pub const COUNT: usize = $n as usize;
         };
     }
-    ops!(
+    ops! {
         LUI, AUIPC, JAL, JALR, BEQ, BNE, BLT, BGE, BLTU, BGEU, LB, LH, LW, LBU, LHU, SB, SH, SW,
         ADDI, SLTI, SLTIU, XORI, ORI, ANDI, SLLI, SRLI, SRAI, ADD, SUB, SLL, SLT, SLTU, XOR, SRL,
         SRA, OR, AND, FENCE, FENCE_I, ECALL, EBREAK, MRET, WFI, CSRRW, CSRRS, CSRRC, CSRRWI,
@@ -54,7 +54,7 @@ pub mod op {
         CV_ALU, CV_ALU_RD, CV_MAC, CV_MSU, CV_MULN, CV_MACN, CV_SIMD, CV_SIMD_RD,
         // The dot products of the NN inner loops, with their own handlers.
         CV_SDOTSP_B, CV_SDOTSP_H, CV_SDOTUSP_B, CV_SDOTUP_B, CV_DOTSP_B,
-    );
+    }
 }
 
 /// A decoded instruction.

@@ -1,7 +1,9 @@
 //! The RV32IMC instruction-set simulator: GVSoC's fabric controller in the
 //! thesis (§2.1.2, §3.1.1, Appendix D; contract in DESIGN.md §4).
 //!
-//! - [`Cpu`]: RV32I + M + C + Zicsr + Zifencei, machine and user mode,
+//! - [`Cpu`]: RV32I + M + C + Zicsr + Zifencei and the CORE-V XCV
+//!   extensions ([`xcv`]: xcvalu, xcvmac, xcvmem, xcvsimd, xcvbi,
+//!   xcvbitmanip, DESIGN.md §12), machine and user mode,
 //!   traps, `mret`, `wfi`, a CLINT machine timer, one external interrupt
 //!   line, CV32E40P cycle timing ([`timing`]), a cache of pre-decoded
 //!   basic blocks (`block.rs`) and exact idle skipping.

@@ -12,7 +12,7 @@
 
 #define N 256
 
-static int8_t a8[N], b8[N];
+static int8_t a8[N] __attribute__((aligned(4))), b8[N] __attribute__((aligned(4)));
 static int16_t a16[N], b16[N];
 static int32_t a32[N], b32[N], y32[N];
 

@@ -78,7 +78,10 @@ mod tests {
         assert_eq!(mul_n(s(true, true) | 4, 3 << 16, 0xfffb_0000, 0), u32::MAX);
         // MAC: (rD + p) >>> n, rounding constant 2^(n-1).
         assert_eq!(mul_n(s(false, true) | 1, 3, 3, 4), 7);
-        assert_eq!(mul_n(u(false, false) | 1, 0xffff, 0xffff, 0x1_fffe), 0x7fff_ffff);
+        assert_eq!(
+            mul_n(u(false, false) | 1, 0xffff, 0xffff, 0x1_fffe),
+            0x7fff_ffff
+        );
     }
 
     proptest::proptest! {

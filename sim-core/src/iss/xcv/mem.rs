@@ -84,7 +84,10 @@ mod tests {
         assert_eq!(mode(op::CV_SB_RR), Mode::RegReg);
         assert_eq!(mode(op::CV_SW_PR), Mode::PostReg);
         assert_eq!(mode(op::LW), Mode::Offset);
-        assert_eq!(address(Mode::PostImm, 100, 0, -4i32 as u32), (100, Some(96)));
+        assert_eq!(
+            address(Mode::PostImm, 100, 0, -4i32 as u32),
+            (100, Some(96))
+        );
         assert_eq!(address(Mode::RegReg, 100, 8, 0), (108, None));
     }
 }

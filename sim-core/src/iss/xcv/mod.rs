@@ -98,16 +98,7 @@ pub fn decode(inst: u32) -> Option<Decoded> {
     let rs2 = bits(inst, 24, 20) as u8;
     let f3 = bits(inst, 14, 12);
     let f7 = bits(inst, 31, 25);
-    let d = |op, rd, rs1, rs2, imm| {
-        Some(Decoded {
-            op,
-            rd,
-            rs1,
-            rs2,
-            imm,
-            compressed: false,
-        })
-    };
+    let d = some;
     match inst & 0x7f {
         // custom-0: post-increment loads (immediate), immediate branches.
         0x0b => {
@@ -145,7 +136,7 @@ pub fn decode(inst: u32) -> Option<Decoded> {
                 let o = [op::CV_SB_PI, op::CV_SH_PI, op::CV_SW_PI][f3 as usize];
                 d(o, 0, rs1, rs2, imm_s)
             }
-            3 => decode_custom1_rr(inst, f7, rd, rs1, rs2),
+            3 => decode_custom1_rr(f7, rd, rs1, rs2),
             _ => None, // 4..: hardware loops (xcvhwlp)
         },
         // custom-2: immediate bit manipulation, addN/subN, 16-bit
@@ -184,11 +175,22 @@ pub fn decode(inst: u32) -> Option<Decoded> {
                 }
             }
         }
-        0x7b => simd::decode(inst).and_then(|(o, imm, uses_rs2)| {
-            d(o, rd, rs1, if uses_rs2 { rs2 } else { 0 }, imm)
-        }),
+        0x7b => simd::decode(inst)
+            .and_then(|(o, imm, uses_rs2)| d(o, rd, rs1, if uses_rs2 { rs2 } else { 0 }, imm)),
         _ => None,
     }
+}
+
+/// A 32-bit decoded instruction.
+fn some(op: u8, rd: u8, rs1: u8, rs2: u8, imm: i32) -> Option<Decoded> {
+    Some(Decoded {
+        op,
+        rd,
+        rs1,
+        rs2,
+        imm,
+        compressed: false,
+    })
 }
 
 /// The rs2 field as a register number.
@@ -197,17 +199,8 @@ fn rs2_of(inst: u32) -> u8 {
 }
 
 /// custom-1, funct3 011: register-register forms (funct7 selects).
-fn decode_custom1_rr(inst: u32, f7: u32, rd: u8, rs1: u8, rs2: u8) -> Option<Decoded> {
-    let d = |op, rd, rs1, rs2, imm| {
-        Some(Decoded {
-            op,
-            rd,
-            rs1,
-            rs2,
-            imm,
-            compressed: false,
-        })
-    };
+fn decode_custom1_rr(f7: u32, rd: u8, rs1: u8, rs2: u8) -> Option<Decoded> {
+    let d = some;
     // Unary operations: the rs2 field is reserved (0).
     let unary = |f| {
         if rs2 == 0 {
@@ -218,7 +211,6 @@ fn decode_custom1_rr(inst: u32, f7: u32, rd: u8, rs1: u8, rs2: u8) -> Option<Dec
     };
     let binary = |f| d(op::CV_ALU, rd, rs1, rs2, alu_imm(f, 0));
     let loads = [op::CV_LB_PR, op::CV_LH_PR, op::CV_LW_PR];
-    let _ = inst;
     match f7 {
         // Loads: bit 2 = register offset (no increment), bit 3 = unsigned.
         0b000_0000..=0b000_0010 => d(loads[f7 as usize], rd, rs1, rs2, 0),
@@ -266,5 +258,51 @@ fn decode_custom1_rr(inst: u32, f7: u32, rd: u8, rs1: u8, rs2: u8) -> Option<Dec
         0b100_1000 => d(op::CV_MAC, rd, rs1, rs2, 0),
         0b100_1001 => d(op::CV_MSU, rd, rs1, rs2, 0),
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Encodings assembled by clang-19 (`llvm-objdump-19 -d` of the
+    /// firmware's XCV ELFs), the independent reference.
+    #[test]
+    fn decodes_what_clang_assembles() {
+        for (word, o, rd, rs1, rs2) in [
+            (0x0015_070b, op::CV_LB_PI, 14, 10, 0), // cv.lb a4, (a0), 1
+            (0x0045_270b, op::CV_LW_PI, 14, 10, 0), // cv.lw a4, (a0), 4
+            (0x00e5_222b, op::CV_SW_PI, 0, 10, 14), // cv.sw a4, (a0), 4
+            (0x56b5_352b, op::CV_ALU, 10, 10, 11),  // cv.min a0, a0, a1
+            (0xa8f7_157b, op::CV_SDOTSP_B, 10, 14, 15), // cv.sdotsp.b a0, a4, a5
+            (0x98c5_d77b, op::CV_SIMD_RD, 14, 11, 12), // cv.sdotup.sc.b a4, a1, a2
+            (0x92c5_b72b, op::CV_MSU, 14, 11, 12),  // cv.msu a4, a1, a2
+            (0x2105_e77b, op::CV_SIMD, 14, 11, 0),  // cv.min.sci.h a4, a1, -32
+            (0x14c5_977b, op::CV_SIMD, 14, 11, 12), // cv.cmpgt.b a4, a1, a2
+        ] {
+            let d = decode(word).unwrap_or_else(|| panic!("{word:#010x}"));
+            assert_eq!(
+                (d.op, d.rd, d.rs1, d.rs2),
+                (o, rd, rs1, rs2),
+                "{word:#010x}"
+            );
+        }
+        // cv.bneimm a3, 0, -14 (the benchmark's loop branch).
+        let b = decode(0xfe06_f98b).unwrap();
+        assert_eq!((b.op, b.rs1, b.rd, b.imm), (op::CV_BNEIMM, 13, 0, -14));
+        // cv.min.sci.h: Imm6 = -32 (0b100000) sits in bit 25 and the rs2 field.
+        let m = decode(0x2105_e77b).unwrap();
+        assert_eq!(m.imm & 63, 0b10_0000);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn xcv_decoding_never_panics_and_fields_are_in_range(inst: u32, k in 0usize..4) {
+            let inst = (inst & !0x7f) | [0x0b, 0x2b, 0x5b, 0x7b][k];
+            if let Some(d) = decode(inst) {
+                proptest::prop_assert!(d.op >= op::CV_LB_PI && (d.op as usize) < op::COUNT);
+                proptest::prop_assert!(d.rd < 32 && d.rs1 < 32 && d.rs2 < 32);
+            }
+        }
     }
 }

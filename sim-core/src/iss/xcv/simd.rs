@@ -88,8 +88,8 @@ pub fn decode(inst: u32) -> Option<(u8, i32, bool)> {
     let imm = (f << 16 | funct1 << 11 | f3 << 8 | imm6) as i32;
     let rr = funct1 == 0; // register forms: bit 25 is reserved
     let scaled = matches!(f3, 0 | 2 | 4 | 6); // the .div2/.div4/.div8 family
-    let accumulates = matches!(f, SDOTUP..=SDOTSP | SHUFFLE2 | PACK_B | CPLXMUL)
-        || (f == EXTRACT && f3 >= 4);
+    let accumulates =
+        matches!(f, SDOTUP..=SDOTSP | SHUFFLE2 | PACK_B | CPLXMUL) || (f == EXTRACT && f3 >= 4);
     let simd = if accumulates {
         op::CV_SIMD_RD
     } else {
@@ -297,7 +297,9 @@ pub fn exec(imm: u32, a: u32, b: u32, d: u32) -> u32 {
                 // Lane 3's selector is the function's low bits
                 // (shufflei0..3), lanes 0..2 come from Imm6.
                 let sel = (f - SHUFFLE) << 6 | imm6;
-                (0..4).fold(0, |acc, i| acc | lane(a, (sel >> (2 * i)) & 3, 8) << (8 * i))
+                (0..4).fold(0, |acc, i| {
+                    acc | lane(a, (sel >> (2 * i)) & 3, 8) << (8 * i)
+                })
             }
         },
         SHUFFLE2 => {
@@ -373,7 +375,10 @@ mod tests {
         // Halfwords: 2 * (-32768)^2 = 2^31 wraps to i32::MIN.
         assert_eq!(sdotsp_h(0, 0x8000_8000, 0x8000_8000), 0x8000_0000);
         // The accumulator wraps.
-        assert_eq!(sdotsp_b(i32::MAX as u32, m, m), (i32::MAX as u32).wrapping_add(65536));
+        assert_eq!(
+            sdotsp_b(i32::MAX as u32, m, m),
+            (i32::MAX as u32).wrapping_add(65536)
+        );
         // .sci.b: Imm6 = -1 (sign-extended) replicated.
         assert_eq!(exec(imm(SDOTSP, 7, 1, 0x3f), bytes([1, 2, 3, 4]), 0, 10), 0);
         // .sc.h: rs2's low halfword replicated.
@@ -382,10 +387,24 @@ mod tests {
 
     #[test]
     fn lane_ops() {
-        assert_eq!(exec(imm(ADD, 0, 0, 0), 0xffff_0001, 0x0001_0001, 0), 0x0000_0002);
-        assert_eq!(exec(imm(AVG, 1, 0, 0), bytes([-4, 100, 0, 1]), bytes([2, 100, 0, 1]), 0), bytes([-1, -28, 0, 1]));
+        assert_eq!(
+            exec(imm(ADD, 0, 0, 0), 0xffff_0001, 0x0001_0001, 0),
+            0x0000_0002
+        );
+        assert_eq!(
+            exec(
+                imm(AVG, 1, 0, 0),
+                bytes([-4, 100, 0, 1]),
+                bytes([2, 100, 0, 1]),
+                0
+            ),
+            bytes([-1, -28, 0, 1])
+        );
         assert_eq!(exec(imm(SRA, 6, 0, 1 << 1), 0x8000_0010, 0, 0), 0xe000_0004);
-        assert_eq!(exec(imm(CMPLT, 5, 0, 0), bytes([-1, 5, 0, 7]), 5, 0), bytes([-1, 0, -1, 0]));
+        assert_eq!(
+            exec(imm(CMPLT, 5, 0, 0), bytes([-1, 5, 0, 7]), 5, 0),
+            bytes([-1, 0, -1, 0])
+        );
         assert_eq!(exec(imm(MAXU, 7, 1, 0x3f), 0x0040_0001, 0, 0), 0x3f40_3f3f);
         assert_eq!(exec(imm(ABS, 0, 0, 0), 0x8000_ffff, 0, 0), 0x8000_0001);
     }
@@ -397,11 +416,28 @@ mod tests {
         assert_eq!(exec(imm(SHUFFLE, 6, 0, 0b01), a, 0, 0), 0x2211_4433);
         // shufflei2.sci.b: lane 3 = a[2]; lanes 2..0 = a[0], a[1], a[3].
         assert_eq!(exec(imm(26, 7, 1, 0b00_01_11), a, 0, 0), 0x3311_2244);
-        assert_eq!(exec(imm(SHUFFLE2, 0, 0, 0), 0xaaaa_bbbb, 0x0002_0001, 0xcccc_dddd), 0xbbbb_cccc);
-        assert_eq!(exec(imm(PACK, 0, 1, 0), 0x1234_5678, 0x9abc_def0, 0), 0x1234_9abc);
-        assert_eq!(exec(imm(PACK_B, 1, 1, 0), 0x11, 0x22, 0x3333_4444), 0x1122_4444);
+        assert_eq!(
+            exec(
+                imm(SHUFFLE2, 0, 0, 0),
+                0xaaaa_bbbb,
+                0x0002_0001,
+                0xcccc_dddd
+            ),
+            0xbbbb_cccc
+        );
+        assert_eq!(
+            exec(imm(PACK, 0, 1, 0), 0x1234_5678, 0x9abc_def0, 0),
+            0x1234_9abc
+        );
+        assert_eq!(
+            exec(imm(PACK_B, 1, 1, 0), 0x11, 0x22, 0x3333_4444),
+            0x1122_4444
+        );
         assert_eq!(exec(imm(EXTRACT, 1, 0, 3), 0x80ff_ffff, 0, 0), 0xffff_ff80);
-        assert_eq!(exec(imm(EXTRACT, 5, 0, 2), 0xab, 0, 0xffff_ffff), 0xffab_ffff);
+        assert_eq!(
+            exec(imm(EXTRACT, 5, 0, 2), 0xab, 0, 0xffff_ffff),
+            0xffab_ffff
+        );
     }
 
     #[test]
@@ -413,8 +449,14 @@ mod tests {
         assert_eq!(exec(imm(CPLXMUL, 0, 1, 0), a, b, 0x0000_1234), 0x0000_1234);
         assert_eq!(exec(imm(CPLXCONJ, 0, 0, 0), 0x0001_0002, 0, 0), 0xffff_0002);
         // (rs1 - rs2) * -j: re = a1 - b1 = 3, im = b0 - a0 = -2, /2.
-        assert_eq!(exec(imm(SUBROTMJ, 2, 0, 0), 0x0005_0004, 0x0002_0002, 0), 0xffff_0001);
-        assert_eq!(exec(imm(ADD_DIV, 4, 0, 0), 0x0010_fff0, 0x0010_0000, 0), 0x0008_fffc);
+        assert_eq!(
+            exec(imm(SUBROTMJ, 2, 0, 0), 0x0005_0004, 0x0002_0002, 0),
+            0xffff_0001
+        );
+        assert_eq!(
+            exec(imm(ADD_DIV, 4, 0, 0), 0x0010_fff0, 0x0010_0000, 0),
+            0x0008_fffc
+        );
     }
 
     proptest::proptest! {
