@@ -12,6 +12,7 @@
 //! - [`mapping`]: the map of an exploration run scored against the world.
 //! - [`bench_race`]: `cosim bench race`, what the thesis's race costs.
 
+pub mod bench_cluster;
 pub mod bench_race;
 pub mod launch;
 pub mod mapping;

@@ -8,7 +8,8 @@
 //! - `cosim trace show TRACE`, `cosim trace-check TRACE [--world-cmd CMD]`
 //! - `cosim world SCENARIO --listen tcp:HOST:PORT`, `cosim run SCENARIO
 //!   --world-endpoint tcp:HOST:PORT` (a platform and its world on two hosts)
-//! - `cosim bench swarm [--sizes 1,2,4,8]`, `cosim bench race`
+//! - `cosim bench swarm [--sizes 1,2,4,8]`, `cosim bench race`,
+//!   `cosim bench cluster [--cores 1,2,4,8]`
 //! - `cosim dataset WORLD --count N --seed S --out DIR` (labelled camera images)
 //! - `cosim list`
 
@@ -294,6 +295,23 @@ enum BenchCmd {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
         /// Runs per measurement; the fastest is kept (others' load only slows).
+        #[arg(long, default_value_t = 1)]
+        repeat: usize,
+    },
+    /// The AI deck's cluster on the int8 matmul 64×64×64 (issue 18): cycles,
+    /// MAC/cycle, speedup, energy per MAC and host cost per core count, one
+    /// `sim-core run-elf` after the other.
+    Cluster {
+        /// Cluster sizes (1-8).
+        #[arg(long, value_delimiter = ',', default_values_t = scenarios::bench_cluster::CORES)]
+        cores: Vec<u32>,
+        /// The benchmark's ELF (default: sim-core/firmware/bin/cluster_matmul_bench.elf).
+        #[arg(long, value_name = "FILE")]
+        elf: Option<PathBuf>,
+        /// Output directory (default: out/bench-cluster).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Runs per size; the fastest is kept (others' load only slows).
         #[arg(long, default_value_t = 1)]
         repeat: usize,
     },
@@ -764,6 +782,31 @@ fn cmd_bench_race(
     })
 }
 
+fn cmd_bench_cluster(
+    cores: Vec<u32>,
+    elf: Option<PathBuf>,
+    out: Option<PathBuf>,
+    repeat: usize,
+    bins: BinArgs,
+) -> anyhow::Result<ExitCode> {
+    if repeat == 0 {
+        bail!("--repeat: expected at least 1 run per measurement");
+    }
+    if let Some(bad) = cores.iter().find(|&&n| !(1..=8).contains(&n)) {
+        bail!("--cores: {bad} is not a cluster size (1-8)");
+    }
+    let elf = elf.unwrap_or_else(scenarios::bench_cluster::default_elf);
+    let out = out.unwrap_or_else(scenarios::bench_cluster::default_out);
+    let bins = bins.locate()?;
+    let rows =
+        scenarios::bench_cluster::bench_cluster(&bins.sim_core, &elf, &cores, &out, repeat, |m| {
+            eprintln!("cosim bench: {m}")
+        })?;
+    println!("{}", scenarios::bench_cluster::markdown(&rows));
+    println!("table: {}", out.join("bench.md").display());
+    Ok(ExitCode::SUCCESS)
+}
+
 fn cmd_list() -> anyhow::Result<ExitCode> {
     let dir = find_repo_file("scenarios/thesis-race.toml")
         .and_then(|p| p.parent().map(Path::to_path_buf))
@@ -924,6 +967,15 @@ fn main() -> ExitCode {
         Cmd::Bench {
             what: BenchCmd::Race { out, set, repeat },
         } => cmd_bench_race(out, set, repeat, bins),
+        Cmd::Bench {
+            what:
+                BenchCmd::Cluster {
+                    cores,
+                    elf,
+                    out,
+                    repeat,
+                },
+        } => cmd_bench_cluster(cores, elf, out, repeat, bins),
     };
     match result {
         Ok(code) => code,
