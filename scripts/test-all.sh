@@ -51,18 +51,22 @@ parallel --version | head -n 1
 step "Python venv (target/py-venv, python/requirements-test.txt)"
 venv=target/py-venv
 req=python/requirements-test.txt
-stamp=$venv/.requirements-test.txt
+# What the venv was made from: reinstall when the requirements or the
+# package's metadata change.
+stamp=$venv/.installed-from
+want=$(cat "$req" python/pyproject.toml 2>/dev/null || true)
 if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
 fi
-if ! cmp -s "$req" "$stamp"; then
+if [ "$want" != "$(cat "$stamp" 2>/dev/null || true)" ]; then
   "$venv/bin/python" -m pip install -q --upgrade pip
   "$venv/bin/python" -m pip install -q -r "$req"
-  # The package itself, when the checkout has it (pure Python).
+  # The package itself, when the checkout has it (pure Python; editable, so
+  # the tests see the checkout's sources).
   if [ -f python/pyproject.toml ]; then
     "$venv/bin/python" -m pip install -q -e ./python
   fi
-  cp "$req" "$stamp"
+  printf '%s' "$want" > "$stamp"
 fi
 
 step "cargo test --workspace"
