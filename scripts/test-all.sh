@@ -3,7 +3,7 @@
 # with the Rust toolchain (issue 23 part 4). Installs what the tests need when
 # it is missing, then runs them:
 #   - GNU parallel (tests/tests/sweep_shards.rs, scripts/sweep-parallel.sh);
-#   - the RISC-V cross compiler and picolibc, clang-19 and lld-19 (firmware
+#   - the RISC-V cross compiler and picolibc, clang-19 (firmware
 #     builds: `make -C sim-core/firmware check`, the cluster's kernels);
 #   - a Python venv in target/py-venv with python/requirements-test.txt
 #     (pytest, numpy, gymnasium, mcap, pandas) for python/tests.
@@ -41,7 +41,6 @@ parallel --version 2>/dev/null | grep -q '^GNU parallel' || missing+=(parallel)
 command -v riscv64-unknown-elf-gcc >/dev/null 2>&1 || missing+=(gcc-riscv64-unknown-elf)
 [ -f /usr/lib/picolibc/riscv64-unknown-elf/picolibc.specs ] || missing+=(picolibc-riscv64-unknown-elf)
 command -v clang-19 >/dev/null 2>&1 || missing+=(clang-19)
-command -v ld.lld-19 >/dev/null 2>&1 || missing+=(lld-19)
 python3 -c 'import venv, ensurepip' 2>/dev/null || missing+=(python3-venv)
 if [ ${#missing[@]} -gt 0 ]; then
   apt_install "${missing[@]}"
@@ -51,18 +50,22 @@ parallel --version | head -n 1
 step "Python venv (target/py-venv, python/requirements-test.txt)"
 venv=target/py-venv
 req=python/requirements-test.txt
-stamp=$venv/.requirements-test.txt
+# What the venv was made from: reinstall when the requirements or the
+# package's metadata change.
+stamp=$venv/.installed-from
+want=$(cat "$req" python/pyproject.toml 2>/dev/null || true)
 if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
 fi
-if ! cmp -s "$req" "$stamp"; then
+if [ "$want" != "$(cat "$stamp" 2>/dev/null || true)" ]; then
   "$venv/bin/python" -m pip install -q --upgrade pip
   "$venv/bin/python" -m pip install -q -r "$req"
-  # The package itself, when the checkout has it (pure Python).
+  # The package itself, when the checkout has it (pure Python; editable, so
+  # the tests see the checkout's sources).
   if [ -f python/pyproject.toml ]; then
     "$venv/bin/python" -m pip install -q -e ./python
   fi
-  cp "$req" "$stamp"
+  printf '%s' "$want" > "$stamp"
 fi
 
 step "cargo test --workspace"
@@ -74,6 +77,11 @@ if [ -d python/tests ]; then
   cargo build --release -q -p world-server -p sim-core -p scenarios
   COSIM_WORLD_SERVER="$PWD/target/release/world-server" \
     "$venv/bin/python" -m pytest -q python/tests
+fi
+
+if [ -d training/tests ]; then
+  step "python -m pytest training/tests (the gate network's int8 export and reference, numpy only)"
+  "$venv/bin/python" -m pytest -q training/tests
 fi
 
 step "done"

@@ -418,11 +418,7 @@ fn a_bad_request_ends_the_run_for_everyone() {
     // B's claim is answered at once (DESIGN.md §15: every clock is at
     // 2000 ms); its next reply, at 2032 ms, needs A's clock there: it meets
     // the end of the run, A's bad request.
-    let b = thread::spawn(move || {
-        let mut b = World::attach(sock).claim("B");
-        b.send(&set_velocity(10.0)).unwrap();
-        error_of(&mut b, &Request::GetSensors)
-    });
+    let b = thread::spawn(move || World::attach(sock).claim_step_and_fail("B"));
     let mut a = w.claim("A");
     a.send_raw(br#"{"command":"ADVANCE_TIME","time":33}"#)
         .unwrap();

@@ -153,9 +153,10 @@ fn a_ping_and_its_reply_carry_the_closed_form_stamps() {
 fn refused(body: &[u8]) -> (String, String, String) {
     let mut w = World::start(PAIR, &[]);
     let sock = World::attach(w.socket.clone());
-    // B's claim is answered after A's next request (A before B at equal
-    // times), the bad one: B's GET_INIT_DATA meets the end of the run.
-    let b = thread::spawn(move || sock.connect_and_fail("B"));
+    // B's claim is answered at once (DESIGN.md §15); its reply one step
+    // later needs A's clock there: it meets the end of the run, A's bad
+    // request.
+    let b = thread::spawn(move || sock.claim_step_and_fail("B"));
     let mut a = w.claim("A");
     a.send_raw(body).unwrap();
     let own = match a.recv_reply().unwrap() {

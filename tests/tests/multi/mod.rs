@@ -117,10 +117,15 @@ impl Socket {
         c
     }
 
-    /// Connects, claims `name`, and returns the ERROR that ends the run.
-    pub fn connect_and_fail(&self, name: &str) -> String {
-        let mut c = self.connect();
-        error_of(&mut c, &init(Some(name)))
+    /// Claims `name` (answered at once, DESIGN.md §15), steps once and
+    /// returns the ERROR its GET_SENSORS meets: a reply one step after the
+    /// start needs every other drone's clock there, so it waits for the
+    /// others, and meets the end of the run when another drone failed it
+    /// at the start.
+    pub fn claim_step_and_fail(&self, name: &str) -> String {
+        let mut c = self.claim(name);
+        c.send(&set_velocity(10.0)).unwrap();
+        error_of(&mut c, &Request::GetSensors)
     }
 }
 
