@@ -173,6 +173,8 @@ fn non_default(key: &str) -> &'static str {
         "power_model" => "stolaroff",
         "battery" => "cyclone300",
         "battery_curve" => "soc",
+        "battery_load" => "sag",
+        "soc_low" => "2.5",
         "debug_level" => "HIGH",
         "tolerance" => "0.25",
         "target_cycles" => "42",
