@@ -100,6 +100,22 @@ pub(super) fn bits(x: u32, hi: u32, lo: u32) -> u32 {
     (x >> lo) & ((1u32 << (hi - lo + 1)) - 1)
 }
 
+/// The S-type immediate (stores, and the XCV stores that use its layout).
+pub(super) fn imm_s(inst: u32) -> i32 {
+    sext(bits(inst, 31, 25) << 5 | bits(inst, 11, 7), 12)
+}
+
+/// The B-type immediate (branches, and XCV's `cv.beqimm`/`cv.bneimm`).
+pub(super) fn imm_b(inst: u32) -> i32 {
+    sext(
+        bits(inst, 31, 31) << 12
+            | bits(inst, 7, 7) << 11
+            | bits(inst, 30, 25) << 5
+            | bits(inst, 11, 8) << 1,
+        13,
+    )
+}
+
 pub(super) fn sext(x: u32, width: u32) -> i32 {
     let s = 32 - width;
     ((x << s) as i32) >> s
@@ -113,14 +129,8 @@ pub fn decode32(inst: u32) -> Decoded {
     let f3 = bits(inst, 14, 12);
     let f7 = bits(inst, 31, 25);
     let imm_i = (inst as i32) >> 20;
-    let imm_s = sext(bits(inst, 31, 25) << 5 | bits(inst, 11, 7), 12);
-    let imm_b = sext(
-        bits(inst, 31, 31) << 12
-            | bits(inst, 7, 7) << 11
-            | bits(inst, 30, 25) << 5
-            | bits(inst, 11, 8) << 1,
-        13,
-    );
+    let imm_s = imm_s(inst);
+    let imm_b = imm_b(inst);
     let imm_j = sext(
         bits(inst, 31, 31) << 20
             | bits(inst, 19, 12) << 12

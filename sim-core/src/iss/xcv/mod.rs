@@ -32,7 +32,7 @@ pub mod mac;
 pub mod mem;
 pub mod simd;
 
-use super::decode::{bits, op, sext, Decoded};
+use super::decode::{bits, imm_b, imm_s, op, Decoded};
 
 /// Numbers a list of names from 0 and lists their names (for tests and
 /// traces): the function codes of [`alu`] and [`simd`].
@@ -110,13 +110,7 @@ pub fn decode(inst: u32) -> Option<Decoded> {
                 4 => op::CV_LBU_PI,
                 5 => op::CV_LHU_PI,
                 6 | 7 => {
-                    let imm_b = sext(
-                        bits(inst, 31, 31) << 12
-                            | bits(inst, 7, 7) << 11
-                            | bits(inst, 30, 25) << 5
-                            | bits(inst, 11, 8) << 1,
-                        13,
-                    );
+                    let imm_b = imm_b(inst);
                     let o = if f3 == 6 {
                         op::CV_BEQIMM
                     } else {
@@ -132,7 +126,7 @@ pub fn decode(inst: u32) -> Option<Decoded> {
         // register forms of loads and stores, ALU, bit manipulation, MAC.
         0x2b => match f3 {
             0..=2 => {
-                let imm_s = sext(bits(inst, 31, 25) << 5 | bits(inst, 11, 7), 12);
+                let imm_s = imm_s(inst);
                 let o = [op::CV_SB_PI, op::CV_SH_PI, op::CV_SW_PI][f3 as usize];
                 d(o, 0, rs1, rs2, imm_s)
             }
