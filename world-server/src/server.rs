@@ -435,6 +435,11 @@ impl Outputs for Wire<'_> {
         _now: Millis,
     ) -> Result<(), SessionError> {
         self.send(drone, &reply)?;
+        // Kept only for the trace line written at the request's turn: an
+        // untraced run copies nothing (a GET_IMAGE frame is 100-400 KB).
+        if self.trace.is_none() {
+            return Ok(());
+        }
         let frame = self.outbox.last().expect("sent above").1[HEADER_LEN..].to_vec();
         let image = match reply {
             Reply::Image(img) => Some(img),

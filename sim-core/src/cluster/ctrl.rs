@@ -19,14 +19,21 @@ pub const MAILBOX: u32 = 0x20;
 /// The unit's own registers.
 #[derive(Debug, Clone, Default)]
 pub struct Ctrl {
-    pub power: bool,
     pub boot_addr: u32,
     pub fc_events: u32,
     pub mailbox: u32,
     pub freq_hz: u32,
-    /// Powered time before the current power-on, and when it began.
+    /// Powered time before the current power-on, and when it began
+    /// (`Some` exactly while the cluster is on).
     pub powered_before: Picos,
     pub powered_since: Option<Picos>,
+}
+
+impl Ctrl {
+    /// Whether the cluster is powered (CTRL.POWER reads 1).
+    pub fn is_on(&self) -> bool {
+        self.powered_since.is_some()
+    }
 }
 
 /// Who accesses the unit.
@@ -48,7 +55,7 @@ impl Shared {
     pub fn ctrl_read(&mut self, who: Who, off: u32) -> Option<u32> {
         let c = &mut self.ctrl;
         Some(match (off, who) {
-            (POWER, _) => c.power as u32,
+            (POWER, _) => c.is_on() as u32,
             (NB_CORES, _) => self.n as u32,
             (FREQ_HZ, _) => c.freq_hz,
             (BOOT_ADDR, _) => c.boot_addr,
@@ -64,7 +71,7 @@ impl Shared {
         match (off, who) {
             (POWER, Who::Fc) => {
                 let on = v & 1 != 0;
-                if self.ctrl.power && !on {
+                if self.ctrl.is_on() && !on {
                     for i in 0..self.n {
                         self.halt(i);
                     }
@@ -77,10 +84,9 @@ impl Shared {
                     }
                     _ => {}
                 }
-                self.ctrl.power = on;
             }
             (BOOT_ADDR, _) => self.ctrl.boot_addr = v & !1,
-            (FETCH_EN, _) if self.ctrl.power => {
+            (FETCH_EN, _) if self.ctrl.is_on() => {
                 for i in 0..self.n {
                     if v & (1 << i) != 0 {
                         self.eu.reset_core(i);

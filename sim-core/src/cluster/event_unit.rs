@@ -110,10 +110,6 @@ impl EventUnit {
     }
 
     /// Whether core `i` sleeps in the unit.
-    pub fn is_sleeping(&self, i: usize) -> bool {
-        self.sleep[i].is_some()
-    }
-
     /// A released core: the time it wakes (taken once).
     pub fn take_wake(&mut self, i: usize) -> Option<Picos> {
         self.wake_at[i].take()

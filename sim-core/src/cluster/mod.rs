@@ -123,7 +123,6 @@ pub enum CoreState {
 #[derive(Debug)]
 pub struct Shared {
     pub n: usize,
-    pub period: Picos,
     quantum: Picos,
     pub state: [CoreState; 8],
     /// Each core's time when it is not running (its wake-up or start
@@ -236,7 +235,7 @@ impl Shared {
             .ok_or(MmioError::AccessFault { addr })
         } else {
             let Who::Core(i) = who else { return fault };
-            if !self.ctrl.power {
+            if !self.ctrl.is_on() {
                 return fault;
             }
             let sleep = |s: &mut Shared| {
@@ -425,7 +424,6 @@ impl Cluster {
             off_cycles: vec![0; n],
             sh: Shared {
                 n,
-                period,
                 quantum: Picos(QUANTUM_CYCLES * period.0),
                 state: [CoreState::Off; 8],
                 time: [Picos::ZERO; 8],
@@ -460,10 +458,6 @@ impl Cluster {
         });
     }
 
-    pub fn config(&self) -> &ClusterConfig {
-        &self.cfg
-    }
-
     /// The cores' console (semihosting output of cluster code).
     pub fn set_console(&mut self, mut make: impl FnMut() -> Box<dyn Write + Send>) {
         for c in &mut self.cores {
@@ -476,14 +470,6 @@ impl Cluster {
             c.flush_console()?;
         }
         Ok(())
-    }
-
-    pub fn cores(&self) -> &[Cpu] {
-        &self.cores
-    }
-
-    pub fn is_powered(&self) -> bool {
-        self.sh.ctrl.power
     }
 
     /// How long the cluster has been powered by time `t`.

@@ -743,8 +743,10 @@ impl Cpu {
             ($size:expr, $conv:expr) => {{
                 let v = match mem.load_ram(addr, $size) {
                     Some(v) => {
-                        self.cycles += timing::split_cost(addr, $size);
+                        // Arbitrated at the issue cycle, before a split's
+                        // second transfer (as the block executor does).
                         self.cycles += self.ram_extra(mem, addr);
+                        self.cycles += timing::split_cost(addr, $size);
                         v
                     }
                     None => match self.load_slow(mem, dev, addr, $size, pc) {
@@ -764,8 +766,8 @@ impl Cpu {
             ($size:expr) => {{
                 let watched = self.tohost.is_some_and(|t| addr.wrapping_sub(t) < 8);
                 if !watched && mem.store_ram(addr, $size, b) {
-                    self.cycles += timing::split_cost(addr, $size);
                     self.cycles += self.ram_extra(mem, addr);
+                    self.cycles += timing::split_cost(addr, $size);
                 } else if !self.store_slow(mem, dev, addr, $size, b, pc) {
                     return;
                 }
@@ -1181,8 +1183,8 @@ impl Cpu {
     ) -> bool {
         let issue = self.issue_cycle();
         if mem.store_ram(addr, size, value) {
-            self.cycles += timing::split_cost(addr, size);
             self.cycles += self.ram_extra(mem, addr);
+            self.cycles += timing::split_cost(addr, size);
             if let Some(th) = self.tohost {
                 // riscv-tests: a non-zero tohost ends the test; 1 is a pass,
                 // any other odd value v a failure of test v >> 1.

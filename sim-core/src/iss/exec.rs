@@ -162,15 +162,18 @@ impl<'a> Run<'a> {
         self.tcdm = tcdm;
     }
 
-    /// Extra cycles of a RAM access at `addr` by the instruction `inst`
-    /// whose cost is already in `cycles`.
+    /// Extra cycles of a RAM access at `addr` by an instruction whose cost
+    /// (load-use stall included) is already in `cycles`: the access issues
+    /// in its last cycle, `cycles − 1`, as `Cpu::issue_cycle` says on the
+    /// general path, so both paths arbitrate an L1 bank at the same cycle
+    /// wherever a block happens to start.
     #[inline(always)]
-    fn extra(&mut self, addr: u32, inst: &Inst, cycles: u64) -> u64 {
+    fn extra(&mut self, addr: u32, cycles: u64) -> u64 {
         if self.timing.is_plain() {
             return 0;
         }
         self.timing
-            .extra(self.tcdm.as_deref_mut(), addr, cycles - inst.cost as u64)
+            .extra(self.tcdm.as_deref_mut(), addr, cycles - 1)
     }
 
     /// Region `idx` holds the code: chain its blocks directly, and give
@@ -423,7 +426,7 @@ macro_rules! loads {
             let (addr, wb) = address($mode, reg!(regs, inst.rs1), reg!(regs, inst.$reg), inst.imm);
             match ram_load(r.regions, addr, $size) {
                 Some(v) => {
-                    cycles += timing::split_cost(addr, $size) + r.extra(addr, inst, cycles);
+                    cycles += timing::split_cost(addr, $size) + r.extra(addr, cycles);
                     if let Some(v) = wb {
                         reg!(regs, inst.rs1) = v;
                     }
@@ -493,7 +496,7 @@ macro_rules! stores {
             if watched || in_fast || !ram_store_data(r.regions, addr, $size, reg!(regs, inst.rs2)) {
                 return general(r, p, cycles);
             }
-            cycles += timing::split_cost(addr, $size) + r.extra(addr, inst, cycles);
+            cycles += timing::split_cost(addr, $size) + r.extra(addr, cycles);
             if let Some(v) = wb {
                 reg!(regs, inst.rs1) = v;
                 regs[0] = 0;

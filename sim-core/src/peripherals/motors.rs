@@ -112,11 +112,6 @@ impl Motors {
 /// Highest motor speed (rad/s): the PROTO's `maxVelocity` (DESIGN.md §5).
 pub const MAX_SPEED: f64 = 600.0;
 
-/// Clamps each command to what a motor can do, `[0, MAX_SPEED]`.
-pub fn saturate(c: MotorCommands) -> MotorCommands {
-    saturate_at(c, MAX_SPEED)
-}
-
 /// Clamps each command to `[0, ceiling]` (`ceiling` ≥ 0).
 pub fn saturate_at(c: MotorCommands, ceiling: f64) -> MotorCommands {
     let s = |m: f64| m.clamp(0.0, ceiling.max(0.0));
@@ -152,7 +147,10 @@ mod tests {
             m3: 80.0,
             m4: 700.0,
         };
-        assert_eq!(saturate(c).as_array(), [0.0, 50.0, 80.0, MAX_SPEED]);
+        assert_eq!(
+            saturate_at(c, MAX_SPEED).as_array(),
+            [0.0, 50.0, 80.0, MAX_SPEED]
+        );
         // At 3.0 V the motors reach 21.0585 rad/s/V · 3.0 V = 63.18 rad/s:
         // above hover (55.37), below full throttle.
         let cap = speed_cap(Volts(3.0));

@@ -21,6 +21,7 @@
 //!   curves and its battery ranking (§5.4) hold where they were measured.
 
 use super::battery::BatteryModel;
+use super::models::EmpiricalModel;
 use super::Ohms;
 
 /// How the battery behaves under load (`[run] battery_load`).
@@ -83,8 +84,9 @@ const KNEE_RATE: f64 = 35.0;
 /// verify: they are scaled from it at the same C-rating, resistance inversely
 /// proportional to capacity (electrode area), 0.163 · 250 / C.
 pub fn internal_resistance(model: BatteryModel) -> Ohms {
-    const CRAZYFLIE_EQ_3_2_OHM: f64 = 0.16302;
-    Ohms(CRAZYFLIE_EQ_3_2_OHM * 250.0 / model.capacity_mah())
+    // Eq. 3.2's slope, as the empirical model holds it (V/A, negative).
+    let eq_3_2_ohm = -EmpiricalModel::default().voltage_coefficients[0];
+    Ohms(eq_3_2_ohm * BatteryModel::LiPol250.capacity_mah() / model.capacity_mah())
 }
 
 /// The series resistance at `soc` (fraction, 1 = full) of a battery whose

@@ -21,6 +21,7 @@
 //!   In dB it averages −2.51 dB (−γ·10/ln 10); that is added back so that
 //!   the mean RSSI still follows the path-loss line.
 
+use super::dist;
 use serde::Deserialize;
 
 /// `p2p_fading` of `[radio]`.
@@ -85,10 +86,6 @@ impl Shadowing {
         };
         LinkShadow { db, t_s, a, b }
     }
-}
-
-fn dist(p: [f64; 3], q: [f64; 3]) -> f64 {
-    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
 }
 
 #[cfg(test)]

@@ -11,7 +11,6 @@
 //! address update in EX).
 
 use super::super::decode::op;
-use super::super::mem::AccessSize;
 
 /// How an XCV memory op forms its address.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -56,15 +55,6 @@ pub fn address(mode: Mode, rs1: u32, reg: u32, imm: u32) -> (u32, Option<u32>) {
         Mode::PostImm => (rs1, Some(rs1.wrapping_add(imm))),
         Mode::PostReg => (rs1, Some(rs1.wrapping_add(reg))),
         Mode::RegReg => (rs1.wrapping_add(reg), None),
-    }
-}
-
-/// The access size of an RV32I load or store op.
-pub fn size(base: u8) -> AccessSize {
-    match base {
-        op::LB | op::LBU | op::SB => AccessSize::Byte,
-        op::LH | op::LHU | op::SH => AccessSize::Half,
-        _ => AccessSize::Word,
     }
 }
 

@@ -158,14 +158,14 @@ pub fn decode(inst: u32) -> Option<Decoded> {
                 },
                 2 | 3 => {
                     let f = if f3 == 2 { alu::ADDN } else { alu::SUBN } + f2;
-                    d(op::CV_ALU, rd, rs1, rs2_of(inst), alu_imm(f, is3))
+                    d(op::CV_ALU, rd, rs1, rs2, alu_imm(f, is3))
                 }
                 _ => {
                     // 100 muls, 101 mulu, 110 macs, 111 macu; f2 = hh | round.
                     let signed = f3 & 1 == 0;
                     let kind = mac::kind(f2 & 1 != 0, f2 & 2 != 0, signed);
                     let o = if f3 >= 6 { op::CV_MACN } else { op::CV_MULN };
-                    d(o, rd, rs1, rs2_of(inst), alu_imm(kind, is3))
+                    d(o, rd, rs1, rs2, alu_imm(kind, is3))
                 }
             }
         }
@@ -185,11 +185,6 @@ fn some(op: u8, rd: u8, rs1: u8, rs2: u8, imm: i32) -> Option<Decoded> {
         imm,
         compressed: false,
     })
-}
-
-/// The rs2 field as a register number.
-fn rs2_of(inst: u32) -> u8 {
-    bits(inst, 24, 20) as u8
 }
 
 /// custom-1, funct3 011: register-register forms (funct7 selects).

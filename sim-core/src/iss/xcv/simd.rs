@@ -13,7 +13,7 @@
 //! funct5) in bits 16..22, funct1 in bit 11, funct3 in bits 8..11, Imm6
 //! in bits 0..6.
 
-use super::super::decode::{bits, op};
+use super::super::decode::{bits, op, sext};
 
 /// The F bit (26): comparisons and complex-number operations.
 const F: u32 = 32;
@@ -147,12 +147,6 @@ fn lane(v: u32, i: u32, w: u32) -> u32 {
     (v >> (i * w)) & ((1u32 << w) - 1)
 }
 
-/// Sign-extend a `w`-bit lane.
-#[inline(always)]
-fn sx(v: u32, w: u32) -> i32 {
-    ((v << (32 - w)) as i32) >> (32 - w)
-}
-
 /// Replicate the lowest lane over the register.
 #[inline(always)]
 fn splat(v: u32, w: u32) -> u32 {
@@ -209,7 +203,7 @@ fn dot(f: u32, w: u32, a: u32, b: u32, d: u32) -> u32 {
         DOTUSP | SDOTUSP => (false, true),
         _ => (true, true),
     };
-    let ext = |v: u32, s: bool| if s { sx(v, w) as i64 } else { v as i64 };
+    let ext = |v: u32, s: bool| if s { sext(v, w) as i64 } else { v as i64 };
     let sum: i64 = (0..32 / w)
         .map(|i| ext(lane(a, i, w), sa) * ext(lane(b, i, w), sb))
         .sum();
@@ -220,7 +214,7 @@ fn dot(f: u32, w: u32, a: u32, b: u32, d: u32) -> u32 {
 /// One lane of the binary ALU and comparison functions.
 #[inline(always)]
 fn lane_op(f: u32, w: u32, x: u32, y: u32) -> u32 {
-    let (sx_, sy) = (sx(x, w), sx(y, w));
+    let (sx_, sy) = (sext(x, w), sext(y, w));
     let mask = (1u32 << w) - 1;
     let sh = y & (w - 1);
     let all = |c: bool| if c { mask } else { 0 };
@@ -228,7 +222,7 @@ fn lane_op(f: u32, w: u32, x: u32, y: u32) -> u32 {
         ADD => x.wrapping_add(y),
         SUB => x.wrapping_sub(y),
         // The lane sum (carry lost), then shifted by one.
-        AVG => (sx(x.wrapping_add(y) & mask, w) >> 1) as u32,
+        AVG => (sext(x.wrapping_add(y) & mask, w) >> 1) as u32,
         AVGU => (x.wrapping_add(y) & mask) >> 1,
         MIN => sx_.min(sy) as u32,
         MINU => x.min(y),
@@ -265,7 +259,7 @@ pub fn exec(imm: u32, a: u32, b: u32, d: u32) -> u32 {
             0 => b,
             2 => splat(b, w),
             _ if unsigned_imm(f) => splat(imm6, w),
-            _ => splat(sx(imm6, 6) as u32, w),
+            _ => splat(sext(imm6, 6) as u32, w),
         };
         return if (DOTUP..=SDOTSP).contains(&f) {
             dot(f, w, a, op2, d)
@@ -275,13 +269,13 @@ pub fn exec(imm: u32, a: u32, b: u32, d: u32) -> u32 {
     }
     let h = |v: u32, i: u32| lane(v, i, 16);
     // An arithmetic shift of a 16-bit lane.
-    let sh16 = |v: u32, s: u32| ((sx(v & 0xffff, 16) >> s) as u32) & 0xffff;
+    let sh16 = |v: u32, s: u32| ((sext(v & 0xffff, 16) >> s) as u32) & 0xffff;
     match f {
-        ABS => map(a, 0, w, |x, _| sx(x, w).wrapping_abs() as u32),
+        ABS => map(a, 0, w, |x, _| sext(x, w).wrapping_abs() as u32),
         EXTRACT => {
             let i = imm6;
             match f3 {
-                0 | 1 => sx(lane(a, i, w), w) as u32,
+                0 | 1 => sext(lane(a, i, w), w) as u32,
                 2 | 3 => lane(a, i, w),
                 _ => {
                     let m = ((1u32 << w) - 1) << (i * w);
@@ -326,8 +320,8 @@ pub fn exec(imm: u32, a: u32, b: u32, d: u32) -> u32 {
         }
         CPLXMUL => {
             let s = 15 + (f3 >> 1);
-            let (a0, a1) = (sx(h(a, 0), 16) as i64, sx(h(a, 1), 16) as i64);
-            let (b0, b1) = (sx(h(b, 0), 16) as i64, sx(h(b, 1), 16) as i64);
+            let (a0, a1) = (sext(h(a, 0), 16) as i64, sext(h(a, 1), 16) as i64);
+            let (b0, b1) = (sext(h(b, 0), 16) as i64, sext(h(b, 1), 16) as i64);
             if funct1 == 0 {
                 let re = ((a0 * b0 - a1 * b1) >> s) as u32 & 0xffff;
                 (d & 0xffff_0000) | re
