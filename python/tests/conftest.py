@@ -49,19 +49,3 @@ def _world_server_env(binaries, monkeypatch):
 def three_drone_world() -> Path:
     """Three drones 2 m apart with the radio (the example's world)."""
     return ROOT / "examples" / "python" / "three-drones.toml"
-
-
-def lockstep_fixed() -> bool:
-    """Whether this checkout's world-server has DESIGN.md §15's lockstep (a
-    request at t answered once every flying drone's clock reached t; issue
-    23 part 1, branch `lockstep`, whose test is tests/tests/world_any_client.rs).
-    Before it one thread cannot drive several drones: the tests that do are
-    skipped, and run (and must pass) once that branch is merged.
-    COSIM_LOCKSTEP_FIXED=1 runs them against another build
-    ($COSIM_WORLD_SERVER)."""
-    if os.environ.get("COSIM_LOCKSTEP_FIXED") == "1":
-        return True
-    return (ROOT / "tests" / "tests" / "world_any_client.rs").is_file()
-
-
-NEEDS_LOCKSTEP = "needs the lockstep fix of DESIGN.md §15 (issue 23 part 1, branch lockstep), not merged here"

@@ -3,7 +3,6 @@
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NEEDS_LOCKSTEP, lockstep_fixed
 from gymnasium.utils.env_checker import check_env
 
 import crazyflie_cosim  # noqa: F401  (registers the environment)
@@ -89,7 +88,6 @@ def test_the_reward_is_pluggable_and_the_time_limit_truncates():
     env.close()
 
 
-@pytest.mark.skipif(not lockstep_fixed(), reason=NEEDS_LOCKSTEP)
 def test_three_drones_in_one_environment(three_drone_world):
     env = WorldEnv(world=str(three_drone_world), action="velocity")
     assert list(env.observation_space.spaces) == ["alpha", "bravo", "charlie"]
