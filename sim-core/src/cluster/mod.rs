@@ -485,6 +485,24 @@ impl Cluster {
         (self.sh.dma.bytes, self.sh.dma.busy_cycles)
     }
 
+    /// Each core's figures at time `t` (a power sample): as [`report`],
+    /// plus, for a core asleep in the event unit, the gated cycles from
+    /// its sleep to `t`, which its counter only takes when it wakes. Without
+    /// them a long sleep would land whole in the sample where it ends.
+    ///
+    /// [`report`]: Cluster::report
+    pub fn report_at(&self, mem: &Memory, t: Picos) -> Vec<CoreReport> {
+        let mut reports = self.report(mem);
+        for (i, r) in reports.iter_mut().enumerate() {
+            if self.sh.state[i] == CoreState::Gated {
+                let c = &self.cores[i];
+                let period = c.config().clock.period().0.max(1);
+                r.gated_cycles += t.0.saturating_sub(c.now().0) / period;
+            }
+        }
+        reports
+    }
+
     /// Each core's figures so far.
     pub fn report(&self, mem: &Memory) -> Vec<CoreReport> {
         let l1 = mem.tcdm.as_ref().map(|t| t.stats).unwrap_or_default();

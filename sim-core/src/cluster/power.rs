@@ -90,7 +90,7 @@ impl Totals {
             powered: cluster.powered_time(t),
             ..Totals::default()
         };
-        for r in cluster.report(mem) {
+        for r in cluster.report_at(mem, t) {
             tot.active_cycles += r.active_cycles;
             tot.gated_cycles += r.gated_cycles;
             tot.l1_accesses += r.l1_accesses;
