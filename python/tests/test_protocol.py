@@ -134,3 +134,15 @@ def test_endpoints_parse_as_documented():
     for bad in ("tcp:host", "tcp::7000", "tcp:h:70000", "unix:"):
         with pytest.raises(ValueError, match="bad endpoint"):
             Endpoint.parse(bad)
+
+
+def test_a_malformed_radio_recv_reply_is_a_protocol_error():
+    ok = {"command": "RADIO_RECV", "packets": [], "tx_done": []}
+    assert p.parse_reply(ok).packets == ()
+    packet = {"radio": "uwb", "data": "AAE=", "from": "bravo", "rssi": -60.0, "time_ps": 5}
+    assert p.parse_reply(dict(ok, packets=[packet])).packets[0].data == b"\x00\x01"
+    for bad in ({"data": "not base64!"}, {"time_ps": "x"}, {"rssi": None}):
+        with pytest.raises(p.ProtocolError, match="bad RADIO_RECV reply"):
+            p.parse_reply(dict(ok, packets=[dict(packet, **bad)]))
+    with pytest.raises(p.ProtocolError, match="bad RADIO_RECV reply"):
+        p.parse_reply(dict(ok, packets=[{"radio": "uwb"}]))

@@ -535,20 +535,24 @@ def parse_reply(msg: Mapping[str, Any]):
         gp = msg.get("GATES_PASSED")
         return StopReply(_num(msg, "TIME"), _int(msg, "STOP_TIME"), gp if isinstance(gp, int) else None)
     if cmd == "RADIO_RECV":
-        return RadioRecv(
-            tuple(
-                Packet(
-                    p["radio"],
-                    base64.b64decode(p["data"]),
-                    p["from"],
-                    float(p["rssi"]),
-                    int(p["time_ps"]),
-                    p.get("rx_stamp"),
-                )
-                for p in msg.get("packets", [])
-            ),
-            tuple(TxDone(t["radio"], int(t["time_ps"]), t.get("tx_stamp")) for t in msg.get("tx_done", [])),
-        )
+        # A malformed packet is a ProtocolError like every other bad reply.
+        try:
+            return RadioRecv(
+                tuple(
+                    Packet(
+                        p["radio"],
+                        base64.b64decode(p["data"], validate=True),
+                        p["from"],
+                        float(p["rssi"]),
+                        int(p["time_ps"]),
+                        p.get("rx_stamp"),
+                    )
+                    for p in msg.get("packets", [])
+                ),
+                tuple(TxDone(t["radio"], int(t["time_ps"]), t.get("tx_stamp")) for t in msg.get("tx_done", [])),
+            )
+        except (KeyError, TypeError, ValueError, binascii.Error) as e:
+            raise ProtocolError(f"bad RADIO_RECV reply: {e!r}") from None
     raise ProtocolError(f"unknown reply command {cmd!r}")
 
 
