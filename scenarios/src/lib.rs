@@ -14,6 +14,7 @@
 
 pub mod bench_cluster;
 pub mod bench_race;
+pub mod endurance;
 pub mod launch;
 pub mod mapping;
 pub mod perturb;

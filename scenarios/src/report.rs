@@ -258,6 +258,16 @@ pub fn summary_text(
             ""
         },
     );
+    if let (Some(_), Some(target)) = (s.battery.empty_at_s, scenario.targets.last()) {
+        // Unreadable CSVs (another world server writes no trajectory)
+        // leave the line out; the summary above stands.
+        let trajectory: Vec<TrajectoryRow> =
+            read_csv(&out.join(files::TRAJECTORY)).unwrap_or_default();
+        let power: Vec<PowerRow> = read_csv(&out.join(POWER_CSV)).unwrap_or_default();
+        if let Some(line) = crate::endurance::report_line(target[2], &trajectory, &power, s) {
+            t += &line;
+        }
+    }
     t += &format!(
         "   cost           {:.2} s wall, {:.2}x real time, {} instructions, {} messages, {} collisions\n",
         status.wall.as_secs_f64(),

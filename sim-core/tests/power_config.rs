@@ -174,6 +174,7 @@ fn non_default(key: &str) -> &'static str {
         "battery" => "cyclone300",
         "battery_curve" => "soc",
         "battery_load" => "sag",
+        "battery_empty" => "end",
         "soc_low" => "2.5",
         "debug_level" => "HIGH",
         "tolerance" => "0.25",

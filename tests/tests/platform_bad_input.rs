@@ -117,10 +117,8 @@ fn a_world_that_dies_mid_run_is_reported_and_outputs_are_kept() {
     assert!(summary["platform_time_s"].as_f64().unwrap() > 2.0);
 }
 
-#[test]
-fn an_emptying_battery_stops_the_run_with_a_clear_message() {
-    let dir = tempfile::tempdir().unwrap();
-    // The default platform with a battery that starts just above empty.
+/// The default platform with a battery that starts just above empty.
+fn nearly_empty_platform(dir: &Path) -> std::path::PathBuf {
     let platform_file = repo_root().join("sim-core/platforms/crazyflie.json");
     let mut json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(platform_file).unwrap()).unwrap();
@@ -128,13 +126,55 @@ fn an_emptying_battery_stops_the_run_with_a_clear_message() {
     let battery = harvesters.values_mut().next().unwrap();
     battery["soc_init"] = serde_json::json!(0.5);
     battery["soc_end"] = serde_json::json!(0.0);
-    let path = dir.path().join("platform.json");
+    let path = dir.join("platform.json");
     std::fs::write(&path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+    path
+}
 
+#[test]
+fn an_emptying_battery_stops_the_run_with_a_clear_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = nearly_empty_platform(dir.path());
     let _world = start_world(dir.path());
     let mut cmd = platform(dir.path(), "race");
     cmd.arg("--platform").arg(&path);
     let (err, summary) = failed_run(cmd, dir.path());
     assert!(err.contains("empty"), "{err}");
     assert!(summary["battery"]["soc_end"].as_f64().unwrap() <= 1e-9);
+    assert!(summary["battery"]["empty_at_s"].as_f64().unwrap() > 0.0);
+}
+
+/// `battery_empty = "end"` (DESIGN.md §16, endurance runs): the cut-off
+/// ends the flight as a firmware exit does: the world is told STOP, the
+/// run succeeds, and summary.json says when the battery ran empty.
+#[test]
+fn with_battery_empty_end_the_cut_off_ends_the_flight_normally() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = nearly_empty_platform(dir.path());
+    let _world = start_world(dir.path());
+    let mut cmd = platform(dir.path(), "race");
+    cmd.arg("--platform")
+        .arg(&path)
+        .args(["--set", "battery_empty=end"]);
+    let out = cmd.output().expect("run sim-core");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("out/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(summary["exit_code"], 0);
+    assert!(summary["error"].is_null());
+    let empty = summary["battery"]["empty_at_s"].as_f64().unwrap();
+    let end = summary["platform_time_s"].as_f64().unwrap();
+    // The race needs ~145 s; 0.5 % of 250 mAh lasts a few seconds.
+    assert!(empty > 0.5 && empty < 20.0, "{empty}");
+    // The run ends at the cut-off, plus the motors' spin-down after STOP
+    // (1.3 s here, as at any firmware exit), not at the race's end.
+    assert!(end > empty && end < empty + 2.0, "{end} vs {empty}");
+    // The world was told STOP: its time is in the summary.
+    assert!(summary["world_time_s"].as_f64().unwrap() > 0.0);
 }

@@ -13,7 +13,7 @@ use std::str::FromStr;
 
 use crate::power::battery::{BatteryModel, CurveAxis};
 use crate::power::models::{ModelParams, PowerModelKind};
-use crate::power::sag::BatteryLoad;
+use crate::power::sag::{BatteryLoad, OnEmpty};
 pub use crate::sync::SyncMode;
 
 use super::ConfigError;
@@ -113,7 +113,7 @@ impl fmt::Display for DebugLevel {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 18] = [
+pub const RUN_KEYS: [(&str, &str); 19] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -129,6 +129,10 @@ pub const RUN_KEYS: [(&str, &str); 18] = [
     (
         "battery_load",
         "thesis (the thesis's curves, motors up to 600 rad/s) | sag (internal resistance, end-of-discharge knee, motor speed capped by the voltage; DESIGN.md §16)",
+    ),
+    (
+        "battery_empty",
+        "at soc_end: error (MESSY: the run fails) | end (the flight ends there, as a firmware exit ends it)",
     ),
     (
         "soc_low",
@@ -192,6 +196,8 @@ pub struct RunConfig {
     pub battery_curve: CurveAxis,
     /// How the battery behaves under load (sag, motor speed cap).
     pub battery_load: BatteryLoad,
+    /// What the run does when the battery reaches `soc_end`.
+    pub battery_empty: OnEmpty,
     /// BATTERY_LOW threshold (% SOC); `None` takes the platform file's.
     pub soc_low: Option<f64>,
     /// Debug level.
@@ -242,6 +248,7 @@ impl Default for RunConfig {
             battery: Some(BatteryModel::LiPol250),
             battery_curve: CurveAxis::Discharged,
             battery_load: BatteryLoad::Thesis,
+            battery_empty: OnEmpty::Error,
             soc_low: None,
             debug_level: DebugLevel::None,
             tolerance: 0.1,
@@ -338,6 +345,7 @@ impl RunConfig {
             }
             "battery_curve" => self.battery_curve = parse(value).map_err(bad)?,
             "battery_load" => self.battery_load = parse(value).map_err(bad)?,
+            "battery_empty" => self.battery_empty = parse(value).map_err(bad)?,
             "soc_low" if value.trim().eq_ignore_ascii_case("platform") => self.soc_low = None,
             "soc_low" => {
                 let v = parse_non_negative(value).map_err(bad)?;
@@ -400,6 +408,7 @@ impl RunConfig {
                 .map_or_else(|| "platform".to_string(), |b| b.to_string()),
             "battery_curve" => self.battery_curve.to_string(),
             "battery_load" => self.battery_load.to_string(),
+            "battery_empty" => self.battery_empty.to_string(),
             "soc_low" => self
                 .soc_low
                 .map_or_else(|| "platform".to_string(), |v| v.to_string()),

@@ -37,6 +37,7 @@ use crate::peripherals::radio::{self, RadioDevice};
 use crate::peripherals::stm32::estimator::{FlowFilterParams, MetresPerSecond};
 use crate::peripherals::stm32::Stm32Config;
 use crate::peripherals::{Camera, DeviceError, DevicePower, Stm32, WorldLink, WorldSession};
+use crate::power::sag::OnEmpty;
 use crate::power::{CoreState, Loads, PowerError, PowerLogger, PowerNetwork};
 use crate::sync::TimeKeeper;
 use crate::units::{Cycles, Hertz, Millis, Picos};
@@ -189,6 +190,8 @@ struct Run<W: WorldLink> {
     /// The GAP8 cluster, when the platform file has one (DESIGN.md §12),
     /// and its energy meter.
     cluster: Option<(Cluster, Meter)>,
+    /// When the battery reached `soc_end` (the power sample's time).
+    battery_empty_at: Option<Picos>,
 }
 
 impl<W: WorldLink> Run<W> {
@@ -266,6 +269,7 @@ impl<W: WorldLink> Run<W> {
             power,
             console,
             exit_code: None,
+            battery_empty_at: None,
             end_time: Picos::ZERO,
             map,
             cluster,
@@ -300,11 +304,40 @@ impl<W: WorldLink> Run<W> {
                 let p = meter.sample(Totals::of(c, &self.mem, t), t);
                 self.power.set_cluster_power(p);
             }
-            let sample = self.power.sample(t, &loads, &motor)?;
+            let sample = self.power.sample(t, &loads, &motor).inspect_err(|e| {
+                if let PowerError::BatteryEmpty { t, .. } = e {
+                    self.battery_empty_at = Some(*t);
+                }
+            })?;
             self.platform.battery_low = sample.low_battery;
             self.platform.motors.speed_cap = self.power.motor_speed_cap();
         }
         Ok(())
+    }
+
+    /// Takes the samples due at `now` ([`Self::take_samples`]). With
+    /// `battery_empty = "end"` the battery's cut-off ends the flight as a
+    /// firmware exit does (the world is told STOP, the run succeeds):
+    /// `Ok(true)`. Otherwise the cut-off is MESSY's error.
+    fn sample_or_cut_off(&mut self, cfg: &KernelConfig, now: Picos) -> Result<bool, KernelError> {
+        match self.take_samples(now) {
+            Err(KernelError::Power(PowerError::BatteryEmpty { .. }))
+                if cfg.run.battery_empty == OnEmpty::End =>
+            {
+                self.exit_code = Some(0);
+                let end = self
+                    .platform
+                    .end_session(now)
+                    .map_err(KernelError::Device)?
+                    .unwrap_or(now)
+                    .max(now);
+                self.end_time = end;
+                // The motors' stop after STOP, as at a firmware exit.
+                self.take_samples(end)?;
+                Ok(true)
+            }
+            other => other.map(|()| false),
+        }
     }
 
     fn drain_device_console(&mut self) {
@@ -407,7 +440,9 @@ impl<W: WorldLink> Run<W> {
                 self.platform.handle_events(now)?;
                 self.drain_device_console();
             }
-            self.take_samples(now)?;
+            if self.sample_or_cut_off(cfg, now)? {
+                return Ok(());
+            }
             progress.update(now, &self.power);
         }
     }
@@ -452,6 +487,7 @@ impl<W: WorldLink> Run<W> {
         );
         let mut summary = summary;
         summary.energy_j.cluster = self.cluster.as_ref().map(|(_, meter)| meter.energy_j);
+        summary.battery.empty_at_s = self.battery_empty_at.map(|t| t.as_secs_f64());
         if let Some(dir) = &cfg.out_dir {
             if let Err(e) = summary.write(&dir.join("summary.json")) {
                 error.get_or_insert(KernelError::Io(e));

@@ -17,6 +17,10 @@ pub struct BatterySummary {
     pub model: String,
     pub soc_end: f64,
     pub low_battery: bool,
+    /// Platform time (s) at which the SOC reached `soc_end`, if it did
+    /// (with `battery_empty = "end"` the flight ended there).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub empty_at_s: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -161,6 +165,7 @@ impl Summary {
                     .unwrap_or_else(|| cfg.platform.battery().model.to_string()),
                 soc_end: cfg.platform.battery().soc_init / 100.0,
                 low_battery: false,
+                empty_at_s: None,
             },
             energy_j: EnergySummary {
                 empirical: 0.0,
@@ -244,6 +249,7 @@ impl Summary {
             model: battery.model().to_string(),
             soc_end: battery.soc(),
             low_battery: power.low_battery(),
+            empty_at_s: None,
         };
         s.energy_j = EnergySummary {
             empirical: energy.model(PowerModelKind::Empirical).0,

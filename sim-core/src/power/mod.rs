@@ -28,6 +28,7 @@ pub mod csv_line;
 pub mod log;
 pub mod models;
 pub mod motor_drive;
+pub mod operating_point;
 pub mod sag;
 
 use std::fmt;
@@ -485,23 +486,45 @@ impl PowerNetwork {
             &self.vcc_load_currents,
             &mut self.vcc_bus_currents,
         );
-        let ldo_efficiency = match self.ldo.kind() {
-            converter::Efficiency::Ldo => ldo_efficiency(self.vcc_voltage, v_prev),
-            _ => self.ldo.efficiency(i_vcc, self.vcc_voltage, v_prev),
+        // The battery-side currents at a bus voltage `v`.
+        let currents = |v: Volts| {
+            let i_vcc_battery = self.ldo.input_current(i_vcc, self.vcc_voltage, v);
+            let models = self.models.evaluate(motor, v);
+            let i_motor = self
+                .motor_converter
+                .input_current(models[self.selected.index()].current, v, v);
+            let i_battery_side: f64 = self
+                .battery_side_idle
+                .iter()
+                .map(|(i, c)| c.input_current(*i, v, v).0)
+                .sum();
+            (i_vcc_battery, models, i_motor, i_battery_side)
         };
-        let i_vcc_battery = self.ldo.input_current(i_vcc, self.vcc_voltage, v_prev);
-
-        // Motor bus at the battery voltage.
-        let models = self.models.evaluate(motor, v_prev);
-        let selected = models[self.selected.index()];
-        let i_motor = self
-            .motor_converter
-            .input_current(selected.current, v_prev, v_prev);
-        let i_battery_side: f64 = self
-            .battery_side_idle
-            .iter()
-            .map(|(i, c)| c.input_current(*i, v_prev, v_prev).0)
-            .sum();
+        // The thesis's network takes the loads at the previous sample's
+        // voltage (its milliohm resistances make that exact to the µV);
+        // under sag the battery's operating point is solved
+        // (`operating_point`: the explicit step diverges there).
+        let (v_bus, starved_at) = match self.battery.load() {
+            sag::BatteryLoad::Thesis => (v_prev, None),
+            sag::BatteryLoad::Sag => {
+                let op = operating_point::solve(self.battery.v_oc(), self.battery.r_s(), |v| {
+                    let (a, _, b, c) = currents(v);
+                    Amps(a.0 + b.0 + c)
+                });
+                (op.v, op.starved.then_some(op.i))
+            }
+        };
+        let ldo_efficiency = match self.ldo.kind() {
+            converter::Efficiency::Ldo => ldo_efficiency(self.vcc_voltage, v_bus),
+            _ => self.ldo.efficiency(i_vcc, self.vcc_voltage, v_bus),
+        };
+        let (i_vcc_battery, models, mut i_motor, i_battery_side) = currents(v_bus);
+        if let Some(i_max) = starved_at {
+            // The battery gives its maximum power; the motors, last on the
+            // bus, get what the electronics leave (their speed cap, from
+            // the voltage, is what the world feels).
+            i_motor = Amps((i_max.0 - i_vcc_battery.0 - i_battery_side).max(0.0));
+        }
         let i_other = Amps(
             self.vcc_bus_currents[3..n - 2]
                 .iter()

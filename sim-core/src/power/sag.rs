@@ -65,6 +65,48 @@ impl std::fmt::Display for BatteryLoad {
     }
 }
 
+/// What a run does when the battery reaches `soc_end` (`[run] battery_empty`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnEmpty {
+    /// MESSY's behaviour: the simulation stops with an error (the run
+    /// needed more charge than the battery holds).
+    #[default]
+    Error,
+    /// The flight ends there as a firmware exit ends it (the world is told
+    /// STOP, the outputs are complete, the run succeeds): for endurance
+    /// runs, whose point is to fly until the battery gives out.
+    End,
+}
+
+impl OnEmpty {
+    /// The configuration name (`error` or `end`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            OnEmpty::Error => "error",
+            OnEmpty::End => "end",
+        }
+    }
+}
+
+impl std::str::FromStr for OnEmpty {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "error" => Ok(OnEmpty::Error),
+            "end" => Ok(OnEmpty::End),
+            _ => Err(format!(
+                "unknown battery_empty {s:?} (expected \"error\" or \"end\")"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for OnEmpty {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Chen & Rincón-Mora (2006), `R_Series`: the constant and the exponential
 /// amplitude (Ω) and rate (per unit SOC).
 const R_CONSTANT_OHM: f64 = 0.07446;
