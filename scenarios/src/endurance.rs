@@ -123,7 +123,15 @@ mod tests {
     fn the_take_off_is_not_a_sink_and_the_first_row_below_the_mark_is() {
         // Climbs through 0.5 m (below the mark, not yet reached), holds,
         // sinks: the instant is the first row under 0.8 m after 0.95 m.
-        let t = traj(&[(0, 0.0), (1000, 0.5), (2000, 0.97), (3000, 1.0), (4000, 0.85), (5000, 0.79), (6000, 0.1)]);
+        let t = traj(&[
+            (0, 0.0),
+            (1000, 0.5),
+            (2000, 0.97),
+            (3000, 1.0),
+            (4000, 0.85),
+            (5000, 0.79),
+            (6000, 0.1),
+        ]);
         let p = power(&[(0.0, 1.0, 4.1), (5.0, 0.02, 2.7), (5.5, 0.019, 2.6)]);
         let h = height_loss(1.0, &t, &p, 1.0).unwrap();
         assert_eq!(h.world_s, 5.0);
@@ -144,7 +152,13 @@ mod tests {
     #[test]
     fn a_drone_that_never_reached_or_never_sank_has_no_height_loss() {
         let p = power(&[(0.0, 1.0, 4.1)]);
-        assert_eq!(height_loss(1.0, &traj(&[(0, 0.0), (1000, 0.9)]), &p, 1.0), None);
-        assert_eq!(height_loss(1.0, &traj(&[(0, 1.0), (1000, 0.9)]), &p, 1.0), None);
+        assert_eq!(
+            height_loss(1.0, &traj(&[(0, 0.0), (1000, 0.9)]), &p, 1.0),
+            None
+        );
+        assert_eq!(
+            height_loss(1.0, &traj(&[(0, 1.0), (1000, 0.9)]), &p, 1.0),
+            None
+        );
     }
 }

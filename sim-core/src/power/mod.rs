@@ -490,9 +490,9 @@ impl PowerNetwork {
         let currents = |v: Volts| {
             let i_vcc_battery = self.ldo.input_current(i_vcc, self.vcc_voltage, v);
             let models = self.models.evaluate(motor, v);
-            let i_motor = self
-                .motor_converter
-                .input_current(models[self.selected.index()].current, v, v);
+            let i_motor =
+                self.motor_converter
+                    .input_current(models[self.selected.index()].current, v, v);
             let i_battery_side: f64 = self
                 .battery_side_idle
                 .iter()
