@@ -16,6 +16,7 @@ pub mod bench_cluster;
 pub mod bench_race;
 pub mod launch;
 pub mod mapping;
+pub mod nn;
 pub mod perturb;
 pub mod plot;
 pub mod report;
