@@ -174,6 +174,10 @@ pub struct EvalReport {
     /// Frame in to outputs decoded (FC + cluster), mean, ms.
     pub latency_ms: f64,
     pub cycles_per_inference_max: u64,
+    /// Instructions of all cluster cores, and their L1 bank-conflict
+    /// stall cycles, per inference (mean).
+    pub cluster_instructions_per_inference: f64,
+    pub l1_stall_cycles_per_inference: f64,
     /// Cluster cycles of each layer, mean, and its MAC/cycle.
     pub layer_cycles: Vec<f64>,
     pub layer_mac_per_cycle: Vec<f64>,
@@ -267,6 +271,8 @@ pub fn evaluate(
         fc_cycles_per_inference: round(mean(&|r| r.fc_cycles as f64), 1),
         latency_ms: round(mean(&|r| r.latency.as_secs_f64()) * 1e3, 4),
         cycles_per_inference_max: runs.iter().map(|r| r.cluster_cycles).max().unwrap_or(0),
+        cluster_instructions_per_inference: round(mean(&|r| r.cluster_instructions as f64), 1),
+        l1_stall_cycles_per_inference: round(mean(&|r| r.l1_stall_cycles as f64), 1),
         layer_mac_per_cycle: layer_cycles
             .iter()
             .zip(&shape.layer_macs)

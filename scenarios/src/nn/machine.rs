@@ -85,6 +85,10 @@ pub struct Inference {
     pub latency: Picos,
     /// FC + cluster energy over that time, J.
     pub energy_j: f64,
+    /// Instructions every cluster core executed, and the cycles they
+    /// stalled on L1 bank conflicts, over that time.
+    pub cluster_instructions: u64,
+    pub l1_stall_cycles: u64,
 }
 
 /// Symbol addresses of the program's interface.
@@ -231,6 +235,14 @@ impl NnMachine {
         }
     }
 
+    /// Every cluster core's instructions and L1 stall cycles so far.
+    fn core_counts(&self) -> (u64, u64) {
+        self.cluster
+            .report_at(&self.mem, self.fc.now())
+            .iter()
+            .fold((0, 0), |(i, s), r| (i + r.instructions, s + r.l1_stall_cycles))
+    }
+
     /// FC + cluster energy since the meter's last sample, J.
     fn energy_since(&mut self, t0: Picos) -> f64 {
         let now = self.fc.now();
@@ -251,12 +263,14 @@ impl NnMachine {
         // (boot, the previous frame's stop) is not this inference's.
         let t0 = self.fc.now();
         self.energy_since(t0);
+        let counts0 = self.core_counts();
         self.mem.write_bytes(self.sym.image, image)?;
         self.mem
             .write_bytes(self.sym.command, &CMD_INFER.to_le_bytes())?;
         self.run_to_stop()?;
         let latency = self.fc.now().saturating_sub(t0);
         let energy_j = self.energy_since(t0);
+        let counts = self.core_counts();
         let stat = |i: usize| self.word(self.sym.stats + 4 * i as u32);
         if stat(0)? != 0 {
             bail!(
@@ -294,6 +308,8 @@ impl NnMachine {
                 .collect::<anyhow::Result<_>>()?,
             latency,
             energy_j,
+            cluster_instructions: counts.0 - counts0.0,
+            l1_stall_cycles: counts.1 - counts0.1,
         })
     }
 

@@ -40,15 +40,33 @@ void conv_tile_share(void *tile);
 
 /* The requantization of docs/NN.md step 2, exactly as training/int8_ref.py:
  * clip((acc * mult + 2^(shift-1)) >> shift, lo, hi), the product in 64 bits,
- * >> arithmetic. */
+ * >> arithmetic. On RV32 in 32-bit halves: the 64-bit product from mul and
+ * mulh, the shifted value's two words; when the high word is not the low
+ * word's sign extension the value lies beyond int32, hence beyond [lo, hi]
+ * (both int16), and its sign picks the bound. shift in [1, 31] (network.c
+ * checks the descriptors). */
 static inline int32_t nn_requant(int32_t acc, int32_t mult, int shift, int32_t lo, int32_t hi)
 {
-    int64_t p = ((int64_t)acc * mult + ((int64_t)1 << (shift - 1))) >> shift;
-    if (p < lo)
-        return lo;
-    if (p > hi)
-        return hi;
-    return (int32_t)p;
+    int64_t p = (int64_t)acc * mult + (uint32_t)(1u << (shift - 1));
+    int32_t ph = (int32_t)(p >> 32);
+    uint32_t pl = (uint32_t)p;
+    int32_t rh = ph >> shift;
+    int32_t rl = (int32_t)((pl >> shift) | ((uint32_t)ph << (32 - shift)));
+    if (rh != (rl >> 31))
+        return ph < 0 ? lo : hi;
+    return rl < lo ? lo : rl > hi ? hi : rl;
+}
+
+/* The same when shift >= 15: |acc * mult + round| < 2^31 * 2^15 (mult <=
+ * 32767, docs/NN.md), so the shifted value fits int32 and the clip is a
+ * cv.max and a cv.min, no branch. */
+static inline int32_t nn_requant_fast(int32_t acc, int32_t mult, int shift, int32_t lo,
+                                      int32_t hi)
+{
+    int64_t p = (int64_t)acc * mult + (uint32_t)(1u << (shift - 1));
+    int32_t r = (int32_t)(((uint32_t)p >> shift) | ((uint32_t)(p >> 32) << (32 - shift)));
+    r = r < lo ? lo : r;
+    return r > hi ? hi : r;
 }
 
 #endif

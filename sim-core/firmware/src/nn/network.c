@@ -77,7 +77,7 @@ static int plan(void)
     for (int i = 0; i < NN_N_LAYERS; i++) {
         const nn_layer_t *l = &nn_layers[i];
         int t = tile_channels(l);
-        if (!t || !row_words(l) || l->pad > 1)
+        if (!t || !row_words(l) || l->pad > 1 || l->shift < 1 || l->shift > 31)
             return -1;
         for (int c = 0; c < l->out_c; c += t) {
             if (n_tiles == (int)(sizeof tiles / sizeof tiles[0]))
@@ -142,7 +142,7 @@ static struct {
 static int setup(struct pi_device *cl)
 {
     if (plan() != 0) {
-        printf("nn: a layer of weights.h does not fit the kernel or a %d-byte slot\n",
+        printf("nn: a layer of weights.h does not fit the kernel (pad <= 1, shift 1-31) or a %d-byte slot\n",
                NN_SLOT_BYTES);
         return -1;
     }
