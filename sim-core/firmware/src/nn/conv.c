@@ -23,104 +23,111 @@ static inline pixel_t pixel(const conv_tile_t *t, int y, int x)
     return (pixel_t){y * t->in_ystep + x * t->in_pix, (y * t->out_row + x) * t->out_pix};
 }
 
-/* The 8 results of an item: channels c..c+3 of pixels at out offsets o0, o1
- * (o1 < 0: none, an odd count's last item), T the output's element type. */
-#define STORE_8(T, REQUANT, t, o0, o1, c, a)                                       \
-    do {                                                                             \
-        T *out_ = (T *)(t)->out;                                                     \
-        for (int j = 0; j < 4; j++) {                                                \
-            int32_t b = (t)->bias[(c) + j], m = (t)->mult[(c) + j];                  \
-            out_[(o0) + (c) + j] = (T)REQUANT((a)[j] + b, m, (t)->shift, (t)->lo, (t)->hi); \
-            if ((o1) >= 0)                                                           \
-                out_[(o1) + (c) + j] =                                               \
-                    (T)REQUANT((a)[4 + j] + b, m, (t)->shift, (t)->lo, (t)->hi);     \
-        }                                                                            \
+/* One word of the two windows times one word of the four channels. */
+#define STEP_2x4()                                                             \
+    do {                                                                       \
+        uint32_t v0 = xcv_lw_inc(x0, 4), v1 = xcv_lw_inc(x1, 4);               \
+        uint32_t q0 = xcv_lw_inc(k0, 4), q1 = xcv_lw_inc(k1, 4);               \
+        uint32_t q2 = xcv_lw_inc(k2, 4), q3 = xcv_lw_inc(k3, 4);               \
+        a[0] = xcv_sdotsp_b(a[0], v0, q0);                                     \
+        a[1] = xcv_sdotsp_b(a[1], v0, q1);                                     \
+        a[2] = xcv_sdotsp_b(a[2], v0, q2);                                     \
+        a[3] = xcv_sdotsp_b(a[3], v0, q3);                                     \
+        a[4] = xcv_sdotsp_b(a[4], v1, q0);                                     \
+        a[5] = xcv_sdotsp_b(a[5], v1, q1);                                     \
+        a[6] = xcv_sdotsp_b(a[6], v1, q2);                                     \
+        a[7] = xcv_sdotsp_b(a[7], v1, q3);                                     \
     } while (0)
 
-/* Two windows (input offsets i0, i1) by channels c..c+3. Window rows are
- * `in_row` apart in the input and `row_words` words apart in the weights;
- * six pointers walk a row a word at a time (post-increment loads). A word
- * of conv1's 3-byte rows may be misaligned: the CV32E40P loads it in two
- * cycles (docs/CLUSTER.md "Instructions", xcvmem), its fourth byte meets a
- * zero weight. */
-static inline void dot_2x4(const conv_tile_t *t, int i0, int i1, int c, int32_t a[8])
+/* Two windows (input offsets i0, i1) by channels c..c+3 into a[0..3]
+ * (first pixel) and a[4..7]. Six pointers walk the rows a word at a time
+ * (post-increment loads, cv.lw); a channel's weights are contiguous
+ * ([ky][kx][ci]), so the weight pointers run on from row to row and only
+ * the input pointers jump to the next row. Four words per iteration when
+ * the row allows (conv3-head), else two (conv2's 6; an odd count starts
+ * with one): the loop's counter and taken branch (3 cycles) spread over
+ * more dot products, as the core has no hardware loops here
+ * (docs/CLUSTER.md). A word of conv1's 3-byte rows may be misaligned: the
+ * CV32E40P loads it in two cycles (docs/CLUSTER.md "Instructions",
+ * xcvmem), its fourth byte meets a zero weight. */
+static inline __attribute__((always_inline)) void dot_2x4(const conv_tile_t *t, int i0, int i1,
+                                                          int c, int32_t a[8])
 {
-    int rw = t->row_words, wch = t->k * rw;
-    const uint32_t *w0 = t->w + c * wch;
-    int32_t a00 = 0, a01 = 0, a02 = 0, a03 = 0, a10 = 0, a11 = 0, a12 = 0, a13 = 0;
+    int rw = t->row_words, wch = t->k * rw, skip = t->in_row - 4 * rw;
+    const uint32_t *k0 = t->w + c * wch, *k1 = k0 + wch, *k2 = k1 + wch, *k3 = k2 + wch;
+    const uint32_t *x0 = (const uint32_t *)(t->in + i0), *x1 = (const uint32_t *)(t->in + i1);
+#pragma clang loop unroll(full)
+    for (int j = 0; j < 8; j++)
+        a[j] = 0;
     if (rw == 1 && t->k == 3) {
-        /* conv1 (3x3 over one channel): the three rows unrolled, no loop. */
+        /* conv1 (3x3 over one channel): three words, no loop. */
 #pragma clang loop unroll(full)
         for (int ky = 0; ky < 3; ky++) {
-            uint32_t v0 = *(const uint32_t *)(t->in + i0 + ky * t->in_row);
-            uint32_t v1 = *(const uint32_t *)(t->in + i1 + ky * t->in_row);
-            uint32_t q0 = w0[ky], q1 = w0[3 + ky], q2 = w0[6 + ky], q3 = w0[9 + ky];
-            a00 = xcv_sdotsp_b(a00, v0, q0);
-            a01 = xcv_sdotsp_b(a01, v0, q1);
-            a02 = xcv_sdotsp_b(a02, v0, q2);
-            a03 = xcv_sdotsp_b(a03, v0, q3);
-            a10 = xcv_sdotsp_b(a10, v1, q0);
-            a11 = xcv_sdotsp_b(a11, v1, q1);
-            a12 = xcv_sdotsp_b(a12, v1, q2);
-            a13 = xcv_sdotsp_b(a13, v1, q3);
+            STEP_2x4();
+            x0 = (const uint32_t *)((const int8_t *)x0 + skip);
+            x1 = (const uint32_t *)((const int8_t *)x1 + skip);
         }
-        a[0] = a00, a[1] = a01, a[2] = a02, a[3] = a03;
-        a[4] = a10, a[5] = a11, a[6] = a12, a[7] = a13;
         return;
     }
     for (int ky = 0; ky < t->k; ky++) {
-        const uint32_t *x0 = (const uint32_t *)(t->in + i0 + ky * t->in_row);
-        const uint32_t *x1 = (const uint32_t *)(t->in + i1 + ky * t->in_row);
-        const uint32_t *k0 = w0 + ky * rw, *k1 = k0 + wch, *k2 = k1 + wch, *k3 = k2 + wch;
-        for (int j = rw; j > 0; j--) {
-            uint32_t v0 = *x0++, v1 = *x1++;
-            uint32_t q0 = *k0++, q1 = *k1++, q2 = *k2++, q3 = *k3++;
-            a00 = xcv_sdotsp_b(a00, v0, q0);
-            a01 = xcv_sdotsp_b(a01, v0, q1);
-            a02 = xcv_sdotsp_b(a02, v0, q2);
-            a03 = xcv_sdotsp_b(a03, v0, q3);
-            a10 = xcv_sdotsp_b(a10, v1, q0);
-            a11 = xcv_sdotsp_b(a11, v1, q1);
-            a12 = xcv_sdotsp_b(a12, v1, q2);
-            a13 = xcv_sdotsp_b(a13, v1, q3);
+        if ((rw & 3) == 0) {
+            for (int j = rw >> 2; j > 0; j--) {
+                STEP_2x4();
+                STEP_2x4();
+                STEP_2x4();
+                STEP_2x4();
+            }
+        } else {
+            if (rw & 1)
+                STEP_2x4();
+            for (int j = rw >> 1; j > 0; j--) {
+                STEP_2x4();
+                STEP_2x4();
+            }
         }
+        x0 = (const uint32_t *)((const int8_t *)x0 + skip);
+        x1 = (const uint32_t *)((const int8_t *)x1 + skip);
     }
-    a[0] = a00, a[1] = a01, a[2] = a02, a[3] = a03;
-    a[4] = a10, a[5] = a11, a[6] = a12, a[7] = a13;
 }
 
-void conv_tile_share(void *arg)
+/* Items [first, last) of the tile (item = pair * quads + quad: a core's
+ * consecutive items reuse the same two input windows). `out16` and `fast`
+ * are constants at each call: the int16 or int8 output, nn_requant_fast
+ * or nn_requant; inlined, each call is its own loop without those tests. */
+static inline __attribute__((always_inline)) void items(const conv_tile_t *t, int first,
+                                                        int last, const int out16,
+                                                        const int fast)
 {
-    /* A private copy: the stores below cannot alias it, so its fields stay
-     * in registers. */
-    const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
-    int pixels = t->out_w * t->out_h;
-    int pairs = (pixels + 1) / 2, quads = t->channels / 4;
-    int items = pairs * quads;
-    int n = pi_cl_team_nb_cores(), i = (int)pi_core_id();
-    int first = items * i / n, last = items * (i + 1) / n;
-    /* Item = pair * quads + quad: a core's consecutive items reuse the
-     * same two input windows. */
+    int pixels = t->out_w * t->out_h, quads = t->channels / 4;
     int pair = first / quads, quad = first - pair * quads;
     /* (y, x) of the pair's first pixel, advanced without dividing. */
     int y = 2 * pair / t->out_w, x = 2 * pair - y * t->out_w;
     for (int it = first; it < last; it++) {
-        int32_t a[8];
         int has1 = 2 * pair + 1 < pixels;
         pixel_t q0 = pixel(t, y, x);
         pixel_t q1 = x + 1 < t->out_w ? pixel(t, y, x + 1) : pixel(t, y + 1, 0);
         if (!has1)
             q1 = q0;
-        dot_2x4(t, q0.in, q1.in, 4 * quad, a);
-        int o1 = has1 ? q1.out : -1;
-        if (t->shift < 15 && t->out_int16)
-            STORE_8(int16_t, nn_requant, t, q0.out, o1, 4 * quad, a);
-        else if (t->shift < 15)
-            STORE_8(int8_t, nn_requant, t, q0.out, o1, 4 * quad, a);
-        else if (t->out_int16)
-            STORE_8(int16_t, nn_requant_fast, t, q0.out, o1, 4 * quad, a);
-        else
-            STORE_8(int8_t, nn_requant_fast, t, q0.out, o1, 4 * quad, a);
+        int c = 4 * quad;
+        int32_t a[8];
+        dot_2x4(t, q0.in, q1.in, c, a);
+#pragma clang loop unroll(full)
+        for (int j = 0; j < 4; j++) {
+            int32_t b = t->bias[c + j], m = t->mult[c + j];
+            int32_t v0 = fast ? nn_requant_fast(a[j] + b, m, t->shift, t->lo, t->hi)
+                              : nn_requant(a[j] + b, m, t->shift, t->lo, t->hi);
+            int32_t v1 = fast ? nn_requant_fast(a[4 + j] + b, m, t->shift, t->lo, t->hi)
+                              : nn_requant(a[4 + j] + b, m, t->shift, t->lo, t->hi);
+            if (out16) {
+                ((int16_t *)t->out)[q0.out + c + j] = (int16_t)v0;
+                if (has1)
+                    ((int16_t *)t->out)[q1.out + c + j] = (int16_t)v1;
+            } else {
+                ((int8_t *)t->out)[q0.out + c + j] = (int8_t)v0;
+                if (has1)
+                    ((int8_t *)t->out)[q1.out + c + j] = (int8_t)v1;
+            }
+        }
         if (++quad == quads) {
             quad = 0;
             pair++;
@@ -131,4 +138,25 @@ void conv_tile_share(void *arg)
             }
         }
     }
+}
+
+void conv_tile_share(void *arg)
+{
+    /* A private copy: the stores cannot alias it, so its fields stay in
+     * registers. */
+    const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
+    int pairs = (t->out_w * t->out_h + 1) / 2;
+    int n_items = pairs * (t->channels / 4);
+    int n = pi_cl_team_nb_cores(), i = (int)pi_core_id();
+    int first = n_items * i / n, last = n_items * (i + 1) / n;
+    /* shift >= 15: no int32 overflow in the requantization (conv.h). */
+    int fast = t->shift >= 15;
+    if (t->out_int16 && fast)
+        items(t, first, last, 1, 1);
+    else if (t->out_int16)
+        items(t, first, last, 1, 0);
+    else if (fast)
+        items(t, first, last, 0, 1);
+    else
+        items(t, first, last, 0, 0);
 }
