@@ -341,7 +341,7 @@ enum NnCmd {
         /// Only the first K images.
         #[arg(long, value_name = "K")]
         limit: Option<usize>,
-        /// Where to write eval.json (default: DIR/eval.json).
+        /// Where to write eval.json (default: out/nn-eval/eval.json).
         #[arg(long, value_name = "FILE")]
         out: Option<PathBuf>,
         /// Also write every image's raw head and decoded outputs (JSON, the
@@ -860,6 +860,9 @@ fn cmd_nn_eval(
     })?;
     let json = serde_json::to_string_pretty(&report)?;
     println!("{json}");
+    if let Some(dir) = args.out_json.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     std::fs::write(&args.out_json, format!("{json}\n"))
         .with_context(|| format!("writing {}", args.out_json.display()))?;
     if let Some(h) = heads {
@@ -1037,7 +1040,7 @@ fn main() -> ExitCode {
                 },
         } => cmd_nn_eval(
             scenarios::nn::eval::EvalArgs {
-                out_json: out.unwrap_or_else(|| data.join("eval.json")),
+                out_json: out.unwrap_or_else(|| Path::new("out").join("nn-eval").join("eval.json")),
                 data,
                 cores,
                 mhz,

@@ -293,3 +293,94 @@ pub fn evaluate(
         .collect();
     Ok((report, heads))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn out(visible: bool, u: f64, v: f64) -> Outputs {
+        Outputs {
+            visible,
+            score: 0,
+            cell: [0, 0],
+            u_q4: (u * 16.0) as i32,
+            v_q4: (v * 16.0) as i32,
+            distance_mm: 0,
+            corners_q4: [0; 8],
+        }
+    }
+
+    fn label(centre: Option<(f64, f64)>) -> Label {
+        Label {
+            file: String::new(),
+            centre,
+        }
+    }
+
+    #[test]
+    fn percentile_interpolates_as_numpy() {
+        // numpy.percentile([1, 2, 3, 4], 95) = 3.85; of one value, itself.
+        assert!((percentile(&[1.0, 2.0, 3.0, 4.0], 95.0) - 3.85).abs() < 1e-12);
+        assert_eq!(percentile(&[7.0], 95.0), 7.0);
+        assert_eq!(percentile(&[1.0, 3.0], 50.0), 2.0);
+    }
+
+    #[test]
+    fn accuracy_counts_as_evaluate_py() {
+        // Two gates, one found 5 px off (3-4-5), one missed; two empty
+        // images, one with a false positive.
+        let labels = [
+            label(Some((100.0, 100.0))),
+            label(Some((50.0, 50.0))),
+            label(None),
+            label(None),
+        ];
+        let preds = [
+            out(true, 103.0, 104.0),
+            out(false, 50.0, 50.0),
+            out(true, 10.0, 10.0),
+            out(false, 0.0, 0.0),
+        ];
+        let a = accuracy(&preds, &labels);
+        assert_eq!(a.images, 4);
+        assert_eq!(a.with_gate, 2);
+        assert_eq!(a.detection_rate, 0.5);
+        assert_eq!(a.false_positive_rate, 0.5);
+        assert_eq!(a.mean_px_error, Some(5.0));
+        assert_eq!(a.p95_px_error, Some(5.0));
+        // Nothing detected: no errors to average.
+        let none = accuracy(&[out(false, 0.0, 0.0)], &[label(Some((1.0, 1.0)))]);
+        assert_eq!((none.detection_rate, none.mean_px_error), (0.0, None));
+    }
+
+    #[test]
+    fn pgm_and_labels_are_checked() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.pgm");
+        let mut good = b"P5\n4 4\n255\n".to_vec();
+        good.extend(0..16u8);
+        std::fs::write(&p, &good).unwrap();
+        assert_eq!(read_pgm(&p, 4).unwrap(), (0..16u8).collect::<Vec<_>>());
+        let e = read_pgm(&p, 320).unwrap_err().to_string();
+        assert!(e.contains("320x320"), "{e}");
+        std::fs::write(&p, &good[..20]).unwrap();
+        assert!(read_pgm(&p, 4)
+            .unwrap_err()
+            .to_string()
+            .contains("pixel bytes"));
+
+        let csv = "file,gate_visible,u,v,distance_m,corners\n\
+                   a.pgm,1,10.5,20.25,3.0,1 2 3 4 5 6 7 8\nb.pgm,0,,,,\n";
+        std::fs::write(dir.path().join("labels.csv"), csv).unwrap();
+        let l = read_labels(dir.path()).unwrap();
+        assert_eq!(l[0].centre, Some((10.5, 20.25)));
+        assert_eq!((l[1].file.as_str(), l[1].centre), ("b.pgm", None));
+        std::fs::write(
+            dir.path().join("labels.csv"),
+            "file,gate_visible\na.pgm,2\n",
+        )
+        .unwrap();
+        let e = read_labels(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("row 2"), "{e}");
+    }
+}

@@ -240,7 +240,9 @@ impl NnMachine {
         self.cluster
             .report_at(&self.mem, self.fc.now())
             .iter()
-            .fold((0, 0), |(i, s), r| (i + r.instructions, s + r.l1_stall_cycles))
+            .fold((0, 0), |(i, s), r| {
+                (i + r.instructions, s + r.l1_stall_cycles)
+            })
     }
 
     /// FC + cluster energy since the meter's last sample, J.
