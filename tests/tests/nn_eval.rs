@@ -4,11 +4,13 @@
 //! `python3 training/make_golden.py`) bit for bit: every image's raw int16
 //! head and its decoded outputs. The same on 3 cores (another split of the
 //! work, more cycles); two runs give the same bytes; bad input is one line
-//! and exit code 2.
+//! and exit code 2. And the kernels' arithmetic on the ISS (nn_selftest.elf):
+//! both requantizations against the plain 64-bit formula, the decoding's
+//! first maximum, the FC's block means.
 
 use std::path::Path;
 
-use e2e_tests::{output_text as text, repo_root, CosimBins as Bins};
+use e2e_tests::{binary, firmware, output_text as text, repo_root, CosimBins as Bins};
 use serde_json::Value;
 
 fn eval(bins: &Bins, data: &Path, cores: &str, out: &Path, heads: &Path) -> Value {
@@ -127,4 +129,19 @@ fn bad_input_is_one_line_and_exit_2() {
         assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
         assert!(err.contains(want), "{args:?}: {err}");
     }
+}
+
+#[test]
+fn kernel_arithmetic_passes_its_self_test_on_the_iss() {
+    let o = std::process::Command::new(binary("sim-core", "sim-core"))
+        .arg("run-elf")
+        .arg(firmware("nn_selftest"))
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        out.contains(" 0 failures: PASS") && out.contains("nn_selftest: 1131 checks"),
+        "{out}"
+    );
 }
