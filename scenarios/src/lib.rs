@@ -17,6 +17,7 @@ pub mod bench_race;
 pub mod endurance;
 pub mod launch;
 pub mod mapping;
+pub mod nn;
 pub mod perturb;
 pub mod plot;
 pub mod report;

@@ -11,6 +11,8 @@
 //! - `cosim bench swarm [--sizes 1,2,4,8]`, `cosim bench race`,
 //!   `cosim bench cluster [--cores 1,2,4,8]`
 //! - `cosim dataset WORLD --count N --seed S --out DIR` (labelled camera images)
+//! - `cosim nn eval DIR [--cores N --mhz F --limit K --out FILE]` (the int8
+//!   network on the ISS over a dataset)
 //! - `cosim list`
 
 use std::path::{Path, PathBuf};
@@ -257,6 +259,11 @@ enum Cmd {
         #[arg(long, default_value_t = 1e-9)]
         tolerance: f64,
     },
+    /// The int8 gate network on the GAP8 (DESIGN.md §13, docs/NN.md).
+    Nn {
+        #[command(subcommand)]
+        what: NnCmd,
+    },
     /// Lists the scenarios shipped in scenarios/.
     List,
     /// Measurements (not tests): what a run costs.
@@ -314,6 +321,40 @@ enum BenchCmd {
         /// Runs per size; the fastest is kept (others' load only slows).
         #[arg(long, default_value_t = 1)]
         repeat: usize,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+enum NnCmd {
+    /// Runs the network on the ISS (FC + cluster, nn_eval.elf) over a
+    /// `cosim dataset` directory, scores it as training/evaluate.py does,
+    /// prints and writes eval.json.
+    Eval {
+        /// The dataset directory (labels.csv and the PGMs).
+        data: PathBuf,
+        /// Cluster cores (1-8).
+        #[arg(long, default_value_t = 8)]
+        cores: usize,
+        /// Cluster clock, MHz.
+        #[arg(long, default_value_t = 175)]
+        mhz: u64,
+        /// Only the first K images.
+        #[arg(long, value_name = "K")]
+        limit: Option<usize>,
+        /// Where to write eval.json (default: out/nn-eval/eval.json).
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+        /// Also write every image's raw head and decoded outputs (JSON, the
+        /// fields of training/golden/golden.json).
+        #[arg(long, value_name = "FILE")]
+        heads: Option<PathBuf>,
+        /// The program (default: sim-core/firmware/bin/nn_eval.elf).
+        #[arg(long, value_name = "FILE")]
+        elf: Option<PathBuf>,
+        /// The platform file whose FC power figures are used (default:
+        /// sim-core/platforms/crazyflie-aideck.json).
+        #[arg(long, value_name = "FILE")]
+        platform: Option<PathBuf>,
     },
 }
 
@@ -807,6 +848,36 @@ fn cmd_bench_cluster(
     Ok(ExitCode::SUCCESS)
 }
 
+fn cmd_nn_eval(
+    args: scenarios::nn::eval::EvalArgs,
+    heads: Option<PathBuf>,
+) -> anyhow::Result<ExitCode> {
+    let start = std::time::Instant::now();
+    let (report, records) = scenarios::nn::eval::evaluate(&args, |i, n| {
+        if i % 100 == 0 || i == n {
+            eprintln!("cosim nn eval: {i}/{n} images");
+        }
+    })?;
+    let json = serde_json::to_string_pretty(&report)?;
+    println!("{json}");
+    if let Some(dir) = args.out_json.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    std::fs::write(&args.out_json, format!("{json}\n"))
+        .with_context(|| format!("writing {}", args.out_json.display()))?;
+    if let Some(h) = heads {
+        std::fs::write(&h, serde_json::to_string(&records)?)
+            .with_context(|| format!("writing {}", h.display()))?;
+    }
+    eprintln!(
+        "cosim nn eval: {} images in {:.1} s -> {}",
+        report.images,
+        start.elapsed().as_secs_f64(),
+        args.out_json.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 fn cmd_list() -> anyhow::Result<ExitCode> {
     let dir = find_repo_file("scenarios/thesis-race.toml")
         .and_then(|p| p.parent().map(Path::to_path_buf))
@@ -955,6 +1026,30 @@ fn main() -> ExitCode {
             tolerance,
         } => cmd_trace_check(trace, world_cmd, world, tolerance, bins),
         Cmd::List => cmd_list(),
+        Cmd::Nn {
+            what:
+                NnCmd::Eval {
+                    data,
+                    cores,
+                    mhz,
+                    limit,
+                    out,
+                    heads,
+                    elf,
+                    platform,
+                },
+        } => cmd_nn_eval(
+            scenarios::nn::eval::EvalArgs {
+                out_json: out.unwrap_or_else(|| Path::new("out").join("nn-eval").join("eval.json")),
+                data,
+                cores,
+                mhz,
+                limit,
+                elf: elf.unwrap_or_else(scenarios::nn::machine::default_elf),
+                platform: platform.unwrap_or_else(scenarios::nn::machine::default_platform),
+            },
+            heads,
+        ),
         Cmd::Bench {
             what:
                 BenchCmd::Swarm {

@@ -1,0 +1,118 @@
+/*
+ * Self-test of the kernels' integer arithmetic on the ISS (docs/NN.md
+ * "Int8 arithmetic"), run by tests/tests/nn_eval.rs: the requantizations
+ * of conv.h (the general one, used when a layer's shift is below 15, which
+ * no layer of today's weights has, and the fast one) against the plain
+ * 64-bit formula, on edge and pseudo-random operands; the rounding's
+ * hand-computed cases; the decoding's first-maximum rule; the FC's block
+ * means against a byte-by-byte sum.
+ */
+#include <stdio.h>
+#include <string.h>
+
+#include "../selfcheck.h"
+#include "conv.h"
+#include "decode.h"
+#include "frame.h"
+
+/* docs/NN.md step 2 written plainly: 64-bit product, arithmetic shift, clip. */
+static int32_t reference(int32_t acc, int32_t mult, int shift, int32_t lo, int32_t hi)
+{
+    int64_t p = ((int64_t)acc * mult + ((int64_t)1 << (shift - 1))) >> shift;
+    return p < lo ? lo : p > hi ? hi : (int32_t)p;
+}
+
+static uint32_t lcg = 0x2545f491u;
+static uint32_t next(void) { return lcg = lcg * 1664525u + 1013904223u; }
+
+static void requantization(void)
+{
+    static const int32_t accs[] = {0, 1, -1, 2, -2, 3, -3, 127, -128, 65535, -65536,
+                                   1 << 30, -(1 << 30), 2147483647, -2147483647};
+    static const int shifts[] = {1, 2, 7, 14, 15, 16, 21, 22, 31};
+    static const int32_t ranges[][2] = {{0, 127}, {-32768, 32767}};
+    char name[64];
+    for (unsigned r = 0; r < 2; r++)
+        for (unsigned s = 0; s < sizeof shifts / sizeof shifts[0]; s++)
+            for (int k = 0; k < 40; k++) {
+                int32_t acc = k < (int)(sizeof accs / sizeof accs[0]) ? accs[k] : (int32_t)next();
+                int32_t mult = k % 3 == 0 ? 32767 : k % 3 == 1 ? 1 : (int32_t)(next() % 32767) + 1;
+                int sh = shifts[s];
+                int32_t lo = ranges[r][0], hi = ranges[r][1];
+                int32_t want = reference(acc, mult, sh, lo, hi);
+                snprintf(name, sizeof name, "requant acc %ld mult %ld shift %d", (long)acc,
+                         (long)mult, sh);
+                check(name, (uint32_t)nn_requant((int32_t)opaque((uint32_t)acc), mult, sh, lo, hi),
+                      (uint32_t)want);
+                if (sh >= 15)
+                    check(name, (uint32_t)nn_requant_fast((int32_t)opaque((uint32_t)acc), mult,
+                                                          sh, lo, hi),
+                          (uint32_t)want);
+            }
+    /* Half up, as docs/NN.md: 1.5 -> 2, -1.5 -> -1, 2.5 -> 3. */
+    check("round 1.5", (uint32_t)nn_requant(3, 1, 1, -100, 100), 2);
+    check("round -1.5", (uint32_t)nn_requant(-3, 1, 1, -100, 100), (uint32_t)-1);
+    check("round 2.5", (uint32_t)nn_requant_fast(5 << 14, 1, 15, -100, 100), 3);
+}
+
+static void decoding(void)
+{
+    static int16_t head[NN_GRID * NN_GRID * NN_HEAD_CHANNELS];
+    nn_output_t o;
+    memset(head, 0, sizeof head);
+    for (int i = 0; i < NN_GRID * NN_GRID; i++)
+        head[i * NN_HEAD_CHANNELS] = -50;
+    /* Two equal maxima: the first in raster order wins (cell 7 before 18). */
+    head[7 * NN_HEAD_CHANNELS] = 9;
+    head[18 * NN_HEAD_CHANNELS] = 9;
+    head[7 * NN_HEAD_CHANNELS + 1] = -16;
+    head[7 * NN_HEAD_CHANNELS + 3] = 4321;
+    nn_decode(head, &o);
+    check("decode visible", (uint32_t)o.visible, 1);
+    check("decode cell x", (uint32_t)o.cell_x, 7 % NN_GRID);
+    check("decode cell y", (uint32_t)o.cell_y, 7 / NN_GRID);
+    check("decode u", (uint32_t)o.u_q4, 16 * (NN_CELL_PX * (7 % NN_GRID) + NN_CELL_PX / 2) - 16);
+    check("decode distance", (uint32_t)o.distance_mm, 4321);
+    head[7 * NN_HEAD_CHANNELS] = 0;
+    head[18 * NN_HEAD_CHANNELS] = 0;
+    nn_decode(head, &o);
+    check("decode not visible at 0", (uint32_t)o.visible, 0);
+}
+
+static uint8_t frame[NN_CAMERA * NN_CAMERA] __attribute__((aligned(4)));
+static int8_t input[NN_INPUT_PADDED_BYTES] __attribute__((aligned(4)));
+
+static void block_means(void)
+{
+    for (int i = 0; i < NN_CAMERA * NN_CAMERA; i++)
+        frame[i] = (uint8_t)(next() >> 24);
+    frame[0] = 255; /* a block of 255s: (16·255 + 8) >> 4 = 255 -> 127 */
+    for (int y = 0; y < NN_POOL; y++)
+        for (int x = 0; x < NN_POOL; x++)
+            frame[y * NN_CAMERA + x] = 255;
+    memset(input, 0x55, sizeof input);
+    nn_downsample(frame, input);
+    uint32_t bad = 0;
+    for (int by = -1; by <= NN_INPUT; by++)
+        for (int bx = -1; bx <= NN_INPUT; bx++) {
+            int32_t want = 0;
+            if (by >= 0 && bx >= 0 && by < NN_INPUT && bx < NN_INPUT) {
+                uint32_t sum = 8;
+                for (int y = 0; y < NN_POOL; y++)
+                    for (int x = 0; x < NN_POOL; x++)
+                        sum += frame[(by * NN_POOL + y) * NN_CAMERA + bx * NN_POOL + x];
+                want = (int32_t)(sum >> 4) - 128;
+            }
+            bad += input[(by + 1) * (NN_INPUT + 2) + bx + 1] != want;
+        }
+    check("block means and zero border", bad, 0);
+    check("block of 255", (uint32_t)input[NN_INPUT + 3], 127);
+}
+
+int main(void)
+{
+    requantization();
+    decoding();
+    block_means();
+    return summary("nn_selftest");
+}

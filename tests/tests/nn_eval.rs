@@ -1,0 +1,147 @@
+//! `cosim nn eval` end to end (DESIGN.md §13, docs/NN.md "On the cluster"):
+//! the real nn_eval.elf on the ISS (FC + 8-core cluster) over the golden
+//! images reproduces the numpy int8 reference (training/golden/golden.json,
+//! `python3 training/make_golden.py`) bit for bit: every image's raw int16
+//! head and its decoded outputs. The same on 3 cores (another split of the
+//! work, more cycles); two runs give the same bytes; bad input is one line
+//! and exit code 2. And the kernels' arithmetic on the ISS (nn_selftest.elf):
+//! both requantizations against the plain 64-bit formula, the decoding's
+//! first maximum, the FC's block means.
+
+use std::path::Path;
+
+use e2e_tests::{binary, firmware, output_text as text, repo_root, CosimBins as Bins};
+use serde_json::Value;
+
+fn eval(bins: &Bins, data: &Path, cores: &str, out: &Path, heads: &Path) -> Value {
+    let o = bins.cosim(&[
+        "nn",
+        "eval",
+        data.to_str().unwrap(),
+        "--cores",
+        cores,
+        "--out",
+        out.to_str().unwrap(),
+        "--heads",
+        heads.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    serde_json::from_slice(&std::fs::read(out).unwrap()).unwrap()
+}
+
+fn read_json(p: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
+}
+
+/// Every image's head and outputs equal the reference's.
+fn assert_golden(heads: &Value, golden: &Value, what: &str) {
+    let want = golden["images"].as_array().unwrap();
+    let got = heads.as_array().unwrap();
+    assert_eq!(got.len(), want.len(), "{what}: one record per golden image");
+    for (g, w) in got.iter().zip(want) {
+        assert_eq!(g["file"], w["file"], "{what}: image order");
+        assert_eq!(w["head"].as_array().unwrap().len(), 300);
+        assert_eq!(g["head"], w["head"], "{what}: {} head", w["file"]);
+        assert_eq!(g["outputs"], w["outputs"], "{what}: {} outputs", w["file"]);
+    }
+}
+
+#[test]
+fn the_cluster_reproduces_the_int8_reference_bit_for_bit() {
+    let bins = Bins::new();
+    let tmp = tempfile::tempdir().unwrap();
+    let data = repo_root().join("training/golden");
+    let golden = read_json(&data.join("golden.json"));
+    let p = |f: &str| tmp.path().join(f);
+
+    let r8 = eval(&bins, &data, "8", &p("e8.json"), &p("h8.json"));
+    assert_golden(&read_json(&p("h8.json")), &golden, "8 cores");
+    let r3 = eval(&bins, &data, "3", &p("e3.json"), &p("h3.json"));
+    assert_golden(&read_json(&p("h3.json")), &golden, "3 cores");
+
+    for key in [
+        "images",
+        "detection_rate",
+        "false_positive_rate",
+        "mean_px_error",
+        "p95_px_error",
+        "cycles_per_inference",
+        "mac_per_inference",
+        "mac_per_cycle",
+        "energy_per_inference_mj",
+    ] {
+        assert!(r8.get(key).is_some(), "eval.json lacks {key}: {r8}");
+    }
+    assert_eq!(r8["images"], 8);
+    assert_eq!(r8["mac_per_inference"], 3_360_000);
+    // The accuracy is a function of the outputs alone: the same on 3 cores.
+    for key in ["detection_rate", "false_positive_rate", "mean_px_error"] {
+        assert_eq!(r8[key], r3[key], "{key}");
+    }
+    let c8 = r8["cycles_per_inference"].as_f64().unwrap();
+    let c3 = r3["cycles_per_inference"].as_f64().unwrap();
+    assert!(c3 > 2.0 * c8, "3 cores {c3} cycles vs 8 cores {c8}");
+    let mpc = r8["mac_per_cycle"].as_f64().unwrap();
+    assert!((mpc - 3.36e6 / c8).abs() < 1e-3, "{mpc} vs {c8} cycles");
+    let layers: f64 = r8["layer_cycles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .sum();
+    assert!(layers <= c8 && layers > 0.9 * c8, "layers {layers} of {c8}");
+    let e = r8["energy_per_inference_mj"].as_f64().unwrap();
+    assert!(e > 0.0 && e < 10.0, "{e} mJ");
+
+    // Deterministic: the same bytes again.
+    eval(&bins, &data, "8", &p("again.json"), &p("h_again.json"));
+    assert_eq!(
+        std::fs::read(p("e8.json")).unwrap(),
+        std::fs::read(p("again.json")).unwrap()
+    );
+}
+
+#[test]
+fn bad_input_is_one_line_and_exit_2() {
+    let bins = Bins::new();
+    let tmp = tempfile::tempdir().unwrap();
+    let golden = repo_root().join("training/golden");
+    let bad_pgm = tmp.path().join("bad");
+    std::fs::create_dir(&bad_pgm).unwrap();
+    std::fs::write(
+        bad_pgm.join("labels.csv"),
+        "file,gate_visible,u,v,distance_m,corners\nimg.pgm,0,,,,\n",
+    )
+    .unwrap();
+    std::fs::write(bad_pgm.join("img.pgm"), b"P5\n32 32\n255\n").unwrap();
+    let cases: [(&[&str], &str); 3] = [
+        (&["nn", "eval", "/nonexistent/dir"], "labels.csv"),
+        (
+            &["nn", "eval", golden.to_str().unwrap(), "--cores", "9"],
+            "--cores 9",
+        ),
+        (&["nn", "eval", bad_pgm.to_str().unwrap()], "320x320"),
+    ];
+    for (args, want) in cases {
+        let o = bins.cosim(args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn kernel_arithmetic_passes_its_self_test_on_the_iss() {
+    let o = std::process::Command::new(binary("sim-core", "sim-core"))
+        .arg("run-elf")
+        .arg(firmware("nn_selftest"))
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        out.contains(" 0 failures: PASS") && out.contains("nn_selftest: 1131 checks"),
+        "{out}"
+    );
+}
