@@ -170,7 +170,7 @@ impl CrtpServer {
 
     /// The estimate and ranges of this step's sensor read; the decks from
     /// the first one (the param TOC is fixed from then on).
-    fn observe(&mut self, s: &Sensors, est: &[f64; 15]) {
+    fn observe(&mut self, s: &Sensors, est: &[f64; 15], gains: &super::pid::PidGains) {
         let t = &mut self.telemetry;
         t.pos = [est[0], est[1], est[2]];
         t.yaw = est[3];
@@ -180,11 +180,14 @@ impl CrtpServer {
         t.pitch = s.pitch;
         let ai = self.cfg.ai_deck;
         self.params.get_or_insert_with(|| {
-            Params::new(Decks {
-                flow2: s.flow_vx.is_some(),
-                multiranger: s.range_up.is_some(),
-                ai,
-            })
+            Params::new(
+                Decks {
+                    flow2: s.flow_vx.is_some(),
+                    multiranger: s.range_up.is_some(),
+                    ai,
+                },
+                gains,
+            )
         });
     }
 
@@ -461,9 +464,12 @@ impl Stm32 {
         self.stats.pid_iterations += 1;
         let (dt, actual) = self.measured(&s);
         let mut server = self.crtp.take().expect("the CRTP process has a link");
-        server.observe(&s, &self.motion.est);
+        server.observe(&s, &self.motion.est, &self.flight.pid.gains);
         let result = (|| {
             server.serve(now).map_err(io_device)?;
+            if let Some(p) = &server.params {
+                p.apply_gains(&mut self.flight.pid.gains);
+            }
             let demand = server.demand(now, dt);
             let mut desired = DesiredState::default();
             let commands = match demand {

@@ -11,6 +11,7 @@
 
 use super::packet::u16_at;
 use super::toc::{self, TocEntry};
+use crate::peripherals::stm32::pid::PidGains;
 
 pub const CHAN_TOC: u8 = 0;
 pub const CHAN_READ: u8 = 1;
@@ -42,7 +43,70 @@ pub enum Known {
     EnHighLevel,
     ResetEstimation,
     Controller,
+    /// A gain of the Bitcraze controller (DESIGN.md §4), by the firmware's
+    /// name for the same loop.
+    Gain(Gain),
 }
+
+/// The gains of [`PidGains`] served as parameters. The Webots controller
+/// has one gain for roll and pitch and one for both horizontal velocities:
+/// `pid_attitude.roll_kp` and `pitch_kp` are the same gain (writing one
+/// writes both), as are `vxKp` and `vyKp`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Gain {
+    AttRpKp,
+    AttRpKd,
+    AttYKp,
+    VelKp,
+    VelKd,
+    ZKp,
+    ZKi,
+    ZKd,
+}
+
+impl Gain {
+    fn of(self, g: &PidGains) -> f64 {
+        match self {
+            Gain::AttRpKp => g.kp_att_rp,
+            Gain::AttRpKd => g.kd_att_rp,
+            Gain::AttYKp => g.kp_att_y,
+            Gain::VelKp => g.kp_vel_xy,
+            Gain::VelKd => g.kd_vel_xy,
+            Gain::ZKp => g.kp_z,
+            Gain::ZKi => g.ki_z,
+            Gain::ZKd => g.kd_z,
+        }
+    }
+
+    fn set(self, g: &mut PidGains, v: f64) {
+        *match self {
+            Gain::AttRpKp => &mut g.kp_att_rp,
+            Gain::AttRpKd => &mut g.kd_att_rp,
+            Gain::AttYKp => &mut g.kp_att_y,
+            Gain::VelKp => &mut g.kp_vel_xy,
+            Gain::VelKd => &mut g.kd_vel_xy,
+            Gain::ZKp => &mut g.kp_z,
+            Gain::ZKi => &mut g.ki_z,
+            Gain::ZKd => &mut g.kd_z,
+        } = v;
+    }
+}
+
+/// (group, name, gain) of the gain parameters.
+const GAINS: [(&str, &str, Gain); 12] = [
+    ("pid_attitude", "roll_kp", Gain::AttRpKp),
+    ("pid_attitude", "roll_kd", Gain::AttRpKd),
+    ("pid_attitude", "pitch_kp", Gain::AttRpKp),
+    ("pid_attitude", "pitch_kd", Gain::AttRpKd),
+    ("pid_attitude", "yaw_kp", Gain::AttYKp),
+    ("velCtlPid", "vxKp", Gain::VelKp),
+    ("velCtlPid", "vxKd", Gain::VelKd),
+    ("velCtlPid", "vyKp", Gain::VelKp),
+    ("velCtlPid", "vyKd", Gain::VelKd),
+    ("posCtlPid", "zKp", Gain::ZKp),
+    ("posCtlPid", "zKi", Gain::ZKi),
+    ("posCtlPid", "zKd", Gain::ZKd),
+];
 
 struct Param {
     entry: TocEntry,
@@ -58,7 +122,7 @@ pub struct Params {
 }
 
 impl Params {
-    pub fn new(decks: Decks) -> Self {
+    pub fn new(decks: Decks, gains: &PidGains) -> Self {
         let b = |v: bool| if v { 1.0 } else { 0.0 };
         let p = |ty: u8, group: &'static str, name: &'static str, known: Known, value: f64| Param {
             entry: TocEntry { ty, group, name },
@@ -66,7 +130,7 @@ impl Params {
             value,
         };
         let ro = PARAM_UINT8 | PARAM_RONLY;
-        let params = vec![
+        let mut params = vec![
             p(ro, "deck", "bcFlow2", Known::FlowDeck, b(decks.flow2)),
             p(ro, "deck", "bcMultiranger", Known::MultirangerDeck, b(decks.multiranger)),
             p(ro, "deck", "bcAI", Known::AiDeck, b(decks.ai)),
@@ -74,6 +138,9 @@ impl Params {
             p(PARAM_UINT8, "kalman", "resetEstimation", Known::ResetEstimation, 0.0),
             p(PARAM_UINT8, "stabilizer", "controller", Known::Controller, CONTROLLER_PID),
         ];
+        for (group, name, g) in GAINS {
+            params.push(p(PARAM_FLOAT, group, name, Known::Gain(g), g.of(gains)));
+        }
         let entries = params.iter().map(|p| p.entry.clone()).collect();
         Params {
             params,
@@ -95,6 +162,15 @@ impl Params {
             .iter()
             .find(|p| p.known == k)
             .map_or(0.0, |p| p.value)
+    }
+
+    /// The controller's gains as the parameters hold them.
+    pub fn apply_gains(&self, g: &mut PidGains) {
+        for p in &self.params {
+            if let Known::Gain(k) = p.known {
+                k.set(g, p.value);
+            }
+        }
     }
 
     fn encode(p: &Param) -> Vec<u8> {
@@ -135,14 +211,23 @@ impl Params {
             // One controller is flown (the Bitcraze PID of DESIGN.md §4):
             // the parameter keeps saying so, and the answer shows it.
             Known::Controller => CONTROLLER_PID,
+            // A gain must be a finite number (the PID would fly NaN).
+            Known::Gain(_) if !v.is_finite() => p.value,
             _ => v,
         };
-        if p.known == Known::ResetEstimation && p.value != 0.0 {
+        let (known, value) = (p.known, p.value);
+        if known == Known::ResetEstimation && value != 0.0 {
             self.resets += 1;
         }
         let mut out = id.to_le_bytes().to_vec();
         out.extend(Self::encode(p));
-        Some((out, p.known))
+        // A shared gain: every name of it holds the new value.
+        if let Known::Gain(_) = known {
+            for q in self.params.iter_mut().filter(|q| q.known == known) {
+                q.value = value;
+            }
+        }
+        Some((out, known))
     }
 }
 
@@ -158,6 +243,7 @@ mod tests {
                 multiranger: true,
                 ai: false,
             },
+            &PidGains::default(),
         );
         let flow = toc::find(p.entries(), "deck.bcFlow2").unwrap();
         let ai = toc::find(p.entries(), "deck.bcAI").unwrap();
@@ -175,5 +261,16 @@ mod tests {
         assert_eq!(p.get(Known::EnHighLevel), 0.0);
         let (ans, _) = p.write(&[ctl as u8, 0, 2]).unwrap();
         assert_eq!(ans, vec![ctl as u8, 0, 1]);
+        // pitch_kd is the Webots controller's roll/pitch kd (0.1), shared.
+        let pkd = toc::find(p.entries(), "pid_attitude.pitch_kd").unwrap();
+        let rkd = toc::find(p.entries(), "pid_attitude.roll_kd").unwrap();
+        assert_eq!(p.read(&pkd.to_le_bytes()).unwrap()[3..], 0.1f32.to_le_bytes());
+        let mut w = pkd.to_le_bytes().to_vec();
+        w.extend(0.2f32.to_le_bytes());
+        p.write(&w).unwrap();
+        assert_eq!(p.read(&rkd.to_le_bytes()).unwrap()[3..], 0.2f32.to_le_bytes());
+        let mut g = PidGains::default();
+        p.apply_gains(&mut g);
+        assert_eq!(g.kd_att_rp, 0.2f32 as f64);
     }
 }
