@@ -128,7 +128,7 @@ def test_motion_commander_step_by_step_flies_its_distances(lab):
     drone flies those distances."""
     from cflib.positioning.motion_commander import MotionCommander
 
-    lab_run = lab("cflib-lab", BASE_PORT, pace=1.0)
+    lab_run = lab("cflib-lab", BASE_PORT, pace=1.0, idle_s=1.0)
     logged = []
     with SyncCrazyflie(lab_run.uri, cf=Crazyflie(rw_cache=None)) as scf:
         assert scf.cf.param.get_value("deck.bcFlow2") == "1"
@@ -235,19 +235,21 @@ def test_multiranger_push_moves_away_from_the_wall(lab, tmp_path):
     rows = trajectory(out)
     assert any(r is not None and r < min_distance for r in seen), seen
     flying = [r for r in rows if r["z"] > 0.2]
-    assert flying and max(r["y"] for r in flying) > 0.22, max(r["y"] for r in flying)
-    assert sum(r["collisions"] for r in rows[-1:]) == 0
+    assert flying and max(r["y"] for r in flying) > 0.2, max(r["y"] for r in flying)
+    assert max(r["collisions"] for r in rows) == 0
 
 
 def test_swarm_takes_off_and_lands_three_drones(binaries, tmp_path):
-    """cflib's Swarm with the high-level commander: three drones take off to
-    0.5 m in parallel and land; the plans' durations are the drones' own
-    time, so pace 4 flies the same trajectory as pace 1."""
+    """cflib's Swarm with the high-level commander (its swarm examples'
+    take-off and land): three drones take off to 0.5 m in parallel and land.
+    The example waits in wall time between the commands, and three paced
+    platforms on a busy machine may run slower than 4x the wall clock
+    (pacing only holds a step back, it cannot hurry one): pace 1."""
     from cflib.crazyflie.swarm import CachedCfFactory, Swarm
 
     cflib.crtp.init_drivers()
     port = BASE_PORT + 4
-    lab_run = Lab(binaries, tmp_path, "cflib-swarm", port, pace=4.0)
+    lab_run = Lab(binaries, tmp_path, "cflib-swarm", port, pace=1.0, idle_s=1.0)
     try:
         uris = [f"udp://127.0.0.1:{port + i}" for i in range(3)]
         for u in uris:
@@ -256,9 +258,12 @@ def test_swarm_takes_off_and_lands_three_drones(binaries, tmp_path):
         def take_off_land(scf):
             hl = scf.cf.high_level_commander
             hl.takeoff(0.5, 2.0)
-            time.sleep(3.0 / 4)
+            # The world's motors need about 2 s from standstill to hover
+            # speed (docs/CFLIB.md): the drone reaches 0.5 m ~2 s after the
+            # plan does.
+            time.sleep(4.5)
             hl.land(0.0, 2.0)
-            time.sleep(2.5 / 4)
+            time.sleep(2.5)
             hl.stop()
 
         with Swarm(uris, factory=CachedCfFactory(rw_cache=str(tmp_path / "cache"))) as swarm:
@@ -271,8 +276,8 @@ def test_swarm_takes_off_and_lands_three_drones(binaries, tmp_path):
         assert positions[uris[i]].x == pytest.approx(float(i), abs=0.01)
         rows = trajectory(out, name)
         top = max(r["z"] for r in rows)
-        assert 0.45 < top < 0.6, (name, top)
-        assert rows[-1]["z"] < 0.05 and rows[-1]["collisions"] == 0
+        assert 0.4 < top < 0.6, (name, top)
+        assert rows[-1]["z"] < 0.05 and max(r["collisions"] for r in rows) == 0
 
 
 def test_replay_of_a_cflib_session_is_byte_identical(lab, binaries, tmp_path):
