@@ -302,7 +302,8 @@ impl Scenario {
                 return Err(invalid(format!("sweep.{key}: {}", unknown_key(key))));
             }
         }
-        s.fly_over_crtp().map_err(|e| invalid(format!("crtp: {e}")))?;
+        s.fly_over_crtp()
+            .map_err(|e| invalid(format!("crtp: {e}")))?;
         Ok(s)
     }
 
@@ -346,11 +347,12 @@ impl Scenario {
                 p.run.set(key, value).map_err(bad)?;
             }
             if key == "crtp" {
-                self.fly_over_crtp().map_err(|reason| ScenarioError::BadValue {
-                    key: key.to_string(),
-                    value: value.to_string(),
-                    reason,
-                })?;
+                self.fly_over_crtp()
+                    .map_err(|reason| ScenarioError::BadValue {
+                        key: key.to_string(),
+                        value: value.to_string(),
+                        reason,
+                    })?;
             }
         } else {
             self.set_scenario_key(key, value)?;

@@ -17,8 +17,8 @@ use crate::power::sag::BatteryLoad;
 pub use crate::sync::SyncMode;
 
 use super::ConfigError;
-use crate::peripherals::stm32::estimator::DEFAULT_FLOW_STD;
 use crate::peripherals::stm32::crtp::CrtpSpec;
+use crate::peripherals::stm32::estimator::DEFAULT_FLOW_STD;
 use crate::peripherals::stm32::PositionSource;
 
 /// A table's keys with its sub-tables' keys as `table.key`
@@ -542,7 +542,8 @@ impl RunConfig {
             // value's text is its shortest round-trip form, so equal texts
             // are equal values).
             let crtp_key = matches!(key, "crtp" | "pace" | "crtp_idle_s");
-            if (key.starts_with("stm32.") || crtp_key) && default.get(key).is_ok_and(|d| d == text) {
+            if (key.starts_with("stm32.") || crtp_key) && default.get(key).is_ok_and(|d| d == text)
+            {
                 continue;
             }
             let value = match key {

@@ -124,12 +124,18 @@ impl Setpoint {
                 yaw_rate,
                 z,
             } => [roll, pitch, yaw_rate, z].iter().all(|v| v.is_finite()),
-            Setpoint::Hover { vx, vy, yaw_rate, z } => {
-                [vx, vy, yaw_rate, z].iter().all(|v| v.is_finite())
-            }
-            Setpoint::VelocityWorld { vx, vy, vz, yaw_rate } => {
-                [vx, vy, vz, yaw_rate].iter().all(|v| v.is_finite())
-            }
+            Setpoint::Hover {
+                vx,
+                vy,
+                yaw_rate,
+                z,
+            } => [vx, vy, yaw_rate, z].iter().all(|v| v.is_finite()),
+            Setpoint::VelocityWorld {
+                vx,
+                vy,
+                vz,
+                yaw_rate,
+            } => [vx, vy, vz, yaw_rate].iter().all(|v| v.is_finite()),
             Setpoint::Position { x, y, z, yaw } => [x, y, z, yaw].iter().all(|v| v.is_finite()),
         };
         finite.then_some(sp)
@@ -218,14 +224,18 @@ mod tests {
                 z: 0.4f32 as f64
             })
         );
-        let Some(Setpoint::Hover { yaw_rate, .. }) = Setpoint::generic(&pack(5, [0.0, 0.0, 90.0, 0.4]))
+        let Some(Setpoint::Hover { yaw_rate, .. }) =
+            Setpoint::generic(&pack(5, [0.0, 0.0, 90.0, 0.4]))
         else {
             panic!()
         };
         assert_eq!(yaw_rate, -(90f64.to_radians()));
         assert_eq!(Setpoint::generic(&[0]), Some(Setpoint::Stop));
         assert_eq!(Setpoint::generic(&[42, 1, 2]), None);
-        assert_eq!(Setpoint::generic(&pack(7, [1.0, 2.0, 3.0, 0.0])[..10]), None);
+        assert_eq!(
+            Setpoint::generic(&pack(7, [1.0, 2.0, 3.0, 0.0])[..10]),
+            None
+        );
         assert_eq!(Setpoint::generic(&pack(7, [f32::NAN, 2.0, 3.0, 0.0])), None);
         let mut rpyt = [0u8; 14].to_vec();
         assert_eq!(Setpoint::rpyt(&rpyt), Some(Setpoint::Stop));
@@ -238,8 +248,14 @@ mod tests {
         let mut c = Commander::default();
         let t0 = Picos::from_ms(3000);
         c.set(Setpoint::Stop, t0);
-        assert_eq!(c.watched(t0 + Picos::from_ms(500)), Watched::Fresh(Setpoint::Stop));
-        assert_eq!(c.watched(t0 + Picos::from_ms(501)), Watched::Stale(Setpoint::Stop));
+        assert_eq!(
+            c.watched(t0 + Picos::from_ms(500)),
+            Watched::Fresh(Setpoint::Stop)
+        );
+        assert_eq!(
+            c.watched(t0 + Picos::from_ms(501)),
+            Watched::Stale(Setpoint::Stop)
+        );
         assert_eq!(c.watched(t0 + Picos::from_ms(2001)), Watched::Shutdown);
         c.release();
         assert_eq!(c.watched(t0), Watched::None);

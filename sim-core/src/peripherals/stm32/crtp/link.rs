@@ -281,7 +281,11 @@ mod tests {
         assert!("udp:127.0.0.1".parse::<CrtpSpec>().is_err());
         assert!("udp::1".parse::<CrtpSpec>().is_err());
         assert!("tcp:x:1".parse::<CrtpSpec>().is_err());
-        assert!("udp:h:65535".parse::<CrtpSpec>().unwrap().offset(1).is_err());
+        assert!("udp:h:65535"
+            .parse::<CrtpSpec>()
+            .unwrap()
+            .offset(1)
+            .is_err());
         assert_eq!(
             "replay:a/crtp.jsonl".parse::<CrtpSpec>().unwrap(),
             CrtpSpec::Replay("a/crtp.jsonl".into())

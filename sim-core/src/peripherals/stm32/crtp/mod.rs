@@ -382,8 +382,23 @@ impl CrtpServer {
                     collective: None,
                     z,
                 },
-                Setpoint::Hover { vx, vy, yaw_rate, z } => Demand::Track { vx, vy, z, yaw_rate },
-                Setpoint::VelocityWorld { vx, vy, vz, yaw_rate } => {
+                Setpoint::Hover {
+                    vx,
+                    vy,
+                    yaw_rate,
+                    z,
+                } => Demand::Track {
+                    vx,
+                    vy,
+                    z,
+                    yaw_rate,
+                },
+                Setpoint::VelocityWorld {
+                    vx,
+                    vy,
+                    vz,
+                    yaw_rate,
+                } => {
                     let z = self.z_hold.unwrap_or(t.pos[2]) + vz * dt;
                     self.z_hold = Some(z);
                     let (bx, by) = to_body(vx, vy, t.yaw);
@@ -411,7 +426,8 @@ impl CrtpServer {
     fn send_logs(&mut self, now: Picos) -> io::Result<()> {
         for d in self.log.due(now, &self.telemetry) {
             self.stats.packets_out += 1;
-            self.source.send(&Packet::new(PORT_LOG, log::CHAN_DATA, d).encode())?;
+            self.source
+                .send(&Packet::new(PORT_LOG, log::CHAN_DATA, d).encode())?;
         }
         Ok(())
     }
@@ -505,7 +521,12 @@ impl Stm32 {
                     self.flight.past_y = s.y;
                     c
                 }
-                Demand::Track { vx, vy, z, yaw_rate } => {
+                Demand::Track {
+                    vx,
+                    vy,
+                    z,
+                    yaw_rate,
+                } => {
                     desired = DesiredState {
                         vx,
                         vy,

@@ -132,11 +132,35 @@ impl Params {
         let ro = PARAM_UINT8 | PARAM_RONLY;
         let mut params = vec![
             p(ro, "deck", "bcFlow2", Known::FlowDeck, b(decks.flow2)),
-            p(ro, "deck", "bcMultiranger", Known::MultirangerDeck, b(decks.multiranger)),
+            p(
+                ro,
+                "deck",
+                "bcMultiranger",
+                Known::MultirangerDeck,
+                b(decks.multiranger),
+            ),
             p(ro, "deck", "bcAI", Known::AiDeck, b(decks.ai)),
-            p(PARAM_UINT8, "commander", "enHighLevel", Known::EnHighLevel, 1.0),
-            p(PARAM_UINT8, "kalman", "resetEstimation", Known::ResetEstimation, 0.0),
-            p(PARAM_UINT8, "stabilizer", "controller", Known::Controller, CONTROLLER_PID),
+            p(
+                PARAM_UINT8,
+                "commander",
+                "enHighLevel",
+                Known::EnHighLevel,
+                1.0,
+            ),
+            p(
+                PARAM_UINT8,
+                "kalman",
+                "resetEstimation",
+                Known::ResetEstimation,
+                0.0,
+            ),
+            p(
+                PARAM_UINT8,
+                "stabilizer",
+                "controller",
+                Known::Controller,
+                CONTROLLER_PID,
+            ),
         ];
         for (group, name, g) in GAINS {
             params.push(p(PARAM_FLOAT, group, name, Known::Gain(g), g.of(gains)));
@@ -264,11 +288,17 @@ mod tests {
         // pitch_kd is the Webots controller's roll/pitch kd (0.1), shared.
         let pkd = toc::find(p.entries(), "pid_attitude.pitch_kd").unwrap();
         let rkd = toc::find(p.entries(), "pid_attitude.roll_kd").unwrap();
-        assert_eq!(p.read(&pkd.to_le_bytes()).unwrap()[3..], 0.1f32.to_le_bytes());
+        assert_eq!(
+            p.read(&pkd.to_le_bytes()).unwrap()[3..],
+            0.1f32.to_le_bytes()
+        );
         let mut w = pkd.to_le_bytes().to_vec();
         w.extend(0.2f32.to_le_bytes());
         p.write(&w).unwrap();
-        assert_eq!(p.read(&rkd.to_le_bytes()).unwrap()[3..], 0.2f32.to_le_bytes());
+        assert_eq!(
+            p.read(&rkd.to_le_bytes()).unwrap()[3..],
+            0.2f32.to_le_bytes()
+        );
         let mut g = PidGains::default();
         p.apply_gains(&mut g);
         assert_eq!(g.kd_att_rp, 0.2f32 as f64);

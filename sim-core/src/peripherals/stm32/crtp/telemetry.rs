@@ -111,7 +111,9 @@ pub fn log_toc(with_cluster: bool) -> Vec<LogVar> {
         var!(LOG_FLOAT, "stateEstimate", "vy", |t| t.vel[1]),
         var!(LOG_FLOAT, "stateEstimate", "vz", |t| t.vel[2]),
         var!(LOG_FLOAT, "stateEstimate", "roll", |t| t.roll.to_degrees()),
-        var!(LOG_FLOAT, "stateEstimate", "pitch", |t| t.pitch.to_degrees()),
+        var!(LOG_FLOAT, "stateEstimate", "pitch", |t| t
+            .pitch
+            .to_degrees()),
         var!(LOG_FLOAT, "stateEstimate", "yaw", |t| t.yaw.to_degrees()),
         var!(LOG_UINT16, "range", "front", |t| mm(t.ranges[0])),
         var!(LOG_UINT16, "range", "back", |t| mm(t.ranges[1])),
@@ -125,7 +127,9 @@ pub fn log_toc(with_cluster: bool) -> Vec<LogVar> {
             .clamp(0.0, 100.0)),
         var!(LOG_INT8, "pm", "state", |t| pm_state(&t.power)),
         var!(LOG_FLOAT, "stabilizer", "roll", |t| t.sp_roll.to_degrees()),
-        var!(LOG_FLOAT, "stabilizer", "pitch", |t| t.sp_pitch.to_degrees()),
+        var!(LOG_FLOAT, "stabilizer", "pitch", |t| t
+            .sp_pitch
+            .to_degrees()),
         var!(LOG_FLOAT, "stabilizer", "yaw", |t| t.sp_yaw.to_degrees()),
         var!(LOG_FLOAT, "stabilizer", "thrust", |t| pwm(t.collective)),
         var!(LOG_UINT32, "motor", "m1", |t| pwm(t.motors[0])),
