@@ -92,7 +92,7 @@ impl Log {
 
     /// Parses `[type, id_lo, id_hi]*` after the block id.
     fn ops(&self, d: &[u8]) -> Result<Vec<(u16, u8)>, u8> {
-        if d.len() % 3 != 0 {
+        if !d.len().is_multiple_of(3) {
             return Err(EINVAL);
         }
         d.chunks(3)
@@ -195,7 +195,7 @@ impl Log {
                 continue;
             }
             while b.next <= now {
-                b.next = b.next + period;
+                b.next += period;
             }
             let mut d = vec![id];
             d.extend_from_slice(&ms.to_le_bytes()[..3]);
