@@ -6,7 +6,7 @@
 #   - the RISC-V cross compiler and picolibc, clang-19 (firmware
 #     builds: `make -C sim-core/firmware check`, the cluster's kernels);
 #   - a Python venv in target/py-venv with python/requirements-test.txt
-#     (pytest, numpy, gymnasium, pandas) for python/tests and training/tests.
+#     (pytest, numpy, gymnasium, pandas, cflib) for python/tests and training/tests.
 # System packages come from apt-get (root, or sudo when there is one); set
 # COSIM_NO_INSTALL=1 to only check and fail with what is missing.
 # Usage: scripts/test-all.sh [extra `cargo test` arguments]

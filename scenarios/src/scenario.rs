@@ -110,6 +110,9 @@ fn default_encoding() -> String {
 }
 
 /// Keys `--set` accepts besides the run keys.
+/// The firmware of a drone flown over CRTP (`sim-core/firmware/src/crtp/`).
+pub const CRTP_FIRMWARE: &str = "crtp_host.elf";
+
 pub const SCENARIO_KEYS: [(&str, &str); 9] = [
     ("world", "world file (TOML)"),
     ("firmware", "firmware ELF"),
@@ -299,6 +302,8 @@ impl Scenario {
                 return Err(invalid(format!("sweep.{key}: {}", unknown_key(key))));
             }
         }
+        s.fly_over_crtp()
+            .map_err(|e| invalid(format!("crtp: {e}")))?;
         Ok(s)
     }
 
@@ -341,6 +346,14 @@ impl Scenario {
             for p in &mut self.platforms {
                 p.run.set(key, value).map_err(bad)?;
             }
+            if key == "crtp" {
+                self.fly_over_crtp()
+                    .map_err(|reason| ScenarioError::BadValue {
+                        key: key.to_string(),
+                        value: value.to_string(),
+                        reason,
+                    })?;
+            }
         } else {
             self.set_scenario_key(key, value)?;
             if key == "firmware" {
@@ -350,6 +363,27 @@ impl Scenario {
             }
         }
         self.overrides.push((key.to_string(), value.to_string()));
+        Ok(())
+    }
+
+    /// `crtp=udp:HOST:PORT` on any scenario (docs/CFLIB.md): every drone is
+    /// flown by a CRTP client instead of the scenario's firmware — the
+    /// platforms run `crtp_host.elf` (next to the scenario's firmware, in
+    /// `sim-core/firmware/bin/`) and the swarm's drones listen at PORT,
+    /// PORT+1, … in `[[platform]]` order.
+    fn fly_over_crtp(&mut self) -> Result<(), String> {
+        let Some(spec) = self.run.crtp.clone() else {
+            return Ok(());
+        };
+        let host = |fw: &Path| fw.with_file_name(CRTP_FIRMWARE);
+        self.firmware = host(&self.firmware);
+        let several = self.platforms.len() > 1;
+        for (i, p) in self.platforms.iter_mut().enumerate() {
+            p.firmware = host(&p.firmware);
+            if several {
+                p.run.crtp = Some(spec.offset(i as u16)?);
+            }
+        }
         Ok(())
     }
 

@@ -190,6 +190,9 @@ fn non_default(key: &str) -> &'static str {
         "stm32.position_source" => "flow",
         "stm32.range_max_m" => "4.5",
         "stm32.flow_std_m_s" => "0.02",
+        "crtp" => "udp:127.0.0.1:19850",
+        "pace" => "4",
+        "crtp_idle_s" => "2.5",
         _ => panic!("a key without a test value: {key}"),
     }
 }

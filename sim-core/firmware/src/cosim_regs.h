@@ -98,6 +98,8 @@
 #define EXT_TAKEOFF 4         /* climb to CMD_HEIGHT above the start, then hover */
 #define EXT_LAND 5            /* descend, stop the motors, STOP the drone */
 #define EXT_POSITION_MODE 6   /* back to the race's SET_TARGET position targets */
+#define EXT_CRTP 7            /* serve the CRTP link (sim-core --crtp) until the
+                               * client has gone, then STOP (docs/CFLIB.md) */
 #define EXT_ERROR 0xFFFFFFFFu /* unknown command or bad argument (NaN, ...) */
 
 /* Radios (DESIGN.md §8, docs/SWARM.md §4.3): the same register file at two

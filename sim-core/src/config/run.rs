@@ -17,6 +17,7 @@ use crate::power::sag::{BatteryLoad, OnEmpty};
 pub use crate::sync::SyncMode;
 
 use super::ConfigError;
+use crate::peripherals::stm32::crtp::CrtpSpec;
 use crate::peripherals::stm32::estimator::DEFAULT_FLOW_STD;
 use crate::peripherals::stm32::PositionSource;
 
@@ -113,7 +114,7 @@ impl fmt::Display for DebugLevel {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 19] = [
+pub const RUN_KEYS: [(&str, &str); 22] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -178,6 +179,18 @@ pub const RUN_KEYS: [(&str, &str); 19] = [
         "range sensors' max range in m (2); a reading at or beyond it is 'nothing in range'",
     ),
     (
+        "crtp",
+        "serve cflib's CRTP link: off | udp:HOST:PORT | replay:FILE (a crtp.jsonl); the firmware starts it with EXT_CRTP (crtp_host.elf), docs/CFLIB.md",
+    ),
+    (
+        "pace",
+        "with a live CRTP link, simulated seconds per wall second (1.0; 0 = unpaced)",
+    ),
+    (
+        "crtp_idle_s",
+        "the CRTP link is closed after this many simulated seconds without a packet (10)",
+    ),
+    (
         "stm32.flow_std_m_s",
         "flow mode: the flow noise the STM32's filter assumes, m/s per sample (0.069, the Flow deck's at 0.3 m; 0 = the raw flow)",
     ),
@@ -227,6 +240,12 @@ pub struct RunConfig {
     pub range_max_m: f64,
     /// The flow noise σ (m/s) the STM32's flow filter assumes.
     pub flow_std_m_s: f64,
+    /// The CRTP link (docs/CFLIB.md).
+    pub crtp: Option<CrtpSpec>,
+    /// Pacing of a live CRTP link (simulated s per wall s).
+    pub pace: f64,
+    /// Simulated seconds without a packet that close the CRTP link.
+    pub crtp_idle_s: f64,
 }
 
 /// The prefix of the firmware-parameter keys (`firmware.NAME`).
@@ -262,6 +281,9 @@ impl Default for RunConfig {
             position_source: PositionSource::Gps,
             range_max_m: 2.0,
             flow_std_m_s: DEFAULT_FLOW_STD.0,
+            crtp: None,
+            pace: 1.0,
+            crtp_idle_s: 10.0,
         }
     }
 }
@@ -380,6 +402,14 @@ impl RunConfig {
                     .parse::<u64>()
                     .map_err(|_| bad("expected an unsigned 64-bit integer".into()))?
             }
+            "crtp" => {
+                self.crtp = match value.trim() {
+                    "" | "off" => None,
+                    v => Some(v.parse().map_err(bad)?),
+                }
+            }
+            "pace" => self.pace = parse_non_negative(value).map_err(bad)?,
+            "crtp_idle_s" => self.crtp_idle_s = parse_positive(value).map_err(bad)?,
             "stm32.position_source" => self.position_source = value.parse().map_err(bad)?,
             "stm32.range_max_m" => self.range_max_m = parse_positive(value).map_err(bad)?,
             "stm32.flow_std_m_s" => self.flow_std_m_s = parse_non_negative(value).map_err(bad)?,
@@ -429,6 +459,12 @@ impl RunConfig {
                 .as_ref()
                 .map_or_else(|| "embedded".to_string(), |p| p.display().to_string()),
             "radio_id" => self.radio_id.to_string(),
+            "crtp" => self
+                .crtp
+                .as_ref()
+                .map_or("off".to_string(), |c| c.to_string()),
+            "pace" => self.pace.to_string(),
+            "crtp_idle_s" => self.crtp_idle_s.to_string(),
             "stm32.position_source" => self.position_source.to_string(),
             "stm32.range_max_m" => self.range_max_m.to_string(),
             "stm32.flow_std_m_s" => self.flow_std_m_s.to_string(),
@@ -514,7 +550,9 @@ impl RunConfig {
             // Likewise the STM32 extension's settings at their defaults (a
             // value's text is its shortest round-trip form, so equal texts
             // are equal values).
-            if key.starts_with("stm32.") && default.get(key).is_ok_and(|d| d == text) {
+            let crtp_key = matches!(key, "crtp" | "pace" | "crtp_idle_s");
+            if (key.starts_with("stm32.") || crtp_key) && default.get(key).is_ok_and(|d| d == text)
+            {
                 continue;
             }
             let value = match key {
@@ -523,7 +561,9 @@ impl RunConfig {
                 | "stolaroff_efficiency"
                 | "stolaroff_factor"
                 | "stm32.range_max_m"
-                | "stm32.flow_std_m_s" => toml::Value::Float(text.parse().expect("a number")),
+                | "stm32.flow_std_m_s"
+                | "pace"
+                | "crtp_idle_s" => toml::Value::Float(text.parse().expect("a number")),
                 "target_cycles" | "unlock_cycles" => {
                     toml::Value::Integer(text.parse().expect("an integer"))
                 }

@@ -28,6 +28,11 @@ pub struct PlatformArgs {
     /// Run configuration (TOML; default: the thesis's `simul_configs.hpp`).
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
+    /// Serves cflib's CRTP link: `udp:HOST:PORT` (cflib's `udp://HOST:PORT`)
+    /// or `replay:FILE` (a run's `crtp.jsonl`); the same as `--set crtp=…`.
+    /// The firmware starts it (sim-core/firmware/bin/crtp_host.elf).
+    #[arg(long, value_name = "SPEC")]
+    pub crtp: Option<String>,
     /// Sets one run-configuration value (repeatable), e.g. `--set battery=ufx250`.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
@@ -86,6 +91,9 @@ pub fn load_run_config(args: &PlatformArgs) -> anyhow::Result<RunConfig> {
         run.platform = Some(p.clone());
     }
     run.apply_overrides(&args.set)?;
+    if let Some(spec) = &args.crtp {
+        run.set("crtp", spec)?;
+    }
     Ok(run)
 }
 

@@ -34,6 +34,7 @@ use crate::cluster::Cluster;
 use crate::config::{PlatformConfig, RunConfig};
 use crate::iss::{load_elf, Cpu, CpuConfig, ElfError, Memory, StopReason};
 use crate::peripherals::radio::{self, RadioDevice};
+use crate::peripherals::stm32::crtp::{CrtpConfig, CrtpServer, PowerTelemetry};
 use crate::peripherals::stm32::estimator::{FlowFilterParams, MetresPerSecond};
 use crate::peripherals::stm32::Stm32Config;
 use crate::peripherals::{Camera, DeviceError, DevicePower, Stm32, WorldLink, WorldSession};
@@ -45,6 +46,8 @@ use crate::units::{Cycles, Hertz, Millis, Picos};
 /// L2 RAM of the GAP8-like map (DESIGN.md §4).
 pub const L2_BASE: u32 = 0x1C00_0000;
 pub const L2_SIZE: u32 = 512 * 1024;
+/// The CRTP link's arrivals in the output directory (docs/CFLIB.md).
+pub const CRTP_RECORDING: &str = "crtp.jsonl";
 /// Power samples every millisecond (DESIGN.md §4).
 pub const SAMPLE_PERIOD: Picos = Picos::from_ms(1);
 
@@ -244,10 +247,21 @@ impl<W: WorldLink> Run<W> {
             capture_time(&cfg.platform),
             DevicePower::new(write_delay(&cfg.platform, "camera")),
         );
-        let stm32 = Stm32::new(
+        let mut stm32 = Stm32::new(
             stm32_config(cfg),
             DevicePower::new(write_delay(&cfg.platform, "stm32")),
         );
+        if let Some(spec) = &cfg.run.crtp {
+            let server = CrtpServer::open(CrtpConfig {
+                spec: spec.clone(),
+                pace: cfg.run.pace,
+                idle: Picos((cfg.run.crtp_idle_s * Picos::PER_S as f64).round() as u64),
+                record: cfg.out_dir.as_ref().map(|d| d.join(CRTP_RECORDING)),
+                ai_deck: cfg.platform.sensor("camera").is_some() || cfg.platform.cluster.is_some(),
+                cluster: cfg.platform.cluster.is_some(),
+            })?;
+            stm32.attach_crtp(server);
+        }
         let radios = [radio::uwb::SPEC, radio::p2p::SPEC]
             .map(|spec| RadioDevice::new(spec, cfg.run.radio_id, spec.currents(&cfg.platform)));
         let time = TimeKeeper::new(cfg.run.sync);
@@ -309,6 +323,15 @@ impl<W: WorldLink> Run<W> {
                     self.battery_empty_at = Some(*t);
                 }
             })?;
+            self.platform.stm32.crtp_power(PowerTelemetry {
+                vbat: sample.v_battery.0,
+                soc: sample.soc,
+                low_battery: sample.low_battery,
+                i_battery: sample.i_battery.0,
+                i_vcc: sample.i_vcc.0,
+                p_motor: sample.selected_output().power.0,
+                p_cluster: sample.cluster.map(|c| c.total_w()),
+            });
             self.platform.battery_low = sample.low_battery;
             self.platform.motors.speed_cap = self.power.motor_speed_cap();
         }

@@ -22,6 +22,7 @@
 //! commands, a heading target) and their commands are in [`motion`].
 
 mod clock;
+pub mod crtp;
 pub mod estimator;
 mod flight;
 pub mod motion;
@@ -144,6 +145,8 @@ enum Process {
     TakingOff,
     /// EXT_LAND: descend to the ground, then STOP.
     ExtLanding,
+    /// EXT_CRTP: serve the CRTP link until it closes, then STOP ([`crtp`]).
+    Crtp,
 }
 
 pub struct Stm32 {
@@ -159,6 +162,8 @@ pub struct Stm32 {
     motion: Motion,
     pub power: DevicePower,
     pub stats: Stm32Stats,
+    /// The CRTP link, when the run has one (`--crtp`).
+    crtp: Option<Box<crtp::CrtpServer>>,
 }
 
 impl Stm32 {
@@ -194,6 +199,7 @@ impl Stm32 {
             motion,
             power,
             stats: Stm32Stats::default(),
+            crtp: None,
         }
     }
 
@@ -407,6 +413,7 @@ impl Stm32 {
         let integrate_height = self.process != Process::Stabilising;
         let (outcome, commands) = match self.process {
             Process::TakingOff | Process::ExtLanding => self.velocity_iteration(now, ctx)?,
+            Process::Crtp => self.crtp_iteration(now, ctx)?,
             _ => self.pid_iteration(now, ctx, integrate_height)?,
         };
         ctx.time.add_to_iteration(ts, now);
@@ -437,6 +444,10 @@ impl Stm32 {
             Process::ExtLanding => {
                 let done = self.stop_world(end, ctx)?;
                 self.finish_ext(done, motion::EXT_LAND);
+            }
+            Process::Crtp => {
+                let done = self.stop_world(end, ctx)?;
+                self.finish_ext(done, motion::EXT_CRTP);
             }
             Process::Idle => unreachable!("an idle STM32 has no iteration scheduled"),
         }

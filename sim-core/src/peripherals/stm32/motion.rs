@@ -24,6 +24,7 @@
 //! | 3 | EXT_SET_SPEED_LIMIT | at once: CMD_SPEED_LIMIT (> 0; default 0.2 m/s, cflib's) |
 //! | 4 | EXT_TAKEOFF | iterations of one timestep each (as GET_STABLE) climbing at the speed limit to CMD_HEIGHT above the start, until within the tolerance; then velocity mode, hovering |
 //! | 5 | EXT_LAND | iterations of one timestep each descending at the speed limit to the ground, until within the tolerance of it for 3 iterations (cflib's MotionCommander lands, then stops the motors at once), then STOP and the motors' stop time |
+//! | 7 | EXT_CRTP | iterations of one timestep each serving the CRTP link ([`super::crtp`]) until it closes, then STOP and the motors' stop time |
 //! | 6 | EXT_POSITION_MODE | at once: back to the race's position targets (SET_TARGET, RUN_SINGLE_STEP_PID, RUN_PID), the target set to the current position |
 //! | 0xFFFFFFFF | EXT_ERROR | an unknown command, a non-finite or out-of-range argument, a command before INIT_PID or while a process (GET_STABLE, RUN_PID, GO_DOWN, take-off, landing) runs |
 //!
@@ -90,6 +91,8 @@ pub const EXT_SET_SPEED_LIMIT: u32 = 3;
 pub const EXT_TAKEOFF: u32 = 4;
 pub const EXT_LAND: u32 = 5;
 pub const EXT_POSITION_MODE: u32 = 6;
+/// Serve the CRTP link until it closes (`super::crtp`; our extension).
+pub const EXT_CRTP: u32 = 7;
 pub const EXT_ERROR: u32 = 0xFFFF_FFFF;
 
 /// Listing 4.3's largest horizontal demand per axis (m/s).
@@ -160,7 +163,7 @@ pub(super) struct Motion {
     ctrl: [u8; 4],
     stat: TimedReg<u32>,
     /// EST_X .. FLOW_VY as f64 values, in register order.
-    est: [f64; 15],
+    pub(super) est: [f64; 15],
     args: [u8; (EST_ROLL - CMD_VX) as usize],
     /// Roll, pitch and the world time (s) of the last sensor read
     /// (EST_ROLL, EST_PITCH, EST_TIME).
@@ -520,6 +523,14 @@ impl Stm32 {
                 self.motion.mode = Mode::Velocity(Setpoint::default());
                 self.motion.landed_for = 0;
                 self.start_process(Process::ExtLanding, now);
+                return Ok(Ok(()));
+            }
+            EXT_CRTP => {
+                if self.crtp.is_none() {
+                    return Ok(Err("no CRTP link (sim-core --crtp udp:HOST:PORT)".into()));
+                }
+                self.flush_iteration(now, ctx)?;
+                self.start_process(Process::Crtp, now);
                 return Ok(Ok(()));
             }
             EXT_POSITION_MODE => {

@@ -154,6 +154,27 @@ impl PidController {
         mix(&cmd)
     }
 
+    /// One step without the velocity loop: `desired.roll` and
+    /// `desired.pitch` are given (CRTP attitude set-points); the collective
+    /// is `collective` (rad/s) or, when `None`, the height loop's output.
+    pub fn step_attitude(
+        &mut self,
+        actual: &ActualState,
+        desired: &DesiredState,
+        dt: f64,
+        collective: Option<f64>,
+    ) -> MotorCommands {
+        let mut cmd = ControlCommands {
+            altitude: match collective {
+                Some(c) => c,
+                None => self.fixed_height(actual, desired, dt),
+            },
+            ..ControlCommands::default()
+        };
+        self.attitude(actual, desired, dt, &mut cmd);
+        mix(&cmd)
+    }
+
     fn horizontal_velocity(&mut self, actual: &ActualState, desired: &mut DesiredState, dt: f64) {
         let g = &self.gains;
         let vx_error = desired.vx - actual.vx;

@@ -1,0 +1,308 @@
+//! Where packets come from and go: cflib's `udp://` link (one datagram, one
+//! packet; answers to the last sender), or a recording replayed; the
+//! recording of arrivals; the wall-clock pacing.
+//!
+//! Pacing is the only use of the wall clock in the simulator: with a live
+//! link, the world step that starts at platform time `t` is not run before
+//! `wall_start + (t − t_start)/pace` (cflib's scripts sleep in wall time);
+//! packets that arrive while waiting belong to that step. Each arrival is
+//! recorded with the step's platform time (ps) and its bytes, one JSON line
+//! each (`crtp.jsonl`: `{"platform_ps":N,"crtp":"hex"}`); replaying the
+//! file feeds the same packets to the same steps, unpaced, so the run is
+//! exact and deterministic.
+
+use std::collections::VecDeque;
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::time::{Duration, Instant};
+
+use crate::units::Picos;
+
+/// What `--crtp` / the run key `crtp` names.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CrtpSpec {
+    /// `udp:HOST:PORT`
+    Udp(String),
+    /// `replay:FILE` (a `crtp.jsonl` of an earlier run)
+    Replay(PathBuf),
+}
+
+impl FromStr for CrtpSpec {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let s = s.trim();
+        if let Some(a) = s.strip_prefix("udp:") {
+            let (host, port) = a
+                .rsplit_once(':')
+                .ok_or("expected udp:HOST:PORT (e.g. udp:127.0.0.1:19850)")?;
+            port.parse::<u16>()
+                .map_err(|_| format!("{port:?} is not a UDP port number"))?;
+            if host.is_empty() {
+                return Err("expected udp:HOST:PORT: the host is empty".into());
+            }
+            Ok(CrtpSpec::Udp(a.to_string()))
+        } else if let Some(p) = s.strip_prefix("replay:") {
+            if p.is_empty() {
+                return Err("expected replay:FILE".into());
+            }
+            Ok(CrtpSpec::Replay(PathBuf::from(p)))
+        } else {
+            Err("expected udp:HOST:PORT or replay:FILE".into())
+        }
+    }
+}
+
+impl std::fmt::Display for CrtpSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CrtpSpec::Udp(a) => write!(f, "udp:{a}"),
+            CrtpSpec::Replay(p) => write!(f, "replay:{}", p.display()),
+        }
+    }
+}
+
+impl CrtpSpec {
+    /// The same link moved `n` ports up (a swarm's drones at PORT, PORT+1 …).
+    pub fn offset(&self, n: u16) -> Result<CrtpSpec, String> {
+        match self {
+            CrtpSpec::Udp(a) => {
+                let (host, port) = a.rsplit_once(':').expect("parsed");
+                let p: u16 = port.parse().expect("parsed");
+                let p = p
+                    .checked_add(n)
+                    .ok_or_else(|| format!("port {p} + {n} is beyond 65535"))?;
+                Ok(CrtpSpec::Udp(format!("{host}:{p}")))
+            }
+            CrtpSpec::Replay(_) => Err("a replay names one drone's recording".into()),
+        }
+    }
+}
+
+#[derive(Debug, serde::Serialize, serde::Deserialize)]
+struct Arrival {
+    platform_ps: u64,
+    crtp: String,
+}
+
+pub enum Source {
+    Udp {
+        socket: UdpSocket,
+        peer: Option<SocketAddr>,
+    },
+    Replay {
+        arrivals: VecDeque<(Picos, Vec<u8>)>,
+    },
+}
+
+fn io_err(what: String) -> impl FnOnce(io::Error) -> io::Error {
+    move |e| io::Error::new(e.kind(), format!("{what}: {e}"))
+}
+
+impl Source {
+    pub fn open(spec: &CrtpSpec) -> io::Result<Source> {
+        match spec {
+            CrtpSpec::Udp(addr) => {
+                let socket = UdpSocket::bind(addr.as_str())
+                    .map_err(io_err(format!("cannot bind the CRTP link udp:{addr}")))?;
+                Ok(Source::Udp { socket, peer: None })
+            }
+            CrtpSpec::Replay(path) => Ok(Source::Replay {
+                arrivals: read_recording(path)?,
+            }),
+        }
+    }
+
+    pub fn is_live(&self) -> bool {
+        matches!(self, Source::Udp { .. })
+    }
+
+    /// The packets of the step at `now`: a live link waits for them until
+    /// `deadline` (wall clock) and then takes what is queued; a replay
+    /// gives what was recorded for `now`.
+    pub fn receive(&mut self, now: Picos, deadline: Option<Instant>) -> io::Result<Vec<Vec<u8>>> {
+        let mut out = Vec::new();
+        match self {
+            Source::Udp { socket, peer } => {
+                let mut buf = [0u8; 1500];
+                loop {
+                    let wait = deadline.and_then(|d| d.checked_duration_since(Instant::now()));
+                    let got = match wait {
+                        Some(w) if w > Duration::ZERO => {
+                            socket.set_nonblocking(false)?;
+                            socket.set_read_timeout(Some(w))?;
+                            socket.recv_from(&mut buf)
+                        }
+                        _ => {
+                            socket.set_nonblocking(true)?;
+                            socket.recv_from(&mut buf)
+                        }
+                    };
+                    match got {
+                        Ok((n, from)) => {
+                            *peer = Some(from);
+                            out.push(buf[..n].to_vec());
+                        }
+                        Err(e)
+                            if matches!(
+                                e.kind(),
+                                io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                            ) =>
+                        {
+                            if wait.is_none_or(|w| w.is_zero()) {
+                                break;
+                            }
+                        }
+                        // An ICMP "port unreachable" from a client that went
+                        // away shows as a reset on some systems: not ours.
+                        Err(e) if e.kind() == io::ErrorKind::ConnectionReset => {}
+                        Err(e) => return Err(e),
+                    }
+                    // Answer a packet as soon as it came: the caller
+                    // dispatches between calls.
+                    if !out.is_empty() {
+                        break;
+                    }
+                }
+            }
+            Source::Replay { arrivals } => {
+                while arrivals.front().is_some_and(|(t, _)| *t <= now) {
+                    out.push(arrivals.pop_front().expect("front").1);
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    pub fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        if let Source::Udp {
+            socket,
+            peer: Some(p),
+        } = self
+        {
+            socket.set_nonblocking(false)?;
+            match socket.send_to(bytes, *p) {
+                Ok(_) => {}
+                // A client that closed its socket: the datagram is lost, as
+                // a radio packet to a dongle that is gone.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(())
+    }
+}
+
+fn read_recording(path: &Path) -> io::Result<VecDeque<(Picos, Vec<u8>)>> {
+    let f = File::open(path).map_err(io_err(format!(
+        "cannot read the CRTP recording {}",
+        path.display()
+    )))?;
+    let mut out = VecDeque::new();
+    for (i, line) in BufReader::new(f).lines().enumerate() {
+        let line = line?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let bad = |m: String| {
+            io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!("{} line {}: {m}", path.display(), i + 1),
+            )
+        };
+        let a: Arrival = serde_json::from_str(&line).map_err(|e| bad(e.to_string()))?;
+        let bytes = hex::decode(&a.crtp).map_err(|e| bad(format!("crtp: {e}")))?;
+        out.push_back((Picos(a.platform_ps), bytes));
+    }
+    Ok(out)
+}
+
+/// Writes the arrivals (`crtp.jsonl`).
+pub struct Recorder {
+    out: BufWriter<File>,
+}
+
+impl Recorder {
+    pub fn create(path: &Path) -> io::Result<Recorder> {
+        let f = File::create(path).map_err(io_err(format!("cannot create {}", path.display())))?;
+        Ok(Recorder {
+            out: BufWriter::new(f),
+        })
+    }
+
+    pub fn record(&mut self, now: Picos, bytes: &[u8]) -> io::Result<()> {
+        let a = Arrival {
+            platform_ps: now.0,
+            crtp: hex::encode(bytes),
+        };
+        serde_json::to_writer(&mut self.out, &a)?;
+        self.out.write_all(b"\n")
+    }
+
+    pub fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+}
+
+/// Wall-clock pacing of a live link.
+#[derive(Debug, Clone, Copy)]
+pub struct Pacer {
+    pace: f64,
+    origin: Option<(Instant, Picos)>,
+}
+
+impl Pacer {
+    /// `pace` = simulated seconds per wall second (0: as fast as possible).
+    pub fn new(pace: f64) -> Self {
+        Pacer { pace, origin: None }
+    }
+
+    /// When the step at `now` may run (`None`: at once).
+    pub fn deadline(&mut self, now: Picos) -> Option<Instant> {
+        if self.pace <= 0.0 {
+            return None;
+        }
+        let (w0, t0) = *self.origin.get_or_insert((Instant::now(), now));
+        let sim = now.saturating_sub(t0).as_secs_f64();
+        Some(w0 + Duration::from_secs_f64(sim / self.pace))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specs_parse_and_offset() {
+        let s: CrtpSpec = "udp:127.0.0.1:19850".parse().unwrap();
+        assert_eq!(s.offset(2).unwrap().to_string(), "udp:127.0.0.1:19852");
+        assert!("udp:127.0.0.1".parse::<CrtpSpec>().is_err());
+        assert!("udp::1".parse::<CrtpSpec>().is_err());
+        assert!("tcp:x:1".parse::<CrtpSpec>().is_err());
+        assert!("udp:h:65535"
+            .parse::<CrtpSpec>()
+            .unwrap()
+            .offset(1)
+            .is_err());
+        assert_eq!(
+            "replay:a/crtp.jsonl".parse::<CrtpSpec>().unwrap(),
+            CrtpSpec::Replay("a/crtp.jsonl".into())
+        );
+    }
+
+    #[test]
+    fn a_recording_replays_at_its_steps() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("crtp.jsonl");
+        let mut r = Recorder::create(&p).unwrap();
+        r.record(Picos(5), &[0xFF]).unwrap();
+        r.record(Picos(9), &[0x3C, 1]).unwrap();
+        r.flush().unwrap();
+        let mut s = Source::open(&CrtpSpec::Replay(p)).unwrap();
+        assert!(s.receive(Picos(4), None).unwrap().is_empty());
+        assert_eq!(s.receive(Picos(5), None).unwrap(), vec![vec![0xFF]]);
+        assert_eq!(s.receive(Picos(10), None).unwrap(), vec![vec![0x3C, 1]]);
+    }
+}

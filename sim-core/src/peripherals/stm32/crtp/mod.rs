@@ -1,0 +1,569 @@
+//! CRTP over UDP: cflib flies the drone (issue 22, DESIGN.md §17).
+//!
+//! On a real Crazyflie the STM32's firmware answers CRTP; here the STM32
+//! model does, with the firmware's port numbers, channels, packet layouts
+//! and variable names. The firmware on the ISS starts it with the extension
+//! command EXT_CRTP (7; `firmware/src/crtp_host.c`) after INIT_PID: from
+//! then on the STM32 runs one iteration per world step on its own, as in
+//! GET_STABLE — read the sensors, take the packets of the step (paced to the
+//! wall clock, [`link`]), fly what the commander asks with the same PID and
+//! motor path as every other mode, send the log blocks that are due — until
+//! the link is closed: no packet for `crtp_idle_s` of simulated time after
+//! the first one (cflib's UDP driver sends nothing when it disconnects).
+//! Then the STM32 STOPs the drone and EXT_STAT shows EXT_CRTP.
+//!
+//! | port | file | served |
+//! |---|---|---|
+//! | 0 console | — | nothing is printed to the client |
+//! | 2 param | [`param`] | TOC v2, read, write |
+//! | 3 commander | [`commander`] | roll/pitch/yaw-rate/thrust |
+//! | 4 mem | here | `GET_NUMBER_OF_MEMORIES` → 0 |
+//! | 5 log | [`log`] | TOC v2, blocks, periodic data |
+//! | 6 localization | here | external position / pose: counted, not fused |
+//! | 7 generic set-points | [`commander`] | stop, velocity world, z distance, hover, position, notify stop |
+//! | 8 high-level commander | [`high_level`] | take-off, land, go-to, stop, group mask |
+//! | 13 platform | here | protocol version, firmware version, device type |
+//! | 15 link | here | echo, source (the "Bitcraze Crazyflie" magic), sink, null |
+
+pub mod commander;
+pub mod high_level;
+pub mod link;
+pub mod log;
+pub mod packet;
+pub mod param;
+pub mod telemetry;
+pub mod toc;
+
+use std::io;
+use std::path::PathBuf;
+
+use protocol::Sensors;
+
+use self::commander::{Commander, Setpoint, Watched};
+use self::high_level::{HighLevel, Reference};
+pub use self::link::CrtpSpec;
+use self::link::{Pacer, Recorder, Source};
+use self::packet::*;
+use self::param::{Decks, Known, Params};
+pub use self::telemetry::PowerTelemetry;
+use self::telemetry::{Telemetry, PWM_FULL};
+use super::flight::Outcome;
+use super::motion::{wrap_angle, K_HEADING, MAX_YAW_RATE};
+use super::pid::{to_body, DesiredState, MotorCommands};
+use super::{invalid, Stm32};
+use crate::peripherals::motors::MAX_SPEED;
+use crate::peripherals::{DeviceCtx, DeviceError};
+use crate::units::Picos;
+
+/// The CRTP protocol version announced (platform port, `VERSION_GET_PROTOCOL`):
+/// ≥ 4 makes cflib use TOC v2, > 8 the current generic set-point types.
+pub const PROTOCOL_VERSION: u8 = 10;
+/// `VERSION_GET_FIRMWARE` and `VERSION_GET_DEVICE_TYPE` answers.
+const FIRMWARE_NAME: &[u8] = b"crazyflie-cosim";
+const DEVICE_TYPE: &[u8] = b"CF21 (cosim)";
+/// The link service's source answer (cflib's `platformservice.py` checks
+/// the first 18 bytes).
+const LINK_MAGIC: &[u8] = b"Bitcraze Crazyflie";
+
+/// Position loop of the position set-point and the high-level commander:
+/// velocity demand per metre of error, and its horizontal limit. The
+/// firmware's `position_controller_pid.c` uses kp = 2 and 1 m/s on x, y.
+pub const KP_POSITION: f64 = 2.0;
+pub const MAX_HORIZONTAL_SPEED: f64 = 1.0;
+
+/// The CRTP link's settings (run keys `crtp`, `pace`, `crtp_idle_s`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CrtpConfig {
+    pub spec: CrtpSpec,
+    /// Simulated seconds per wall second with a live link (0: unpaced).
+    pub pace: f64,
+    /// The link is closed after this much simulated time without a packet.
+    pub idle: Picos,
+    /// Where the arrivals are recorded (`crtp.jsonl` in the output directory).
+    pub record: Option<PathBuf>,
+    /// The platform has the AI deck (a camera or the GAP8 cluster).
+    pub ai_deck: bool,
+    /// The platform has the GAP8 cluster (`gap8.*` log variables).
+    pub cluster: bool,
+}
+
+/// Counters printed when the link closes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CrtpStats {
+    pub packets_in: u64,
+    pub packets_out: u64,
+    pub malformed: u64,
+    pub ignored: u64,
+    pub external_positions: u64,
+}
+
+/// What the controller flies in one iteration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Demand {
+    Off,
+    /// Attitude (rad), yaw rate (rad/s) and a collective motor speed
+    /// (rad/s), or a height (m) for the height loop.
+    Attitude {
+        roll: f64,
+        pitch: f64,
+        yaw_rate: f64,
+        collective: Option<f64>,
+        z: f64,
+    },
+    /// Body velocity, height, yaw rate: the Bitcraze velocity controller.
+    Track {
+        vx: f64,
+        vy: f64,
+        z: f64,
+        yaw_rate: f64,
+    },
+}
+
+pub struct CrtpServer {
+    cfg: CrtpConfig,
+    source: Source,
+    recorder: Option<Recorder>,
+    pacer: Pacer,
+    log: log::Log,
+    params: Option<Params>,
+    commander: Commander,
+    hl: HighLevel,
+    pub telemetry: Telemetry,
+    last_packet: Option<Picos>,
+    /// The height a velocity-world set-point integrates (its vz).
+    z_hold: Option<f64>,
+    pub stats: CrtpStats,
+}
+
+fn io_device(e: io::Error) -> DeviceError {
+    invalid(format!("CRTP link: {e}"))
+}
+
+impl CrtpServer {
+    /// Binds the link (or reads the recording) and creates the recording.
+    pub fn open(cfg: CrtpConfig) -> io::Result<CrtpServer> {
+        let source = Source::open(&cfg.spec)?;
+        let recorder = match &cfg.record {
+            Some(p) if source.is_live() => Some(Recorder::create(p)?),
+            _ => None,
+        };
+        let pace = if source.is_live() { cfg.pace } else { 0.0 };
+        Ok(CrtpServer {
+            log: log::Log::new(cfg.cluster),
+            cfg,
+            source,
+            recorder,
+            pacer: Pacer::new(pace),
+            params: None,
+            commander: Commander::default(),
+            hl: HighLevel::default(),
+            telemetry: Telemetry::default(),
+            last_packet: None,
+            z_hold: None,
+            stats: CrtpStats::default(),
+        })
+    }
+
+    pub fn config(&self) -> &CrtpConfig {
+        &self.cfg
+    }
+
+    /// The estimate and ranges of this step's sensor read; the decks from
+    /// the first one (the param TOC is fixed from then on).
+    fn observe(&mut self, s: &Sensors, est: &[f64; 15], gains: &super::pid::PidGains) {
+        let t = &mut self.telemetry;
+        t.pos = [est[0], est[1], est[2]];
+        t.yaw = est[3];
+        t.vel = [est[4], est[5], est[6]];
+        t.ranges.copy_from_slice(&est[7..13]);
+        t.roll = s.roll;
+        t.pitch = s.pitch;
+        let ai = self.cfg.ai_deck;
+        self.params.get_or_insert_with(|| {
+            Params::new(
+                Decks {
+                    flow2: s.flow_vx.is_some(),
+                    multiranger: s.range_up.is_some(),
+                    ai,
+                },
+                gains,
+            )
+        });
+    }
+
+    fn pose(&self) -> [f64; 4] {
+        let t = &self.telemetry;
+        [t.pos[0], t.pos[1], t.pos[2], t.yaw]
+    }
+
+    /// Takes the packets of the step at `now` (waiting for the wall clock
+    /// on a live link) and answers them.
+    fn serve(&mut self, now: Picos) -> io::Result<()> {
+        let deadline = self.pacer.deadline(now);
+        loop {
+            let got = self.source.receive(now, deadline)?;
+            if got.is_empty() {
+                return Ok(());
+            }
+            for bytes in got {
+                self.dispatch(&bytes, now)?;
+            }
+        }
+    }
+
+    fn dispatch(&mut self, bytes: &[u8], now: Picos) -> io::Result<()> {
+        self.stats.packets_in += 1;
+        self.last_packet = Some(now);
+        if let Some(r) = &mut self.recorder {
+            r.record(now, bytes)?;
+        }
+        let p = match Packet::parse(bytes) {
+            Ok(p) => p,
+            Err(e) => {
+                self.stats.malformed += 1;
+                tracing::debug!(target: "cosim::crtp", "dropped: {e}");
+                return Ok(());
+            }
+        };
+        let reply = self.answer(&p, now);
+        match reply {
+            Some(r) => {
+                self.stats.packets_out += 1;
+                self.source.send(&r.encode())
+            }
+            None => Ok(()),
+        }
+    }
+
+    /// The firmware's answer to `p` (and its effect).
+    fn answer(&mut self, p: &Packet, now: Picos) -> Option<Packet> {
+        let d = &p.data[..];
+        let params = self.params.as_mut().expect("observed before serving");
+        let data = match (p.port, p.channel) {
+            (PORT_LINK, 0) => Some(d.to_vec()),
+            (PORT_LINK, 1) => Some(LINK_MAGIC.to_vec()),
+            (PORT_LINK, 2) => None,
+            // The null packet (0xFF): answered so cflib's scan finds us.
+            (PORT_LINK, 3) => Some(Vec::new()),
+            (PORT_PLATFORM, 1) => match d.first() {
+                Some(0) => Some(vec![0, PROTOCOL_VERSION]),
+                Some(1) => Some([&[1u8][..], FIRMWARE_NAME].concat()),
+                Some(2) => Some([&[2u8][..], DEVICE_TYPE].concat()),
+                _ => None,
+            },
+            // GET_NUMBER_OF_MEMORIES: no memories (no EEPROM, decks' 1-wire
+            // memories or trajectory memory are modelled).
+            (PORT_MEM, 0) if d.first() == Some(&1) => Some(vec![1, 0]),
+            (PORT_LOG, log::CHAN_TOC) => self.log.toc(d),
+            (PORT_LOG, log::CHAN_CONTROL) => self.log.control(d, now),
+            (PORT_PARAM, param::CHAN_TOC) => params.toc(d),
+            (PORT_PARAM, param::CHAN_READ) => params.read(d),
+            (PORT_PARAM, param::CHAN_WRITE) => params.write(d).map(|(ans, k)| {
+                if k == Known::EnHighLevel && params.get(Known::EnHighLevel) == 0.0 {
+                    self.hl.state = high_level::State::Idle;
+                }
+                ans
+            }),
+            (PORT_COMMANDER, 0) => {
+                self.low_level(Setpoint::rpyt(d), now);
+                None
+            }
+            (PORT_SETPOINT_GENERIC, 0) => {
+                self.low_level(Setpoint::generic(d), now);
+                None
+            }
+            (PORT_SETPOINT_GENERIC, 1) => {
+                if commander::is_notify_stop(d) {
+                    self.commander.release();
+                    if self.telemetry.collective > 0.0 {
+                        let pose = self.pose();
+                        self.hl.hold(now, pose);
+                    }
+                } else {
+                    self.stats.ignored += 1;
+                }
+                None
+            }
+            (PORT_SETPOINT_HL, 0) => {
+                if params.get(Known::EnHighLevel) != 0.0 {
+                    let pose = self.pose();
+                    self.hl.command(d, now, pose);
+                } else {
+                    self.stats.ignored += 1;
+                }
+                None
+            }
+            (PORT_LOCALIZATION, _) => {
+                self.stats.external_positions += 1;
+                None
+            }
+            _ => {
+                self.stats.ignored += 1;
+                None
+            }
+        };
+        data.map(|data| Packet::new(p.port, p.channel, data))
+    }
+
+    fn low_level(&mut self, sp: Option<Setpoint>, now: Picos) {
+        match sp {
+            Some(sp) => {
+                self.commander.set(sp, now);
+                // Low-level set-points take priority: the planner stops.
+                self.hl.state = high_level::State::Idle;
+            }
+            None => self.stats.ignored += 1,
+        }
+    }
+
+    /// The position loop: the world-frame velocity toward `r` (plus its
+    /// feed-forward), limited, in the body frame; the yaw by the heading
+    /// loop of the race's controller.
+    fn track(&self, r: Reference) -> Demand {
+        let t = &self.telemetry;
+        let mut v = [0, 1].map(|i| r.vel[i] + KP_POSITION * (r.pos[i] - t.pos[i]));
+        let n = v[0].hypot(v[1]);
+        if n > MAX_HORIZONTAL_SPEED {
+            v = v.map(|c| c * MAX_HORIZONTAL_SPEED / n);
+        }
+        let (vx, vy) = to_body(v[0], v[1], t.yaw);
+        Demand::Track {
+            vx,
+            vy,
+            z: r.pos[2],
+            yaw_rate: (K_HEADING * wrap_angle(r.yaw - t.yaw)).clamp(-MAX_YAW_RATE, MAX_YAW_RATE),
+        }
+    }
+
+    fn demand(&mut self, now: Picos, dt: f64) -> Demand {
+        let t = self.telemetry;
+        let watched = self.commander.watched(now);
+        if !matches!(watched, Watched::Fresh(Setpoint::VelocityWorld { .. })) {
+            self.z_hold = None;
+        }
+        let hold = |z: f64| Demand::Track {
+            vx: 0.0,
+            vy: 0.0,
+            z,
+            yaw_rate: 0.0,
+        };
+        match watched {
+            Watched::Shutdown => Demand::Off,
+            Watched::Stale(sp) => match sp {
+                Setpoint::Stop => Demand::Off,
+                Setpoint::Hover { z, .. }
+                | Setpoint::ZDistance { z, .. }
+                | Setpoint::Position { z, .. } => hold(z),
+                _ => hold(t.pos[2]),
+            },
+            Watched::Fresh(sp) => match sp {
+                Setpoint::Stop => Demand::Off,
+                Setpoint::Attitude {
+                    roll,
+                    pitch,
+                    yaw_rate,
+                    thrust,
+                } => Demand::Attitude {
+                    roll,
+                    pitch,
+                    yaw_rate,
+                    collective: Some(thrust / PWM_FULL * MAX_SPEED),
+                    z: t.pos[2],
+                },
+                Setpoint::ZDistance {
+                    roll,
+                    pitch,
+                    yaw_rate,
+                    z,
+                } => Demand::Attitude {
+                    roll,
+                    pitch,
+                    yaw_rate,
+                    collective: None,
+                    z,
+                },
+                Setpoint::Hover {
+                    vx,
+                    vy,
+                    yaw_rate,
+                    z,
+                } => Demand::Track {
+                    vx,
+                    vy,
+                    z,
+                    yaw_rate,
+                },
+                Setpoint::VelocityWorld {
+                    vx,
+                    vy,
+                    vz,
+                    yaw_rate,
+                } => {
+                    let z = self.z_hold.unwrap_or(t.pos[2]) + vz * dt;
+                    self.z_hold = Some(z);
+                    let (bx, by) = to_body(vx, vy, t.yaw);
+                    Demand::Track {
+                        vx: bx,
+                        vy: by,
+                        z,
+                        yaw_rate,
+                    }
+                }
+                Setpoint::Position { x, y, z, yaw } => self.track(Reference {
+                    pos: [x, y, z],
+                    vel: [0.0; 3],
+                    yaw,
+                }),
+            },
+            Watched::None => match self.hl.reference(now) {
+                Some(r) => self.track(r),
+                None => Demand::Off,
+            },
+        }
+    }
+
+    /// The log blocks due at `now`.
+    fn send_logs(&mut self, now: Picos) -> io::Result<()> {
+        for d in self.log.due(now, &self.telemetry) {
+            self.stats.packets_out += 1;
+            self.source
+                .send(&Packet::new(PORT_LOG, log::CHAN_DATA, d).encode())?;
+        }
+        Ok(())
+    }
+
+    /// The link has been closed (see the module docs).
+    pub fn closed(&self, now: Picos) -> bool {
+        self.last_packet
+            .is_some_and(|t| now.saturating_sub(t) > self.cfg.idle)
+    }
+
+    pub fn flush(&mut self) -> io::Result<()> {
+        match &mut self.recorder {
+            Some(r) => r.flush(),
+            None => Ok(()),
+        }
+    }
+
+    /// `kalman.resetEstimation` writes (counted; see docs/CFLIB.md).
+    pub fn estimator_resets(&self) -> u64 {
+        self.params.as_ref().map_or(0, |p| p.resets)
+    }
+}
+
+impl Stm32 {
+    /// Gives the STM32 its CRTP link (`--crtp`).
+    pub fn attach_crtp(&mut self, server: CrtpServer) {
+        self.crtp = Some(Box::new(server));
+    }
+
+    pub fn crtp(&self) -> Option<&CrtpServer> {
+        self.crtp.as_deref()
+    }
+
+    /// The power network's sample, for the `pm`, `power` and `gap8` logs.
+    pub fn crtp_power(&mut self, p: PowerTelemetry) {
+        if let Some(c) = self.crtp.as_mut() {
+            c.telemetry.power = p;
+        }
+    }
+
+    /// One world step of the CRTP process: sensors, the step's packets,
+    /// the commander's demand through the PID, the due log blocks.
+    /// `Reached` once the link is closed.
+    pub(super) fn crtp_iteration(
+        &mut self,
+        now: Picos,
+        ctx: &mut DeviceCtx<'_>,
+    ) -> Result<(Outcome, MotorCommands), DeviceError> {
+        let s = self.read_sensors(now, ctx)?;
+        self.stats.pid_iterations += 1;
+        let (dt, actual) = self.measured(&s);
+        let mut server = self.crtp.take().expect("the CRTP process has a link");
+        server.observe(&s, &self.motion.est, &self.flight.pid.gains);
+        let result = (|| {
+            server.serve(now).map_err(io_device)?;
+            if let Some(p) = &server.params {
+                p.apply_gains(&mut self.flight.pid.gains);
+            }
+            let demand = server.demand(now, dt);
+            let mut desired = DesiredState::default();
+            let commands = match demand {
+                Demand::Off => {
+                    // Motors off: the controller starts afresh next time
+                    // (no integrator wound up on the ground).
+                    self.flight.pid.reset();
+                    self.flight.past_time = s.time_s;
+                    self.flight.past_x = s.x;
+                    self.flight.past_y = s.y;
+                    MotorCommands::default()
+                }
+                Demand::Attitude {
+                    roll,
+                    pitch,
+                    yaw_rate,
+                    collective,
+                    z,
+                } => {
+                    desired = DesiredState {
+                        roll,
+                        pitch,
+                        yaw_rate,
+                        altitude: z,
+                        ..DesiredState::default()
+                    };
+                    let c = self
+                        .flight
+                        .pid
+                        .step_attitude(&actual, &desired, dt, collective);
+                    self.flight.past_time = s.time_s;
+                    self.flight.past_x = s.x;
+                    self.flight.past_y = s.y;
+                    c
+                }
+                Demand::Track {
+                    vx,
+                    vy,
+                    z,
+                    yaw_rate,
+                } => {
+                    desired = DesiredState {
+                        vx,
+                        vy,
+                        yaw_rate,
+                        altitude: z,
+                        ..DesiredState::default()
+                    };
+                    self.control(&s, &actual, &mut desired, dt)?
+                }
+            };
+            if commands.as_array().iter().any(|m| !m.is_finite()) {
+                return Err(invalid(format!(
+                    "the controller produced non-finite motor commands {commands:?}"
+                )));
+            }
+            let t = &mut server.telemetry;
+            t.motors = commands.as_array();
+            t.collective = commands.as_array().iter().sum::<f64>() / 4.0;
+            t.sp_roll = desired.roll;
+            t.sp_pitch = desired.pitch;
+            t.sp_yaw = s.yaw;
+            server.send_logs(now).map_err(io_device)?;
+            let outcome = if server.closed(now) {
+                server.flush().map_err(io_device)?;
+                let st = server.stats;
+                let msg = format!(
+                    "[CRTP] link closed: {} packets in ({} malformed, {} ignored, {} external positions), {} out\n",
+                    st.packets_in, st.malformed, st.ignored, st.external_positions, st.packets_out
+                );
+                (ctx.console)(&msg);
+                Outcome::Reached
+            } else {
+                Outcome::Flying
+            };
+            Ok((outcome, commands))
+        })();
+        self.crtp = Some(server);
+        result
+    }
+}

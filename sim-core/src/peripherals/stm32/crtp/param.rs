@@ -1,0 +1,306 @@
+//! Port 2, parameters (the firmware's `param.c`, cflib's `param.py`):
+//! channel 0 the TOC ([`super::toc`]), channel 1 read `[id u16]` →
+//! `[id u16, 0, value]` (an unknown id → `[id u16, ENOENT]`), channel 2
+//! write `[id u16, value]` → `[id u16, value]` (the value the parameter
+//! holds afterwards; an unknown id or a read-only parameter gets no answer,
+//! as from the firmware). Channel 3 (misc: set by name, persistent storage,
+//! extended types, defaults) is not served.
+//!
+//! Type bytes as `param.h`: bit 3 unsigned, bits 0..1 the size (0 = 1 byte,
+//! 2 = 4 bytes), 0x06 float, bit 6 read-only.
+
+use super::packet::u16_at;
+use super::toc::{self, TocEntry};
+use crate::peripherals::stm32::pid::PidGains;
+
+pub const CHAN_TOC: u8 = 0;
+pub const CHAN_READ: u8 = 1;
+pub const CHAN_WRITE: u8 = 2;
+
+pub const PARAM_UINT8: u8 = 0x08;
+pub const PARAM_FLOAT: u8 = 0x06;
+pub const PARAM_RONLY: u8 = 0x40;
+const ENOENT: u8 = 2;
+
+/// The firmware's `stabilizer.controller` value of the PID controller
+/// (`controller.h`: ControllerTypePID = 1); the only one flown here.
+pub const CONTROLLER_PID: f64 = 1.0;
+
+/// The decks the world gives this drone.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Decks {
+    pub flow2: bool,
+    pub multiranger: bool,
+    pub ai: bool,
+}
+
+/// Parameters the STM32 acts on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Known {
+    FlowDeck,
+    MultirangerDeck,
+    AiDeck,
+    EnHighLevel,
+    ResetEstimation,
+    Controller,
+    /// A gain of the Bitcraze controller (DESIGN.md §4), by the firmware's
+    /// name for the same loop.
+    Gain(Gain),
+}
+
+/// The gains of [`PidGains`] served as parameters. The Webots controller
+/// has one gain for roll and pitch and one for both horizontal velocities:
+/// `pid_attitude.roll_kp` and `pitch_kp` are the same gain (writing one
+/// writes both), as are `vxKp` and `vyKp`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Gain {
+    AttRpKp,
+    AttRpKd,
+    AttYKp,
+    VelKp,
+    VelKd,
+    ZKp,
+    ZKi,
+    ZKd,
+}
+
+impl Gain {
+    fn of(self, g: &PidGains) -> f64 {
+        match self {
+            Gain::AttRpKp => g.kp_att_rp,
+            Gain::AttRpKd => g.kd_att_rp,
+            Gain::AttYKp => g.kp_att_y,
+            Gain::VelKp => g.kp_vel_xy,
+            Gain::VelKd => g.kd_vel_xy,
+            Gain::ZKp => g.kp_z,
+            Gain::ZKi => g.ki_z,
+            Gain::ZKd => g.kd_z,
+        }
+    }
+
+    fn set(self, g: &mut PidGains, v: f64) {
+        *match self {
+            Gain::AttRpKp => &mut g.kp_att_rp,
+            Gain::AttRpKd => &mut g.kd_att_rp,
+            Gain::AttYKp => &mut g.kp_att_y,
+            Gain::VelKp => &mut g.kp_vel_xy,
+            Gain::VelKd => &mut g.kd_vel_xy,
+            Gain::ZKp => &mut g.kp_z,
+            Gain::ZKi => &mut g.ki_z,
+            Gain::ZKd => &mut g.kd_z,
+        } = v;
+    }
+}
+
+/// (group, name, gain) of the gain parameters.
+const GAINS: [(&str, &str, Gain); 12] = [
+    ("pid_attitude", "roll_kp", Gain::AttRpKp),
+    ("pid_attitude", "roll_kd", Gain::AttRpKd),
+    ("pid_attitude", "pitch_kp", Gain::AttRpKp),
+    ("pid_attitude", "pitch_kd", Gain::AttRpKd),
+    ("pid_attitude", "yaw_kp", Gain::AttYKp),
+    ("velCtlPid", "vxKp", Gain::VelKp),
+    ("velCtlPid", "vxKd", Gain::VelKd),
+    ("velCtlPid", "vyKp", Gain::VelKp),
+    ("velCtlPid", "vyKd", Gain::VelKd),
+    ("posCtlPid", "zKp", Gain::ZKp),
+    ("posCtlPid", "zKi", Gain::ZKi),
+    ("posCtlPid", "zKd", Gain::ZKd),
+];
+
+struct Param {
+    entry: TocEntry,
+    known: Known,
+    value: f64,
+}
+
+pub struct Params {
+    params: Vec<Param>,
+    entries: Vec<TocEntry>,
+    /// Writes of `kalman.resetEstimation` = 1 (counted: see `set`).
+    pub resets: u64,
+}
+
+impl Params {
+    pub fn new(decks: Decks, gains: &PidGains) -> Self {
+        let b = |v: bool| if v { 1.0 } else { 0.0 };
+        let p = |ty: u8, group: &'static str, name: &'static str, known: Known, value: f64| Param {
+            entry: TocEntry { ty, group, name },
+            known,
+            value,
+        };
+        let ro = PARAM_UINT8 | PARAM_RONLY;
+        let mut params = vec![
+            p(ro, "deck", "bcFlow2", Known::FlowDeck, b(decks.flow2)),
+            p(
+                ro,
+                "deck",
+                "bcMultiranger",
+                Known::MultirangerDeck,
+                b(decks.multiranger),
+            ),
+            p(ro, "deck", "bcAI", Known::AiDeck, b(decks.ai)),
+            p(
+                PARAM_UINT8,
+                "commander",
+                "enHighLevel",
+                Known::EnHighLevel,
+                1.0,
+            ),
+            p(
+                PARAM_UINT8,
+                "kalman",
+                "resetEstimation",
+                Known::ResetEstimation,
+                0.0,
+            ),
+            p(
+                PARAM_UINT8,
+                "stabilizer",
+                "controller",
+                Known::Controller,
+                CONTROLLER_PID,
+            ),
+        ];
+        for (group, name, g) in GAINS {
+            params.push(p(PARAM_FLOAT, group, name, Known::Gain(g), g.of(gains)));
+        }
+        let entries = params.iter().map(|p| p.entry.clone()).collect();
+        Params {
+            params,
+            entries,
+            resets: 0,
+        }
+    }
+
+    pub fn entries(&self) -> &[TocEntry] {
+        &self.entries
+    }
+
+    pub fn toc(&self, request: &[u8]) -> Option<Vec<u8>> {
+        toc::answer(&self.entries, request, &[])
+    }
+
+    pub fn get(&self, k: Known) -> f64 {
+        self.params
+            .iter()
+            .find(|p| p.known == k)
+            .map_or(0.0, |p| p.value)
+    }
+
+    /// The controller's gains as the parameters hold them.
+    pub fn apply_gains(&self, g: &mut PidGains) {
+        for p in &self.params {
+            if let Known::Gain(k) = p.known {
+                k.set(g, p.value);
+            }
+        }
+    }
+
+    fn encode(p: &Param) -> Vec<u8> {
+        if p.entry.ty & 0x0F == PARAM_FLOAT {
+            (p.value as f32).to_le_bytes().to_vec()
+        } else {
+            vec![p.value as u8]
+        }
+    }
+
+    pub fn read(&self, d: &[u8]) -> Option<Vec<u8>> {
+        let id = u16_at(d, 0)?;
+        let mut out = id.to_le_bytes().to_vec();
+        match self.params.get(id as usize) {
+            Some(p) => {
+                out.push(0);
+                out.extend(Self::encode(p));
+            }
+            None => out.push(ENOENT),
+        }
+        Some(out)
+    }
+
+    /// A write: the answer and the parameter written.
+    pub fn write(&mut self, d: &[u8]) -> Option<(Vec<u8>, Known)> {
+        let id = u16_at(d, 0)?;
+        let p = self.params.get_mut(id as usize)?;
+        if p.entry.ty & PARAM_RONLY != 0 {
+            return None;
+        }
+        let raw = &d[2..];
+        let v = if p.entry.ty & 0x0F == PARAM_FLOAT {
+            super::packet::f32_at(raw, 0)?
+        } else {
+            f64::from(*raw.first()?)
+        };
+        p.value = match p.known {
+            // One controller is flown (the Bitcraze PID of DESIGN.md §4):
+            // the parameter keeps saying so, and the answer shows it.
+            Known::Controller => CONTROLLER_PID,
+            // A gain must be a finite number (the PID would fly NaN).
+            Known::Gain(_) if !v.is_finite() => p.value,
+            _ => v,
+        };
+        let (known, value) = (p.known, p.value);
+        if known == Known::ResetEstimation && value != 0.0 {
+            self.resets += 1;
+        }
+        let mut out = id.to_le_bytes().to_vec();
+        out.extend(Self::encode(p));
+        // A shared gain: every name of it holds the new value.
+        if let Known::Gain(_) = known {
+            for q in self.params.iter_mut().filter(|q| q.known == known) {
+                q.value = value;
+            }
+        }
+        Some((out, known))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_writes_and_refusals_follow_param_c() {
+        let mut p = Params::new(
+            Decks {
+                flow2: true,
+                multiranger: true,
+                ai: false,
+            },
+            &PidGains::default(),
+        );
+        let flow = toc::find(p.entries(), "deck.bcFlow2").unwrap();
+        let ai = toc::find(p.entries(), "deck.bcAI").unwrap();
+        let hl = toc::find(p.entries(), "commander.enHighLevel").unwrap();
+        let ctl = toc::find(p.entries(), "stabilizer.controller").unwrap();
+        assert_eq!(p.read(&flow.to_le_bytes()), Some(vec![flow as u8, 0, 0, 1]));
+        assert_eq!(p.read(&ai.to_le_bytes()), Some(vec![ai as u8, 0, 0, 0]));
+        assert_eq!(p.read(&[200, 0]), Some(vec![200, 0, ENOENT]));
+        assert_eq!(p.read(&[1]), None);
+        // Read-only and unknown: no answer.
+        assert_eq!(p.write(&[flow as u8, 0, 0]), None);
+        assert_eq!(p.write(&[200, 0, 1]), None);
+        let (ans, k) = p.write(&[hl as u8, 0, 0]).unwrap();
+        assert_eq!((ans, k), (vec![hl as u8, 0, 0], Known::EnHighLevel));
+        assert_eq!(p.get(Known::EnHighLevel), 0.0);
+        let (ans, _) = p.write(&[ctl as u8, 0, 2]).unwrap();
+        assert_eq!(ans, vec![ctl as u8, 0, 1]);
+        // pitch_kd is the Webots controller's roll/pitch kd (0.1), shared.
+        let pkd = toc::find(p.entries(), "pid_attitude.pitch_kd").unwrap();
+        let rkd = toc::find(p.entries(), "pid_attitude.roll_kd").unwrap();
+        assert_eq!(
+            p.read(&pkd.to_le_bytes()).unwrap()[3..],
+            0.1f32.to_le_bytes()
+        );
+        let mut w = pkd.to_le_bytes().to_vec();
+        w.extend(0.2f32.to_le_bytes());
+        p.write(&w).unwrap();
+        assert_eq!(
+            p.read(&rkd.to_le_bytes()).unwrap()[3..],
+            0.2f32.to_le_bytes()
+        );
+        let mut g = PidGains::default();
+        p.apply_gains(&mut g);
+        assert_eq!(g.kd_att_rp, 0.2f32 as f64);
+    }
+}

@@ -1,0 +1,178 @@
+//! What the log variables read: the STM32's state estimate, its ranges, the
+//! attitude, the motor commands of the last iteration, and the power
+//! network's last sample (the kernel hands it over every millisecond). The
+//! names and types are the firmware's (`LOG_GROUP_START(stateEstimate)` in
+//! `estimator.c`, `range` in `range.c`, `pm` in `pm_stm32f4.c`, `stabilizer`
+//! in `stabilizer.c`, `motor` in `motors.c`); `power` and `gap8` are this
+//! platform's own.
+
+use super::toc::TocEntry;
+use crate::peripherals::motors::MAX_SPEED;
+
+/// The firmware's log types (`log.h`: LOG_UINT8 = 1 … LOG_FLOAT = 7, LOG_FP16 = 8).
+pub const LOG_UINT8: u8 = 1;
+pub const LOG_UINT16: u8 = 2;
+pub const LOG_UINT32: u8 = 3;
+pub const LOG_INT8: u8 = 4;
+pub const LOG_INT16: u8 = 5;
+pub const LOG_INT32: u8 = 6;
+pub const LOG_FLOAT: u8 = 7;
+pub const LOG_FP16: u8 = 8;
+
+/// A range sensor with nothing in range reads this (mm): cflib's
+/// `Multiranger` takes 8000 mm and more as "nothing" (`multiranger.py`).
+pub const RANGE_NONE_MM: f64 = 32767.0;
+
+/// The firmware's PWM full scale (`motors.h`: 16-bit ratios); our motor
+/// commands are speeds up to the world's [`MAX_SPEED`] rad/s, mapped
+/// linearly onto it.
+pub const PWM_FULL: f64 = 65535.0;
+
+/// The power network's last sample, as the log shows it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PowerTelemetry {
+    pub vbat: f64,
+    pub soc: f64,
+    pub low_battery: bool,
+    pub i_battery: f64,
+    pub p_motor: f64,
+    pub i_vcc: f64,
+    /// The cluster's power (W) on a platform with one.
+    pub p_cluster: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Telemetry {
+    pub pos: [f64; 3],
+    pub vel: [f64; 3],
+    /// rad
+    pub roll: f64,
+    pub pitch: f64,
+    pub yaw: f64,
+    /// front, back, left, right, up, down (m; negative = nothing in range)
+    pub ranges: [f64; 6],
+    /// The last iteration's motor commands (rad/s).
+    pub motors: [f64; 4],
+    /// The attitude the controller asked for (rad) and its collective (rad/s).
+    pub sp_roll: f64,
+    pub sp_pitch: f64,
+    pub sp_yaw: f64,
+    pub collective: f64,
+    pub power: PowerTelemetry,
+}
+
+fn mm(m: f64) -> f64 {
+    if m >= 0.0 {
+        m * 1000.0
+    } else {
+        RANGE_NONE_MM
+    }
+}
+
+fn pwm(speed: f64) -> f64 {
+    (speed / MAX_SPEED * PWM_FULL).clamp(0.0, PWM_FULL)
+}
+
+/// The firmware's `pm.state` (`pm.h`: 0 battery, 3 low power).
+fn pm_state(p: &PowerTelemetry) -> f64 {
+    if p.low_battery {
+        3.0
+    } else {
+        0.0
+    }
+}
+
+pub struct LogVar {
+    pub entry: TocEntry,
+    pub get: fn(&Telemetry) -> f64,
+}
+
+macro_rules! var {
+    ($ty:expr, $g:literal, $n:literal, $f:expr) => {
+        LogVar {
+            entry: TocEntry {
+                ty: $ty,
+                group: $g,
+                name: $n,
+            },
+            get: $f,
+        }
+    };
+}
+
+/// The log TOC; `gap8.*` only on a platform with a cluster (the AI deck's
+/// GAP8). Angles in degrees as the firmware logs them.
+pub fn log_toc(with_cluster: bool) -> Vec<LogVar> {
+    let mut v = vec![
+        var!(LOG_FLOAT, "stateEstimate", "x", |t| t.pos[0]),
+        var!(LOG_FLOAT, "stateEstimate", "y", |t| t.pos[1]),
+        var!(LOG_FLOAT, "stateEstimate", "z", |t| t.pos[2]),
+        var!(LOG_FLOAT, "stateEstimate", "vx", |t| t.vel[0]),
+        var!(LOG_FLOAT, "stateEstimate", "vy", |t| t.vel[1]),
+        var!(LOG_FLOAT, "stateEstimate", "vz", |t| t.vel[2]),
+        var!(LOG_FLOAT, "stateEstimate", "roll", |t| t.roll.to_degrees()),
+        var!(LOG_FLOAT, "stateEstimate", "pitch", |t| t
+            .pitch
+            .to_degrees()),
+        var!(LOG_FLOAT, "stateEstimate", "yaw", |t| t.yaw.to_degrees()),
+        var!(LOG_UINT16, "range", "front", |t| mm(t.ranges[0])),
+        var!(LOG_UINT16, "range", "back", |t| mm(t.ranges[1])),
+        var!(LOG_UINT16, "range", "left", |t| mm(t.ranges[2])),
+        var!(LOG_UINT16, "range", "right", |t| mm(t.ranges[3])),
+        var!(LOG_UINT16, "range", "up", |t| mm(t.ranges[4])),
+        var!(LOG_UINT16, "range", "zrange", |t| mm(t.ranges[5])),
+        var!(LOG_FLOAT, "pm", "vbat", |t| t.power.vbat),
+        var!(LOG_UINT8, "pm", "batteryLevel", |t| (t.power.soc * 100.0)
+            .round()
+            .clamp(0.0, 100.0)),
+        var!(LOG_INT8, "pm", "state", |t| pm_state(&t.power)),
+        var!(LOG_FLOAT, "stabilizer", "roll", |t| t.sp_roll.to_degrees()),
+        var!(LOG_FLOAT, "stabilizer", "pitch", |t| t
+            .sp_pitch
+            .to_degrees()),
+        var!(LOG_FLOAT, "stabilizer", "yaw", |t| t.sp_yaw.to_degrees()),
+        var!(LOG_FLOAT, "stabilizer", "thrust", |t| pwm(t.collective)),
+        var!(LOG_UINT32, "motor", "m1", |t| pwm(t.motors[0])),
+        var!(LOG_UINT32, "motor", "m2", |t| pwm(t.motors[1])),
+        var!(LOG_UINT32, "motor", "m3", |t| pwm(t.motors[2])),
+        var!(LOG_UINT32, "motor", "m4", |t| pwm(t.motors[3])),
+        var!(LOG_FLOAT, "power", "vbat", |t| t.power.vbat),
+        var!(LOG_FLOAT, "power", "soc", |t| t.power.soc),
+        var!(LOG_FLOAT, "power", "iBattery", |t| t.power.i_battery),
+        var!(LOG_FLOAT, "power", "iVcc", |t| t.power.i_vcc),
+        var!(LOG_FLOAT, "power", "pMotor", |t| t.power.p_motor),
+    ];
+    if with_cluster {
+        v.push(var!(LOG_FLOAT, "gap8", "pCluster", |t| t
+            .power
+            .p_cluster
+            .unwrap_or(0.0)));
+    }
+    v
+}
+
+/// Size in bytes of a log type (`None`: not a log type).
+pub fn type_size(ty: u8) -> Option<usize> {
+    match ty {
+        LOG_UINT8 | LOG_INT8 => Some(1),
+        LOG_UINT16 | LOG_INT16 | LOG_FP16 => Some(2),
+        LOG_UINT32 | LOG_INT32 | LOG_FLOAT => Some(4),
+        _ => None,
+    }
+}
+
+/// `v` in log type `ty`, little-endian; integers as C converts a float
+/// (toward zero; saturated here where C's conversion is undefined).
+pub fn encode(ty: u8, v: f64, out: &mut Vec<u8>) {
+    match ty {
+        LOG_UINT8 => out.push(v as u8),
+        LOG_INT8 => out.push(v as i8 as u8),
+        LOG_UINT16 => out.extend((v as u16).to_le_bytes()),
+        LOG_INT16 => out.extend((v as i16).to_le_bytes()),
+        LOG_UINT32 => out.extend((v as u32).to_le_bytes()),
+        LOG_INT32 => out.extend((v as i32).to_le_bytes()),
+        LOG_FLOAT => out.extend((v as f32).to_le_bytes()),
+        LOG_FP16 => out.extend(half::f16::from_f64(v).to_le_bytes()),
+        _ => {}
+    }
+}
