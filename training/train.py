@@ -111,9 +111,16 @@ def smooth_l1(d, beta=0.02):
     return jnp.where(a < beta, 0.5 * a * a / beta, a - 0.5 * beta)
 
 
-def loss_fn(params, x, obj, reg, mask):
+def loss_fn(params, x, obj, reg, mask, ignore=0.0):
+    """BCE of the objectness over the cells plus the weighted smooth-L1 of the
+    regression over the positive 3x3 cells. With ignore = 1 the centre cell's
+    8 neighbours are left out of the objectness (neither pushed up nor down):
+    a gate near a cell border may then raise both cells instead of splitting
+    its probability between them (each below 0.5, a miss at the decoding's
+    threshold of logit 0)."""
     out = forward(params, x)
-    bce = optax.sigmoid_binary_cross_entropy(out[..., 0], obj).sum(axis=(1, 2))
+    w_obj = 1.0 - ignore * (mask - obj)
+    bce = (optax.sigmoid_binary_cross_entropy(out[..., 0], obj) * w_obj).sum(axis=(1, 2))
     w = jnp.array([1.0, 1.0, 0.5] + [0.25] * 8)
     r = (smooth_l1(out[..., 1:] - reg) * w).sum(-1) * mask
     return jnp.mean(bce) + 4.0 * jnp.mean(r.sum(axis=(1, 2)))
@@ -191,7 +198,10 @@ def main():
     ap.add_argument("--bn", action="store_true", help="train with batch normalisation (folded at the end)")
     ap.add_argument("--gain", type=float, default=0.0, help="brightness gain augmentation, +-")
     ap.add_argument("--offset", type=float, default=0.0, help="brightness offset augmentation, +- levels")
+    ap.add_argument("--ignore-neighbours", action="store_true",
+                    help="leave the centre cell's 8 neighbours out of the objectness loss")
     a = ap.parse_args()
+    ignore = 1.0 if a.ignore_neighbours else 0.0
     t0 = time.time()
     parts = [load_inputs(d) for d in a.data]
     small = np.concatenate([p[0][:a.limit] for p in parts])
@@ -225,7 +235,7 @@ def main():
 
     @jax.jit
     def step(params, state, xb, ob, rb, mb):
-        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, rb, mb)
+        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, rb, mb, ignore)
         upd, state = opt.update(g, state, params)
         return optax.apply_updates(params, upd), state, loss
 
@@ -268,7 +278,8 @@ def main():
         ckpt[f"{name}.b"] = np.asarray(params[name]["b"]).astype(np.float32)
     ckpt["act_max"] = act_max
     meta = {"command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
-            "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn, "train_seconds": round(train_s, 1),
+            "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn,
+            "ignore_neighbours": a.ignore_neighbours, "train_seconds": round(train_s, 1),
             "jax": jax.__version__, "optax": optax.__version__}
     ckpt["meta"] = np.array(json.dumps(meta))
     np.savez(a.out, **ckpt)
