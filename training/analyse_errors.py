@@ -57,6 +57,13 @@ def main():
               f"{gross[s].sum() / max(det[s].sum(), 1):6.1%}")
     fp = sum(1 for p, r in zip(pred, labels) if p[0] and not r["visible"])
     print(f"false positives: {fp} of {sum(not r['visible'] for r in labels)} images without a gate")
+    # The decoding's threshold (the best cell's logit > 0) against others:
+    # what a firmware threshold could trade.
+    best = head[..., 0].reshape(len(head), -1).max(axis=1)
+    vis = np.array([r["visible"] for r in labels])
+    print("best logit >  detected  false positives")
+    for t in (-1.0, -0.5, 0.0, 0.5, 1.0):
+        print(f"  {t:+.1f} {np.mean(best[vis] > t):15.1%} {np.mean(best[~vis] > t):12.1%}")
 
 
 if __name__ == "__main__":
