@@ -2,8 +2,13 @@
 CPU with JAX + optax, seeded; writes the float checkpoint (framework-neutral
 .npz) with the activation ranges for int8 quantization (docs/NN.md).
 
-    python3 training/train.py --data DIR --out training/checkpoint.npz \
-        [--epochs 12] [--seed 0] [--heldout DIR]
+    python3 training/train.py --data DIR [DIR ...] --out training/checkpoint.npz \
+        [--epochs 12] [--seed 0] [--heldout DIR] [--bn]
+
+With --bn every ReLU convolution is trained with batch normalisation (batch
+statistics); after training the statistics are re-estimated over 4096
+training images and folded into the convolution's weights and bias, so the
+checkpoint (and the int8 export) is the plain network of netdef.LAYERS.
 
 Only this script needs JAX; export.py, int8_ref.py and the tests need numpy.
 """
@@ -59,16 +64,28 @@ def targets(labels, mirror):
     return obj, reg, mask
 
 
-def init(key):
+# Batch normalisation's epsilon (added to the variance).
+BN_EPS = 1e-3
+
+
+def init(key, bn=False):
     params = {}
-    for name, k, _, _, cin, cout, _ in netdef.LAYERS:
+    for name, k, _, _, cin, cout, relu in netdef.LAYERS:
         key, sub = jax.random.split(key)
         std = np.sqrt(2.0 / (k * k * cin))
         params[name] = {
             "w": jax.random.normal(sub, (k, k, cin, cout), jnp.float32) * std,  # HWIO
             "b": jnp.zeros((cout,), jnp.float32),
         }
+        if bn and relu:
+            # The bias is BN's beta; the convolution itself has none.
+            params[name]["gamma"] = jnp.ones((cout,), jnp.float32)
     return params
+
+
+def conv(x, w, s, p):
+    return jax.lax.conv_general_dilated(
+        x, w, (s, s), ((p, p), (p, p)), dimension_numbers=("NHWC", "HWIO", "NHWC"))
 
 
 def forward(params, x, keep=False):
@@ -76,9 +93,13 @@ def forward(params, x, keep=False):
     and, with keep, every ReLU output."""
     acts = []
     for name, _, s, p, _, _, relu in netdef.LAYERS:
-        x = jax.lax.conv_general_dilated(
-            x, params[name]["w"], (s, s), ((p, p), (p, p)),
-            dimension_numbers=("NHWC", "HWIO", "NHWC")) + params[name]["b"]
+        x = conv(x, params[name]["w"], s, p)
+        if "gamma" in params[name]:
+            # Training with batch normalisation: this batch's statistics.
+            mean = x.mean(axis=(0, 1, 2))
+            var = x.var(axis=(0, 1, 2))
+            x = (x - mean) * (params[name]["gamma"] * jax.lax.rsqrt(var + BN_EPS))
+        x = x + params[name]["b"]
         if relu:
             x = jax.nn.relu(x)
             acts.append(x)
@@ -90,60 +111,143 @@ def smooth_l1(d, beta=0.02):
     return jnp.where(a < beta, 0.5 * a * a / beta, a - 0.5 * beta)
 
 
-def loss_fn(params, x, obj, reg, mask):
+def loss_fn(params, x, obj, reg, mask, ignore=0.0):
+    """BCE of the objectness over the cells plus the weighted smooth-L1 of the
+    regression over the positive 3x3 cells. With ignore = 1 the centre cell's
+    8 neighbours are left out of the objectness (neither pushed up nor down):
+    a gate near a cell border may then raise both cells instead of splitting
+    its probability between them (each below 0.5, a miss at the decoding's
+    threshold of logit 0)."""
     out = forward(params, x)
-    bce = optax.sigmoid_binary_cross_entropy(out[..., 0], obj).sum(axis=(1, 2))
+    w_obj = 1.0 - ignore * (mask - obj)
+    bce = (optax.sigmoid_binary_cross_entropy(out[..., 0], obj) * w_obj).sum(axis=(1, 2))
     w = jnp.array([1.0, 1.0, 0.5] + [0.25] * 8)
     r = (smooth_l1(out[..., 1:] - reg) * w).sum(-1) * mask
     return jnp.mean(bce) + 4.0 * jnp.mean(r.sum(axis=(1, 2)))
 
 
+def fold_bn(params, calib, chunk=256):
+    """The plain network (w, b per layer) equal to the batch-normalised one
+    with population statistics: each layer's mean and variance are measured
+    over `calib` with the layers before it already folded, then
+    w' = w * gamma / sqrt(var + eps), b' = beta - mean * gamma / sqrt(var + eps)."""
+    folded, x = {}, calib
+    for name, _, s, p, _, _, relu in netdef.LAYERS:
+        w, b = params[name]["w"], params[name]["b"]
+        if "gamma" in params[name]:
+            y = np.concatenate([np.asarray(conv(x[i:i + chunk], w, s, p))
+                                for i in range(0, len(x), chunk)]).astype(np.float64)
+            mean, var = y.mean(axis=(0, 1, 2)), y.var(axis=(0, 1, 2))
+            scale = np.asarray(params[name]["gamma"], np.float64) / np.sqrt(var + BN_EPS)
+            w = jnp.asarray(np.asarray(w, np.float64) * scale, jnp.float32)
+            b = jnp.asarray(np.asarray(b, np.float64) - mean * scale, jnp.float32)
+        folded[name] = {"w": w, "b": b}
+        x = np.concatenate([np.asarray(conv(x[i:i + chunk], w, s, p) + b)
+                            for i in range(0, len(x), chunk)])
+        if relu:
+            x = np.maximum(x, 0.0)
+    return folded
+
+
+def raw_path(out):
+    """Where a --bn run keeps its network before folding: OUT-bn.npz."""
+    return os.path.splitext(out)[0] + "-bn.npz"
+
+
+def load_inputs(directory):
+    """A dataset's 80x80 inputs, cached beside it (inputs80.npy) after the
+    first read: 100,000 PGMs take minutes to decode, the cache a second."""
+    labels = netdef.read_labels(directory)
+    cache = os.path.join(directory, "inputs80.npy")
+    if os.path.exists(cache):
+        small = np.load(cache)
+        if len(small) == len(labels):
+            return small, labels
+    small, labels = netdef.load_dataset(directory)
+    np.save(cache, small)
+    return small, labels
+
+
+def batch_inputs(small, idx, n, rng, gain, offset):
+    """The float inputs of samples idx (idx >= n: image idx - n mirrored
+    left-right), each with a random brightness gain and offset (photometric
+    augmentation) applied to the 80x80 uint8 image, rounded and clipped as
+    a real image would be."""
+    x = small[idx % n].astype(np.float32)
+    flip = idx >= n
+    x[flip] = x[flip, :, ::-1]
+    if gain or offset:
+        g = rng.uniform(1 - gain, 1 + gain, (len(idx), 1, 1)).astype(np.float32)
+        o = rng.uniform(-offset, offset, (len(idx), 1, 1)).astype(np.float32)
+        x = np.clip(np.round((x - 128) * g + 128 + o), 0, 255)
+    return ((x - 128) / 128.0)[..., None]
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--data", required=True)
+    ap.add_argument("--data", required=True, nargs="+", help="cosim dataset directories")
     ap.add_argument("--out", required=True)
     ap.add_argument("--epochs", type=int, default=12)
     ap.add_argument("--batch", type=int, default=128)
     ap.add_argument("--lr", type=float, default=3e-3)
+    ap.add_argument("--warmup", type=int, default=0, help="linear warm-up steps")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--heldout", help="a dataset to report accuracy on at the end")
-    ap.add_argument("--limit", type=int, help="use only the first N images")
+    ap.add_argument("--limit", type=int, help="use only the first N images of each directory")
     ap.add_argument("--init", help="start from this checkpoint (a further cosine cycle)")
+    ap.add_argument("--bn", action="store_true", help="train with batch normalisation (folded at the end)")
+    ap.add_argument("--gain", type=float, default=0.0, help="brightness gain augmentation, +-")
+    ap.add_argument("--offset", type=float, default=0.0, help="brightness offset augmentation, +- levels")
+    ap.add_argument("--ignore-neighbours", action="store_true",
+                    help="leave the centre cell's 8 neighbours out of the objectness loss")
     a = ap.parse_args()
+    ignore = 1.0 if a.ignore_neighbours else 0.0
     t0 = time.time()
-    small, labels = netdef.load_dataset(a.data, a.limit)
-    x = np.concatenate([small, small[:, :, ::-1]])  # horizontal mirror: twice the data
+    parts = [load_inputs(d) for d in a.data]
+    small = np.concatenate([p[0][:a.limit] for p in parts])
+    labels = [r for p in parts for r in p[1][:a.limit]]
+    n = len(labels)
+    # Samples 0..n-1 the images, n..2n-1 the same mirrored (labels mirrored).
     o1, r1, m1 = targets(labels, False)
     o2, r2, m2 = targets(labels, True)
     obj, reg, mask = (np.concatenate(p) for p in ((o1, o2), (r1, r2), (m1, m2)))
-    x = (netdef.to_int8(x).astype(np.float32) / 128.0)
-    print(f"loaded {len(labels)} images (x2 mirrored) in {time.time() - t0:.1f} s", flush=True)
+    print(f"loaded {n} images (x2 mirrored) in {time.time() - t0:.1f} s", flush=True)
 
     key = jax.random.PRNGKey(a.seed)
-    params = init(key)
+    params = init(key, a.bn)
     if a.init:
         with np.load(a.init) as z:
-            params = {name: {"w": jnp.asarray(np.transpose(z[f"{name}.w"], (1, 2, 3, 0))),
-                             "b": jnp.asarray(z[f"{name}.b"])} for name, *_ in netdef.LAYERS}
-    steps_per_epoch = len(x) // a.batch
-    sched = optax.cosine_decay_schedule(a.lr, a.epochs * steps_per_epoch)
+            if "conv1.gamma" in z.files:
+                # A batch-normalised network before folding (raw_path's file).
+                params = {name: {k: jnp.asarray(z[f"{name}.{k}"]) for k in ("w", "b", "gamma")
+                                 if f"{name}.{k}" in z.files} for name, *_ in netdef.LAYERS}
+            else:
+                params = {name: {"w": jnp.asarray(np.transpose(z[f"{name}.w"], (1, 2, 3, 0))),
+                                 "b": jnp.asarray(z[f"{name}.b"])} for name, *_ in netdef.LAYERS}
+    steps_per_epoch = 2 * n // a.batch
+    total_steps = a.epochs * steps_per_epoch
+    if a.warmup:
+        sched = optax.warmup_cosine_decay_schedule(0.0, a.lr, a.warmup, total_steps)
+    else:
+        sched = optax.cosine_decay_schedule(a.lr, total_steps)
     opt = optax.adamw(sched, weight_decay=1e-4)
     state = opt.init(params)
 
     @jax.jit
     def step(params, state, xb, ob, rb, mb):
-        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, rb, mb)
+        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, rb, mb, ignore)
         upd, state = opt.update(g, state, params)
         return optax.apply_updates(params, upd), state, loss
 
     rng = np.random.default_rng(a.seed)
     t1 = time.time()
     for epoch in range(a.epochs):
-        perm = rng.permutation(len(x))
+        perm = rng.permutation(2 * n)
         total = 0.0
         for s in range(steps_per_epoch):
             idx = np.sort(perm[s * a.batch:(s + 1) * a.batch])
-            params, state, loss = step(params, state, x[idx], obj[idx], reg[idx], mask[idx])
+            xb = batch_inputs(small, idx, n, rng, a.gain, a.offset)
+            params, state, loss = step(params, state, xb, obj[idx], reg[idx], mask[idx])
             total += float(loss)
             if s % 100 == 0:
                 print(f"  step {s}: {float(loss):.4f} ({time.time() - t1:.0f} s)", flush=True)
@@ -153,7 +257,13 @@ def main():
 
     # Activation ranges for int8 (docs/NN.md): the 99.99th percentile of each
     # ReLU output over 2048 training images.
-    calib = x[rng.permutation(len(x))[:2048]]
+    calib = batch_inputs(small, rng.permutation(2 * n)[:4096], n, rng, 0.0, 0.0)
+    if a.bn:
+        # The unfolded network, for a further cycle (--init with --bn).
+        np.savez(raw_path(a.out), **{f"{name}.{k}": np.asarray(v)
+                                    for name, layer in params.items() for k, v in layer.items()})
+        params = fold_bn(params, calib)
+    calib = calib[:2048]
     acts = [[] for _ in range(len(netdef.LAYERS) - 1)]
     for s in range(0, len(calib), 256):
         _, a_l = forward(params, calib[s:s + 256], keep=True)
@@ -167,8 +277,9 @@ def main():
         ckpt[f"{name}.w"] = np.transpose(w, (3, 0, 1, 2)).astype(np.float32)
         ckpt[f"{name}.b"] = np.asarray(params[name]["b"]).astype(np.float32)
     ckpt["act_max"] = act_max
-    meta = {"command": " ".join(sys.argv), "images": len(labels), "epochs": a.epochs,
-            "batch": a.batch, "lr": a.lr, "seed": a.seed, "train_seconds": round(train_s, 1),
+    meta = {"command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
+            "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn,
+            "ignore_neighbours": a.ignore_neighbours, "train_seconds": round(train_s, 1),
             "jax": jax.__version__, "optax": optax.__version__}
     ckpt["meta"] = np.array(json.dumps(meta))
     np.savez(a.out, **ckpt)

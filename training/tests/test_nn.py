@@ -13,6 +13,7 @@ import os
 import sys
 
 import numpy as np
+import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
@@ -83,3 +84,27 @@ def test_int8_agrees_with_float_on_the_golden_images():
             cu, cv = netdef.cell_centre(best[1], best[0])
             fu, fv = cu + f[best][1] * netdef.CELL_PX, cv + f[best][2] * netdef.CELL_PX
             assert abs(out["u_q4"] / 16 - fu) < 4 and abs(out["v_q4"] / 16 - fv) < 4
+
+
+def test_folding_batch_norm_keeps_the_network():
+    """train.fold_bn: the plain network it returns computes, on a batch,
+    what the batch-normalised one computes with that batch's statistics
+    (needs JAX; skipped where only numpy is installed)."""
+    pytest.importorskip("jax")
+    import jax
+    import jax.numpy as jnp
+
+    import train
+
+    params = train.init(jax.random.PRNGKey(0), bn=True)
+    rng = np.random.default_rng(0)
+    for layer in params.values():
+        if "gamma" in layer:
+            layer["gamma"] = jnp.asarray(rng.uniform(0.5, 2.0, layer["gamma"].shape), jnp.float32)
+            layer["b"] = jnp.asarray(rng.normal(0.0, 0.3, layer["b"].shape), jnp.float32)
+    x = rng.normal(0.0, 0.5, (64, netdef.INPUT, netdef.INPUT, 1)).astype(np.float32)
+    want = np.asarray(train.forward(params, x))
+    folded = train.fold_bn(params, x, chunk=16)
+    assert all(set(layer) == {"w", "b"} for layer in folded.values())
+    got = np.asarray(train.forward(folded, x))
+    assert np.abs(got - want).max() < 1e-4 * np.abs(want).max()
