@@ -272,6 +272,11 @@ pub struct Memory {
     /// The L1 bank arbiter when the platform has a cluster: the cores'
     /// [`MemTiming::l1_port`] accesses go through it.
     pub tcdm: Option<Tcdm>,
+    /// Translated code of the cached blocks (`iss/jit`), made on first use
+    /// by a core running the translator, shared by every core on this
+    /// memory.
+    #[cfg(target_arch = "x86_64")]
+    pub(crate) jit: Option<Box<super::jit::JitCache>>,
 }
 
 fn check_range(base: u32, size: u32) -> Result<(), MemError> {

@@ -81,6 +81,62 @@ pub struct CpuConfig {
     /// [`StopReason::Breakpoint`] instead of trapping, like a debugger.
     pub ebreak_stops: bool,
     pub hart_id: u32,
+    /// What runs the cached blocks: the interpreter or the translator
+    /// (identical results; `--iss`, `--set iss=`).
+    pub iss: Backend,
+}
+
+/// The ISS back end (DESIGN.md §14). Both give bit-identical state,
+/// cycles and device-visible times; the translator is faster.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    /// The threaded interpreter (`exec.rs`), on every host; the reference.
+    Interp,
+    /// The block translator (`jit/`) in front of the interpreter; x86-64
+    /// only (elsewhere it runs as the interpreter).
+    Jit,
+}
+
+impl Backend {
+    /// The translator on x86-64, the interpreter elsewhere.
+    pub const DEFAULT: Backend = if cfg!(target_arch = "x86_64") {
+        Backend::Jit
+    } else {
+        Backend::Interp
+    };
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Interp => "interp",
+            Backend::Jit => "jit",
+        }
+    }
+}
+
+impl Default for Backend {
+    fn default() -> Self {
+        Backend::DEFAULT
+    }
+}
+
+impl std::str::FromStr for Backend {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "interp" => Ok(Backend::Interp),
+            "jit" => Ok(Backend::Jit),
+            _ => Err(format!(
+                "unknown ISS back end {s:?} (expected interp or jit)"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 impl Default for CpuConfig {
@@ -91,6 +147,7 @@ impl Default for CpuConfig {
             idle_skip: true,
             ebreak_stops: false,
             hart_id: 0,
+            iss: Backend::DEFAULT,
         }
     }
 }
@@ -600,10 +657,27 @@ impl Cpu {
     /// or to `tohost`, a system instruction. That one is handed back
     /// unexecuted, with the core's state as it was just before it.
     fn exec_block(&mut self, mem: &mut Memory, first: usize) -> Exit {
+        // The translator first (`jit_run.rs`), except in loops the idle
+        // detector is watching.
+        #[cfg(target_arch = "x86_64")]
+        let single = if self.cfg.iss == Backend::Jit && !(self.poll.touched || self.poll.active) {
+            match self.run_translated(mem, first) {
+                jit_run::Translated::Ran => return Exit::Paused,
+                jit_run::Translated::Uncovered => true,
+                jit_run::Translated::TooLong => false,
+            }
+        } else {
+            false
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let single = false;
         let mut run = exec::Run::new(&mut mem.regions, &mem.insts);
         run.set_timing(self.mem_timing, mem.tcdm.as_mut());
         if self.code_size != 0 {
             run.set_code_region(self.code_idx);
+        }
+        if single {
+            run.single_block();
         }
         run.tohost = self.tohost;
         run.poll_armed = self.poll.touched || self.poll.active;
@@ -1214,5 +1288,7 @@ impl Cpu {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+mod jit_run;
 mod poll;
 use poll::PollTracker;
