@@ -69,6 +69,17 @@ impl CodeBuffer {
         at
     }
 
+    /// Point the rel32 field at host address `site` (a jump's, inside
+    /// this buffer's code) at `target`.
+    pub fn patch_rel32(&mut self, site: usize, target: usize) {
+        let start = self.ptr as usize;
+        assert!(site >= start && site + 4 <= start + self.used, "patch outside the code");
+        let rel = i32::try_from(target as i64 - (site + 4) as i64).expect("jump within the buffer");
+        // SAFETY: inside the written part of the mapping (checked); no
+        // translated code runs while the cache is being changed.
+        unsafe { std::ptr::copy_nonoverlapping(rel.to_le_bytes().as_ptr(), site as *mut u8, 4) };
+    }
+
     /// Forget everything after the first `keep` bytes.
     pub fn truncate(&mut self, keep: usize) {
         self.used = keep.min(self.used);

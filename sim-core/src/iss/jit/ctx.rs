@@ -93,8 +93,6 @@ pub(crate) const CYCLES: i32 = offset_of!(Ctx, cycles) as i32;
 pub(crate) const RETIRED: i32 = offset_of!(Ctx, retired) as i32;
 
 pub(crate) const ENTRY_CODE: i32 = offset_of!(Entry, code) as i32;
-pub(crate) const ENTRY_WORST: i32 = offset_of!(Entry, worst) as i32;
-pub(crate) const ENTRY_NMEM: i32 = offset_of!(Entry, nmem) as i32;
 /// log2 of `size_of::<Entry>()` (the dispatcher scales by a shift).
 pub(crate) const ENTRY_SHIFT: i8 = 4;
 const _: () = assert!(std::mem::size_of::<Entry>() == 1 << ENTRY_SHIFT);

@@ -32,8 +32,8 @@ type Asm = VecAssembler<X64Relocation>;
 pub(crate) struct Stubs {
     /// Store `r13`/`r15` in the context and return to Rust.
     pub exit: usize,
-    /// `eax` = a target pc: chain to its block if translated and within
-    /// the deadline, else leave there.
+    /// `eax` = a target pc: chain to its block if translated (whose
+    /// checked entry tests the deadline), else leave there.
     pub dispatch: usize,
     /// `eax` = a target pc: leave there (after a transfer).
     pub leave: usize,
@@ -66,13 +66,19 @@ pub(crate) struct Translation {
     pub code: Vec<u8>,
     pub worst: u32,
     pub nmem: u32,
+    /// Jumps to the dispatcher for a static target not translated yet:
+    /// `(target pc, offset of the jump's rel32 in code)`, to be pointed at
+    /// the target's code once it exists.
+    pub patches: Vec<(u32, usize)>,
 }
 
 /// Translate the block `b` (its instructions up to and including its last),
 /// to be placed at host address `at`. `known` gives the translated block
-/// at a guest pc, for direct jumps; `start` is `b[0].pc`, whose entry is
-/// not known yet (loops back to the block itself jump to its start).
-/// `None` when its first instruction is not covered.
+/// at a guest pc, for direct jumps. `None` when its first instruction is
+/// not covered.
+///
+/// The code starts with its checked entry: it goes on only if the block's
+/// worst case ends before the deadline, else it leaves at the block's pc.
 pub(crate) fn translate(
     b: &[Inst],
     at: usize,
@@ -100,17 +106,21 @@ pub(crate) fn translate(
     }
     worst += prefix[n] + BRANCH_TAKEN_EXTRA;
     let worst = u32::try_from(worst).ok()?;
-    let me = Entry {
-        code: at as u64,
-        worst,
-        nmem,
-    };
 
     let mut a = Asm::new(at);
     let start = a.new_dynamic_label();
     let exits: Vec<_> = (0..=n).map(|_| a.new_dynamic_label()).collect();
     let mut taken: Vec<(usize, dynasmrt::DynamicLabel)> = Vec::new();
-    dynasm!(a ; .arch x64 ; =>start);
+    let mut patches = Vec::new();
+    // The checked entry: enter only if the worst case ends before the
+    // deadline, else leave at the block's start (reached by a transfer:
+    // nothing in the load shadow).
+    let fail = a.new_dynamic_label();
+    dynasm!(a ; .arch x64 ; =>start ; lea rcx, [r13 + worst as i32]);
+    if nmem != 0 {
+        dynasm!(a ; .arch x64 ; imul rdx, [rbx + EXTRA], nmem as i32 ; add rcx, rdx);
+    }
+    dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE] ; jae =>fail);
 
     for (k, i) in b[..n].iter().enumerate() {
         let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
@@ -241,7 +251,7 @@ pub(crate) fn translate(
                 }
                 account(&mut a, prefix[k + 1], k as u64 + 1, jumps[k] + 1);
                 if i.op == op::JAL {
-                    chain(&mut a, at, i.imm, stubs, known, (b[0].pc, me, start));
+                    chain(&mut a, at, i.imm, stubs, known, (b[0].pc, start), &mut patches);
                 } else {
                     jmp_abs(&mut a, at, stubs.dispatch);
                 }
@@ -268,8 +278,10 @@ pub(crate) fn translate(
             k as u64 + 1,
             jumps[k] + 1,
         );
-        chain(&mut a, at, b[k].imm, stubs, known, (b[0].pc, me, start));
+        chain(&mut a, at, b[k].imm, stubs, known, (b[0].pc, start), &mut patches);
     }
+    dynasm!(a ; .arch x64 ; =>fail ; mov eax, b[0].pc as i32);
+    jmp_abs(&mut a, at, stubs.leave);
     // Exits just before instruction k (the interpreter's `leave`): the
     // load-use state is that of the instruction before, or none after a
     // transfer (the core fixes the entry block's k = 0 case).
@@ -287,7 +299,12 @@ pub(crate) fn translate(
         jmp_abs(&mut a, at, stubs.exit);
     }
     let code = a.finalize().ok()?;
-    Some(Translation { code, worst, nmem })
+    Some(Translation {
+        code,
+        worst,
+        nmem,
+        patches,
+    })
 }
 
 /// `jmp rel32` to a host address (dynasm-rs has no absolute targets on
@@ -295,13 +312,6 @@ pub(crate) fn translate(
 fn jmp_abs(a: &mut Asm, at: usize, target: usize) {
     let end = at + a.offset().0 + 5;
     a.push(0xe9);
-    a.extend(rel32(end, target).to_le_bytes());
-}
-
-/// `jae rel32` to a host address.
-fn jae_abs(a: &mut Asm, at: usize, target: usize) {
-    let end = at + a.offset().0 + 6;
-    a.extend([0x0f, 0x83]);
     a.extend(rel32(end, target).to_le_bytes());
 }
 
@@ -324,33 +334,30 @@ fn account(a: &mut Asm, cycles: u64, retired: u64, jumps: u64) {
     }
 }
 
-/// Go on at the static target `to`: straight into its translation when it
-/// is known and its worst case fits before the deadline, else through the
-/// dispatcher. `me` is the block being translated (for loops to itself).
+/// Go on at the static target `to`: straight into its translation's
+/// checked entry when it is known (`me`: the block being translated, for
+/// loops to itself), else through the dispatcher, a jump `patches` records
+/// so it can go straight there once the target is translated.
 fn chain(
     a: &mut Asm,
     at: usize,
     to: u32,
     stubs: Stubs,
     known: &dyn Fn(u32) -> Option<Entry>,
-    me: (u32, Entry, dynasmrt::DynamicLabel),
+    me: (u32, dynasmrt::DynamicLabel),
+    patches: &mut Vec<(u32, usize)>,
 ) {
-    let target = if to == me.0 { Some(me.1) } else { known(to) };
-    dynasm!(a ; .arch x64 ; mov eax, to as i32);
-    let Some(e) = target else {
-        jmp_abs(a, at, stubs.dispatch);
-        return;
-    };
-    dynasm!(a ; .arch x64 ; lea rcx, [r13 + e.worst as i32]);
-    if e.nmem != 0 {
-        dynasm!(a ; .arch x64 ; imul rdx, [rbx + EXTRA], e.nmem as i32 ; add rcx, rdx);
-    }
-    dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE]);
-    jae_abs(a, at, stubs.leave);
     if to == me.0 {
-        dynasm!(a ; .arch x64 ; jmp =>me.2);
-    } else {
-        jmp_abs(a, at, e.code as usize);
+        dynasm!(a ; .arch x64 ; jmp =>me.1);
+        return;
+    }
+    dynasm!(a ; .arch x64 ; mov eax, to as i32);
+    match known(to) {
+        Some(e) => jmp_abs(a, at, e.code as usize),
+        None => {
+            patches.push((to, a.offset().0 + 1));
+            jmp_abs(a, at, stubs.dispatch);
+        }
     }
 }
 

@@ -75,6 +75,9 @@ pub(crate) struct JitCache {
     /// stored as its two little-endian words so the allocation is a
     /// zeroed one (`calloc`: the OS backs only the pages that get code).
     tables: Vec<Vec<[u64; 2]>>,
+    /// Jumps waiting for a target to be translated: target pc → host
+    /// addresses of their rel32 fields.
+    pending: std::collections::HashMap<u32, Vec<usize>>,
     /// Blocks translated and cache flushes so far (statistics).
     pub translated: u64,
     pub flushes: u64,
@@ -125,8 +128,8 @@ impl JitCache {
             ; pop r15 ; pop r14 ; pop r13 ; pop r12 ; pop rbp ; pop rbx
             ; ret
             // dispatch(eax = target pc): its block in the code region's
-            // table, if translated and its worst case ends before the
-            // deadline; else leave there.
+            // table (whose checked entry tests the deadline) if translated,
+            // else leave there.
             ; =>dispatch
             ; mov ecx, eax
             ; sub rcx, [rbx + CODE_BASE]
@@ -138,13 +141,6 @@ impl JitCache {
             ; mov rsi, [rcx + ENTRY_CODE]
             ; test rsi, rsi
             ; jz =>leave
-            ; mov edx, [rcx + ENTRY_NMEM]
-            ; imul rdx, [rbx + EXTRA]
-            ; mov edi, [rcx + ENTRY_WORST]
-            ; add rdx, rdi
-            ; add rdx, r13
-            ; cmp rdx, [rbx + DEADLINE]
-            ; jae =>leave
             ; jmp rsi
             // leave(eax = pc) after a transfer: nothing in the load shadow.
             ; =>leave
@@ -167,6 +163,7 @@ impl JitCache {
             },
             enter,
             tables: Vec::new(),
+            pending: Default::default(),
             translated: 0,
             flushes: 0,
         })
@@ -175,6 +172,7 @@ impl JitCache {
     /// Drop every translation (the block cache was flushed).
     pub fn flush(&mut self) {
         self.tables.clear();
+        self.pending.clear();
         self.buf.truncate(self.stub_bytes);
         self.flushes += 1;
     }
@@ -231,7 +229,16 @@ impl JitCache {
             self.tables[region][off >> 1] = pack(UNCOVERED);
             return None;
         };
-        let code = self.buf.push(&t.code) as u64;
+        let code = self.buf.push(&t.code);
+        for (to, off) in t.patches {
+            self.pending.entry(to).or_default().push(code + off);
+        }
+        // Jumps that waited for this block now go straight to it.
+        let pc = regions[region].base.wrapping_add(off as u32);
+        for site in self.pending.remove(&pc).unwrap_or_default() {
+            self.buf.patch_rel32(site, code);
+        }
+        let code = code as u64;
         let e = Entry {
             code,
             worst: t.worst,
