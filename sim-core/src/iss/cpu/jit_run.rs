@@ -7,6 +7,14 @@ use super::*;
 use crate::iss::jit::ctx::{Ctx, NO_TOHOST};
 use crate::iss::jit::JitCache;
 
+/// Cycles left before the deadline above which the interpreter, having
+/// done a block the translator does not take, hands back to it after that
+/// block rather than running on to the deadline (measured with `cosim
+/// bench iss`: cluster cores, whose L1 accesses the translator leaves to
+/// the interpreter, ran 2x slower returning after every block of their
+/// 1024-cycle quanta).
+pub(super) const RETURN_BUDGET: u64 = 16 * 1024;
+
 /// What [`Cpu::run_translated`] did.
 pub(super) enum Translated {
     /// Translated code ran; the core is on an instruction boundary.
@@ -87,6 +95,7 @@ impl Cpu {
             // fast path does not do): nothing happened, the interpreter
             // does this block.
             self.cycles = entry;
+            jit.demote(region, off as usize);
             return Translated::Uncovered;
         }
         self.load_mask = ctx.load_mask as u32;

@@ -663,7 +663,12 @@ impl Cpu {
         let single = if self.cfg.iss == Backend::Jit && !(self.poll.touched || self.poll.active) {
             match self.run_translated(mem, first) {
                 jit_run::Translated::Ran => return Exit::Paused,
-                jit_run::Translated::Uncovered => true,
+                // Back to the translator after this block only when it has
+                // a long way to go (a cluster core's 1024-cycle quantum
+                // does not repay the round trip).
+                jit_run::Translated::Uncovered => {
+                    self.deadline.saturating_sub(self.cycles) > jit_run::RETURN_BUDGET
+                }
                 jit_run::Translated::TooLong => false,
             }
         } else {

@@ -73,7 +73,10 @@ impl CodeBuffer {
     /// this buffer's code) at `target`.
     pub fn patch_rel32(&mut self, site: usize, target: usize) {
         let start = self.ptr as usize;
-        assert!(site >= start && site + 4 <= start + self.used, "patch outside the code");
+        assert!(
+            site >= start && site + 4 <= start + self.used,
+            "patch outside the code"
+        );
         let rel = i32::try_from(target as i64 - (site + 4) as i64).expect("jump within the buffer");
         // SAFETY: inside the written part of the mapping (checked); no
         // translated code runs while the cache is being changed.

@@ -251,7 +251,15 @@ pub(crate) fn translate(
                 }
                 account(&mut a, prefix[k + 1], k as u64 + 1, jumps[k] + 1);
                 if i.op == op::JAL {
-                    chain(&mut a, at, i.imm, stubs, known, (b[0].pc, start), &mut patches);
+                    chain(
+                        &mut a,
+                        at,
+                        i.imm,
+                        stubs,
+                        known,
+                        (b[0].pc, start),
+                        &mut patches,
+                    );
                 } else {
                     jmp_abs(&mut a, at, stubs.dispatch);
                 }
@@ -278,7 +286,15 @@ pub(crate) fn translate(
             k as u64 + 1,
             jumps[k] + 1,
         );
-        chain(&mut a, at, b[k].imm, stubs, known, (b[0].pc, start), &mut patches);
+        chain(
+            &mut a,
+            at,
+            b[k].imm,
+            stubs,
+            known,
+            (b[0].pc, start),
+            &mut patches,
+        );
     }
     dynasm!(a ; .arch x64 ; =>fail ; mov eax, b[0].pc as i32);
     jmp_abs(&mut a, at, stubs.leave);

@@ -249,6 +249,21 @@ impl JitCache {
         Some(e)
     }
 
+    /// Hand the block at byte `off` of region `region` to the interpreter
+    /// from now on: its first instruction is an access the fast path does
+    /// not do (a device, another RAM region, cached code), which would
+    /// otherwise leave translated code at once every time. Jumps already
+    /// patched to it still enter it, and leave at once as before.
+    pub fn demote(&mut self, region: usize, off: usize) {
+        if let Some(e) = self
+            .tables
+            .get_mut(region)
+            .and_then(|t| t.get_mut(off >> 1))
+        {
+            *e = pack(UNCOVERED);
+        }
+    }
+
     /// Run translated code from `code` (an [`Entry::code`]) at `cycles`.
     ///
     /// # Safety
