@@ -79,7 +79,11 @@ fn run_once(sim_core: &Path, elf: &Path, iss: &str) -> Result<Run, BenchError> {
     let cpu_s = children_cpu_s() - before;
     let stderr = String::from_utf8_lossy(&o.stderr);
     if !o.status.success() {
-        return Err(err(format!("run-elf failed ({}): {}", o.status, stderr.trim())));
+        return Err(err(format!(
+            "run-elf failed ({}): {}",
+            o.status,
+            stderr.trim()
+        )));
     }
     let fc = stat(&stderr, "instructions:").ok_or_else(|| err("no statistics".into()))?;
     let skipped = stderr
@@ -91,7 +95,14 @@ fn run_once(sim_core: &Path, elf: &Path, iss: &str) -> Result<Run, BenchError> {
     let cluster: u64 = stderr
         .lines()
         .filter(|l| l.starts_with("cluster core "))
-        .filter_map(|l| l.split("instructions ").nth(1)?.split(',').next()?.parse::<u64>().ok())
+        .filter_map(|l| {
+            l.split("instructions ")
+                .nth(1)?
+                .split(',')
+                .next()?
+                .parse::<u64>()
+                .ok()
+        })
         .sum();
     Ok(Run {
         instructions: fc - skipped + cluster,
@@ -105,7 +116,15 @@ fn run_once(sim_core: &Path, elf: &Path, iss: &str) -> Result<Run, BenchError> {
 fn qemu_once(elf: &Path) -> Option<f64> {
     let before = children_cpu_s();
     let o = Command::new("qemu-system-riscv32")
-        .args(["-M", "virt", "-nographic", "-bios", "none", "-icount", "shift=0"])
+        .args([
+            "-M",
+            "virt",
+            "-nographic",
+            "-bios",
+            "none",
+            "-icount",
+            "shift=0",
+        ])
         .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
         .arg(elf)
         .stdin(Stdio::null())
@@ -147,7 +166,10 @@ pub fn bench_iss(
     let mut rows = Vec::new();
     for elf in elfs {
         if !elf.is_file() {
-            return Err(BenchError::Output(format!("{}: no such ELF", elf.display())));
+            return Err(BenchError::Output(format!(
+                "{}: no such ELF",
+                elf.display()
+            )));
         }
         let name = elf
             .file_name()
@@ -213,7 +235,14 @@ mod tests {
         let cluster: u64 = text
             .lines()
             .filter(|l| l.starts_with("cluster core "))
-            .filter_map(|l| l.split("instructions ").nth(1)?.split(',').next()?.parse::<u64>().ok())
+            .filter_map(|l| {
+                l.split("instructions ")
+                    .nth(1)?
+                    .split(',')
+                    .next()?
+                    .parse::<u64>()
+                    .ok()
+            })
             .sum();
         assert_eq!(cluster, 120);
     }
