@@ -198,12 +198,6 @@ impl<'a> Run<'a> {
         }
     }
 
-    /// Do not chain: stop after the first block (the translator takes over
-    /// at the next one, `cpu/jit_run.rs`).
-    pub fn single_block(&mut self) {
-        self.code_size = 0;
-    }
-
     /// Index of `p` in the running block.
     #[inline(always)]
     fn index(&self, p: *const Inst) -> usize {

@@ -7,13 +7,12 @@ use super::*;
 use crate::iss::jit::ctx::{Ctx, NO_TOHOST};
 use crate::iss::jit::JitCache;
 
-/// Cycles left before the deadline above which the interpreter, having
-/// done a block the translator does not take, hands back to it after that
-/// block rather than running on to the deadline (measured with `cosim
-/// bench iss`: cluster cores, whose L1 accesses the translator leaves to
-/// the interpreter, ran 2x slower returning after every block of their
-/// 1024-cycle quanta).
-pub(super) const RETURN_BUDGET: u64 = 16 * 1024;
+/// Cycles the interpreter runs, having started on a block the translator
+/// does not take, before it hands back (a Rust round trip costs about a
+/// hundred host cycles; 2048 guest cycles interpreted cost ~5 µs). Handing
+/// back after every block made cluster cores, whose L1 accesses the
+/// translator leaves to the interpreter, 2x slower (`cosim bench iss`).
+pub(super) const RETURN_BUDGET: u64 = 2048;
 
 /// What [`Cpu::run_translated`] did.
 pub(super) enum Translated {

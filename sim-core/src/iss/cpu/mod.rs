@@ -660,29 +660,28 @@ impl Cpu {
         // The translator first (`jit_run.rs`), except in loops the idle
         // detector is watching.
         #[cfg(target_arch = "x86_64")]
-        let single = if self.cfg.iss == Backend::Jit && !(self.poll.touched || self.poll.active) {
+        let deadline = if self.cfg.iss == Backend::Jit && !(self.poll.touched || self.poll.active) {
             match self.run_translated(mem, first) {
                 jit_run::Translated::Ran => return Exit::Paused,
-                // Back to the translator after this block only when it has
-                // a long way to go (a cluster core's 1024-cycle quantum
-                // does not repay the round trip).
-                jit_run::Translated::Uncovered => {
-                    self.deadline.saturating_sub(self.cycles) > jit_run::RETURN_BUDGET
-                }
-                jit_run::Translated::TooLong => false,
+                // The interpreter does what the translator does not take,
+                // and a little more before handing back (a pause at an
+                // instruction boundary, like the end of a run slice: it
+                // changes nothing), so code the translator keeps leaving
+                // does not bounce between the two at every block.
+                jit_run::Translated::Uncovered => self
+                    .deadline
+                    .min(self.cycles.saturating_add(jit_run::RETURN_BUDGET)),
+                jit_run::Translated::TooLong => self.deadline,
             }
         } else {
-            false
+            self.deadline
         };
         #[cfg(not(target_arch = "x86_64"))]
-        let single = false;
+        let deadline = self.deadline;
         let mut run = exec::Run::new(&mut mem.regions, &mem.insts);
         run.set_timing(self.mem_timing, mem.tcdm.as_mut());
         if self.code_size != 0 {
             run.set_code_region(self.code_idx);
-        }
-        if single {
-            run.single_block();
         }
         run.tohost = self.tohost;
         run.poll_armed = self.poll.touched || self.poll.active;
@@ -691,14 +690,7 @@ impl Cpu {
         let stall = (mem.insts[first].reads() & self.load_mask != 0) as u64;
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
-        let flow = exec::run(
-            &mut run,
-            &mut self.regs,
-            first,
-            entry,
-            cycles,
-            self.deadline,
-        );
+        let flow = exec::run(&mut run, &mut self.regs, first, entry, cycles, deadline);
         self.cycles = run.cycles;
         self.pc = run.pc;
         self.instret += run.retired;
