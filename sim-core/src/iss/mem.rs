@@ -425,6 +425,12 @@ impl Memory {
         true
     }
 
+    /// The block translator's counters, if a core on this memory used it.
+    #[cfg(target_arch = "x86_64")]
+    pub fn jit_stats(&self) -> Option<super::jit::JitStats> {
+        self.jit.as_ref().map(|j| j.stats())
+    }
+
     /// Drop every cached block (`fence.i` does not need this since
     /// writes keep the cache coherent, but a platform that changes RAM
     /// behind the core's back may call it).

@@ -98,6 +98,8 @@ pub mod elf;
 mod exec;
 #[cfg(target_arch = "x86_64")]
 mod jit;
+#[cfg(target_arch = "x86_64")]
+pub use jit::JitStats;
 pub mod mem;
 pub mod run_elf;
 pub mod semihost;

@@ -208,6 +208,15 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
             "sleep cycles: {}, polling cycles: {}, skipped instructions: {}",
             s.sleep_cycles, s.poll_cycles, s.skipped_instructions
         );
+        #[cfg(target_arch = "x86_64")]
+        if let Some(j) = mem.jit_stats() {
+            eprintln!(
+                "jit: {} blocks translated, {} KiB of code, {} flushes",
+                j.translated,
+                j.code_bytes / 1024,
+                j.flushes
+            );
+        }
         if let Some(c) = &cluster {
             print_cluster_stats(c, &mem, secs);
         }

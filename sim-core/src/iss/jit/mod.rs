@@ -50,6 +50,17 @@ const UNCOVERED: Entry = Entry {
     nmem: 0,
 };
 
+/// The translator's counters (`sim-core run-elf --stats`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct JitStats {
+    /// Blocks translated (again after each flush).
+    pub translated: u64,
+    /// Bytes of x86-64 code in the buffer now.
+    pub code_bytes: u64,
+    /// Times the cache was emptied (code overwritten, block cache full).
+    pub flushes: u64,
+}
+
 /// An [`Entry`] as the table stores it (the `#[repr(C)]` layout on a
 /// little-endian host: code, then worst and nmem in one word).
 fn pack(e: Entry) -> [u64; 2] {
@@ -167,6 +178,15 @@ impl JitCache {
             translated: 0,
             flushes: 0,
         })
+    }
+
+    /// What the cache holds and has done.
+    pub fn stats(&self) -> JitStats {
+        JitStats {
+            translated: self.translated,
+            code_bytes: (self.buf.used() - self.stub_bytes) as u64,
+            flushes: self.flushes,
+        }
     }
 
     /// Drop every translation (the block cache was flushed).
