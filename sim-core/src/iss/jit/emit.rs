@@ -110,6 +110,9 @@ pub(crate) fn translate(
     let mut a = Asm::new(at);
     let start = a.new_dynamic_label();
     let exits: Vec<_> = (0..=n).map(|_| a.new_dynamic_label()).collect();
+    // Which exits something jumps to (only those are emitted: unused stubs
+    // would only dilute the host's instruction cache).
+    let mut used = vec![false; n + 1];
     let mut taken: Vec<(usize, dynasmrt::DynamicLabel)> = Vec::new();
     let mut patches = Vec::new();
     // The checked entry: enter only if the worst case ends before the
@@ -210,7 +213,10 @@ pub(crate) fn translate(
                     dynasm!(a ; shr rax, 32 ; add r13, rax);
                 }
             }
-            o if is_mem(o) => mem_op(&mut a, i, exits[k]),
+            o if is_mem(o) => {
+                used[k] = true;
+                mem_op(&mut a, i, exits[k])
+            }
             op::BEQ | op::BNE | op::BLT | op::BGE | op::BLTU | op::BGEU => {
                 let l = a.new_dynamic_label();
                 dynasm!(a ; mov eax, [r12 + rs1] ; cmp eax, [r12 + rs2]);
@@ -266,6 +272,7 @@ pub(crate) fn translate(
                 break;
             }
             op::END => {
+                used[k] = true;
                 dynasm!(a ; jmp =>exits[k]);
                 break;
             }
@@ -273,6 +280,7 @@ pub(crate) fn translate(
         }
         if k + 1 == n {
             // The next instruction is not covered: leave before it.
+            used[n] = true;
             dynasm!(a ; jmp =>exits[n]);
         }
     }
@@ -301,7 +309,7 @@ pub(crate) fn translate(
     // Exits just before instruction k (the interpreter's `leave`): the
     // load-use state is that of the instruction before, or none after a
     // transfer (the core fixes the entry block's k = 0 case).
-    for (k, l) in exits.iter().enumerate() {
+    for (k, l) in exits.iter().enumerate().filter(|&(k, _)| used[k]) {
         dynasm!(a ; =>*l);
         account(&mut a, prefix[k], k as u64, jumps[k]);
         let mask = if k > 0 { b[k - 1].load_mask() } else { 0 };
