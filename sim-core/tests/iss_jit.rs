@@ -213,29 +213,22 @@ fn state(stop: StopReason, cpu: &Cpu, mem: &Memory) -> State {
 /// that runs, with the same cycles as the interpreter.
 #[test]
 fn self_modifying_code_with_fence_i() {
-    // x5 = patch address, x7 = counter, x8 = the addi's encoding, x9 = its
-    // immediate step (1 << 20).
-    let body = [
-        i_type(40, 0, 0, 7, 0x13),    // 0: addi x7, x0, 40
-        i_type(6 * 4, 0, 0, 5, 0x13), // 1: addi x5, x0, 24
-        0x8000_02b7 | (0 << 7),       // 2: lui x5... replaced below
-        i_type(0, 0, 0, 6, 0x13),     // 3: addi x6, x0, 0
-        i_type(0, 5, 2, 8, 0x03),     // 4: lw x8, 0(x5)
-        0,                            // 5: lui x9, 0x100 (below)
-        i_type(0, 6, 0, 6, 0x13),     // 6: addi x6, x6, 0 (patched)
-        0x0094_0433,                  // 7: add x8, x8, x9
-        s_type(0, 8, 5, 2),           // 8: sw x8, 0(x5)
-        FENCE_I,                      // 9
-        i_type(-1, 7, 0, 7, 0x13),    // 10: addi x7, x7, -1
-        b_type(-20, 0, 7, 1),         // 11: bne x7, x0, -20 (to 6)
-        csr(2, 10, 0, 0xb00),         // 12: csrr x10, mcycle
-        0x0000_006f,                  // 13: j .
+    let prog = [
+        i_type(40, 0, 0, 7, 0x13), // 0: addi x7, x0, 40 (the counter)
+        0x8000_02b7,               // 1: lui x5, 0x80000
+        i_type(24, 5, 0, 5, 0x13), // 2: addi x5, x5, 24 (x5 = &insn 6)
+        i_type(0, 0, 0, 6, 0x13),  // 3: addi x6, x0, 0
+        i_type(0, 5, 2, 8, 0x03),  // 4: lw x8, 0(x5)
+        0x0010_04b7,               // 5: lui x9, 0x100 (1 << 20: imm + 1)
+        i_type(0, 6, 0, 6, 0x13),  // 6: addi x6, x6, 0 (patched)
+        0x0094_0433,               // 7: add x8, x8, x9
+        s_type(0, 8, 5, 2),        // 8: sw x8, 0(x5)
+        FENCE_I,                   // 9
+        i_type(-1, 7, 0, 7, 0x13), // 10: addi x7, x7, -1
+        b_type(-20, 0, 7, 1),      // 11: bne x7, x0, -20 (to 6)
+        csr(2, 10, 0, 0xb00),      // 12: csrr x10, mcycle
+        0x0000_006f,               // 13: j .
     ];
-    let mut prog = body.to_vec();
-    // x5 = BASE + 24 (the patched addi): lui x5, 0x80000; addi x5, x5, 24.
-    prog[1] = 0x8000_02b7; // lui x5, 0x80000
-    prog[2] = i_type(24, 5, 0, 5, 0x13);
-    prog[5] = 0x0010_04b7; // lui x9, 0x100 (= 1 << 20: imm += 1)
     let run = |iss| {
         let (mut cpu, mut mem) = setup(&prog, iss);
         cpu.set_instruction_limit(Some(1000));
