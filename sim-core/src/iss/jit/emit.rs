@@ -131,6 +131,9 @@ pub(crate) fn translate(
         match i.op {
             op::NOP | op::FENCE | op::FENCE_I => {}
             op::LUI => dynasm!(a ; mov DWORD [r12 + rd], imm),
+            // `li` and `mv`: one store, or a copy.
+            op::ADDI if i.rs1 == 0 => dynasm!(a ; mov DWORD [r12 + rd], imm),
+            op::ADDI if imm == 0 => dynasm!(a ; mov eax, [r12 + rs1] ; mov [r12 + rd], eax),
             op::ADDI | op::XORI | op::ORI | op::ANDI | op::SLLI | op::SRLI | op::SRAI => {
                 dynasm!(a ; mov eax, [r12 + rs1]);
                 match i.op {
@@ -219,7 +222,11 @@ pub(crate) fn translate(
             }
             op::BEQ | op::BNE | op::BLT | op::BGE | op::BLTU | op::BGEU => {
                 let l = a.new_dynamic_label();
-                dynasm!(a ; mov eax, [r12 + rs1] ; cmp eax, [r12 + rs2]);
+                if i.rs2 == 0 {
+                    dynasm!(a ; cmp DWORD [r12 + rs1], 0);
+                } else {
+                    dynasm!(a ; mov eax, [r12 + rs1] ; cmp eax, [r12 + rs2]);
+                }
                 match i.op {
                     op::BEQ => dynasm!(a ; je =>l),
                     op::BNE => dynasm!(a ; jne =>l),
@@ -459,13 +466,13 @@ fn mem_op(a: &mut Asm, i: &Inst, exit: dynasmrt::DynamicLabel) {
     if !store && i.rd != 0 {
         dynasm!(a ; .arch x64 ; mov [r12 + rd], edx);
     }
-    // A split access (crosses a word boundary) costs one more cycle.
+    // A split access (crosses a word boundary) costs one more cycle:
+    // ((addr & 3) + n + 3) >> 3 is 1 exactly when (addr & 3) + n > 4.
     if n > 1 {
         dynasm!(a ; .arch x64
             ; and eax, 3
-            ; cmp eax, 4 - n
-            ; seta al
-            ; movzx eax, al
+            ; add eax, n + 3
+            ; shr eax, 3
             ; add r13, rax
         );
     }
