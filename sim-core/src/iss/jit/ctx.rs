@@ -7,7 +7,8 @@
 //! - `r12`: the guest register file (`[u32; 32]` in the `Cpu`),
 //! - `r13`: the core's cycle count,
 //! - `r14`: the host address of the fast RAM region's first byte,
-//! - `r15`: instructions retired since the run began.
+//! - `r15`: instructions retired since the run began,
+//! - `rbp`: [`Ctx::extra`], the extra cycles of every fast-region access.
 
 use std::mem::offset_of;
 

@@ -121,7 +121,7 @@ pub(crate) fn translate(
     let fail = a.new_dynamic_label();
     dynasm!(a ; .arch x64 ; =>start ; lea rcx, [r13 + worst as i32]);
     if nmem != 0 {
-        dynasm!(a ; .arch x64 ; imul rdx, [rbx + EXTRA], nmem as i32 ; add rcx, rdx);
+        dynasm!(a ; .arch x64 ; imul rdx, rbp, nmem as i32 ; add rcx, rdx);
     }
     dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE] ; jae =>fail);
 
@@ -476,5 +476,5 @@ fn mem_op(a: &mut Asm, i: &Inst, exit: dynasmrt::DynamicLabel) {
             ; add r13, rax
         );
     }
-    dynasm!(a ; .arch x64 ; add r13, [rbx + EXTRA]);
+    dynasm!(a ; .arch x64 ; add r13, rbp);
 }

@@ -128,6 +128,7 @@ impl JitCache {
             ; mov rbx, rdi
             ; mov r12, [rbx + REGS]
             ; mov r14, [rbx + FAST_PTR]
+            ; mov rbp, [rbx + EXTRA]
             ; mov r13, rdx
             ; xor r15d, r15d
             ; jmp rsi
