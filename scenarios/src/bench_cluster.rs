@@ -181,7 +181,7 @@ pub fn parse_bench_line(stdout: &str) -> Result<(u32, u64, u64, String), String>
 }
 
 /// CPU time (user + system) of this process's waited-for children, s.
-fn children_cpu_s() -> f64 {
+pub(crate) fn children_cpu_s() -> f64 {
     // SAFETY: getrusage only writes the struct it is given.
     let mut u: libc::rusage = unsafe { std::mem::zeroed() };
     if unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut u) } != 0 {

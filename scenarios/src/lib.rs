@@ -13,6 +13,7 @@
 //! - [`bench_race`]: `cosim bench race`, what the thesis's race costs.
 
 pub mod bench_cluster;
+pub mod bench_iss;
 pub mod bench_race;
 pub mod endurance;
 pub mod launch;

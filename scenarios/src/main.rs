@@ -9,7 +9,7 @@
 //! - `cosim world SCENARIO --listen tcp:HOST:PORT`, `cosim run SCENARIO
 //!   --world-endpoint tcp:HOST:PORT` (a platform and its world on two hosts)
 //! - `cosim bench swarm [--sizes 1,2,4,8]`, `cosim bench race`,
-//!   `cosim bench cluster [--cores 1,2,4,8]`
+//!   `cosim bench cluster [--cores 1,2,4,8]`, `cosim bench iss [--qemu]`
 //! - `cosim dataset WORLD --count N --seed S --out DIR` (labelled camera images)
 //! - `cosim nn eval DIR [--cores N --mhz F --limit K --out FILE]` (the int8
 //!   network on the ISS over a dataset)
@@ -319,6 +319,20 @@ enum BenchCmd {
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
         /// Runs per size; the fastest is kept (others' load only slows).
+        #[arg(long, default_value_t = 1)]
+        repeat: usize,
+    },
+    /// The ISS back ends (interpreter, block translator) on CPU-bound
+    /// programs: CPU time, MIPS and their ratio; QEMU's with --qemu.
+    Iss {
+        /// ELFs to run (default: the committed CPU-bound programs).
+        #[arg(long = "elf", value_name = "FILE")]
+        elfs: Vec<PathBuf>,
+        /// Also time `qemu-system-riscv32 -icount shift=0` (virt machine,
+        /// semihosting) on each ELF, where it runs.
+        #[arg(long)]
+        qemu: bool,
+        /// Runs per measurement; the fastest is kept (others' load only slows).
         #[arg(long, default_value_t = 1)]
         repeat: usize,
     },
@@ -878,6 +892,28 @@ fn cmd_nn_eval(
     Ok(ExitCode::SUCCESS)
 }
 
+fn cmd_bench_iss(
+    elfs: Vec<PathBuf>,
+    qemu: bool,
+    repeat: usize,
+    bins: BinArgs,
+) -> anyhow::Result<ExitCode> {
+    if repeat == 0 {
+        bail!("--repeat: expected at least 1 run per measurement");
+    }
+    let elfs = if elfs.is_empty() {
+        scenarios::bench_iss::default_elfs()
+    } else {
+        elfs
+    };
+    let bins = bins.locate()?;
+    let rows = scenarios::bench_iss::bench_iss(&bins.sim_core, &elfs, qemu, repeat, |m| {
+        eprintln!("cosim bench: {m}")
+    })?;
+    println!("{}", scenarios::bench_iss::markdown(&rows));
+    Ok(ExitCode::SUCCESS)
+}
+
 fn cmd_list() -> anyhow::Result<ExitCode> {
     let dir = find_repo_file("scenarios/thesis-race.toml")
         .and_then(|p| p.parent().map(Path::to_path_buf))
@@ -1071,6 +1107,9 @@ fn main() -> ExitCode {
                     repeat,
                 },
         } => cmd_bench_cluster(cores, elf, out, repeat, bins),
+        Cmd::Bench {
+            what: BenchCmd::Iss { elfs, qemu, repeat },
+        } => cmd_bench_iss(elfs, qemu, repeat, bins),
     };
     match result {
         Ok(code) => code,

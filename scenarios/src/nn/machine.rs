@@ -151,6 +151,7 @@ impl NnMachine {
             clock: Hertz(mhz.saturating_mul(1_000_000)),
             vref,
             idle_skip: true,
+            iss: sim_core::iss::Backend::DEFAULT,
         };
         let mut cluster = Cluster::new(cfg, &mut mem).context("the cluster")?;
         let mut fc = Cpu::new(Cluster::fc_config(CpuConfig {

@@ -93,6 +93,8 @@ pub struct ClusterConfig {
     /// The cluster's supply voltage (default 1.2 V) for the power model.
     pub vref: f64,
     pub idle_skip: bool,
+    /// The cores' ISS back end (the FC's own is in its `CpuConfig`).
+    pub iss: crate::iss::Backend,
 }
 
 impl Default for ClusterConfig {
@@ -102,6 +104,7 @@ impl Default for ClusterConfig {
             clock: Hertz(175_000_000),
             vref: 1.2,
             idle_skip: true,
+            iss: crate::iss::Backend::DEFAULT,
         }
     }
 }
@@ -402,6 +405,7 @@ impl Cluster {
                     clock: cfg.clock,
                     idle_skip: cfg.idle_skip,
                     hart_id: i as u32,
+                    iss: cfg.iss,
                     ..CpuConfig::default()
                 });
                 c.set_mem_timing(MemTiming {

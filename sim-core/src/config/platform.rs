@@ -155,12 +155,17 @@ fn default_cluster_vref() -> f64 {
 
 impl ClusterSection {
     /// The cluster's configuration for `crate::cluster`.
-    pub fn cluster_config(&self, idle_skip: bool) -> crate::cluster::ClusterConfig {
+    pub fn cluster_config(
+        &self,
+        idle_skip: bool,
+        iss: crate::iss::Backend,
+    ) -> crate::cluster::ClusterConfig {
         crate::cluster::ClusterConfig {
             cores: self.cores,
             clock: Hertz(self.mhz.saturating_mul(1_000_000)),
             vref: self.vref,
             idle_skip,
+            iss,
         }
     }
 }

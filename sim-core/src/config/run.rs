@@ -114,7 +114,7 @@ impl fmt::Display for DebugLevel {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 22] = [
+pub const RUN_KEYS: [(&str, &str); 23] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -194,6 +194,10 @@ pub const RUN_KEYS: [(&str, &str); 22] = [
         "stm32.flow_std_m_s",
         "flow mode: the flow noise the STM32's filter assumes, m/s per sample (0.069, the Flow deck's at 0.3 m; 0 = the raw flow)",
     ),
+    (
+        "iss",
+        "ISS back end: jit (block translator, default on x86-64) | interp (interpreter); identical results",
+    ),
 ];
 
 /// The run configuration. [`RunConfig::default`] is the thesis's setting of
@@ -246,6 +250,8 @@ pub struct RunConfig {
     pub pace: f64,
     /// Simulated seconds without a packet that close the CRTP link.
     pub crtp_idle_s: f64,
+    /// The ISS back end of every core (no effect on any result).
+    pub iss: crate::iss::Backend,
 }
 
 /// The prefix of the firmware-parameter keys (`firmware.NAME`).
@@ -284,6 +290,7 @@ impl Default for RunConfig {
             crtp: None,
             pace: 1.0,
             crtp_idle_s: 10.0,
+            iss: crate::iss::Backend::DEFAULT,
         }
     }
 }
@@ -381,6 +388,7 @@ impl RunConfig {
             "target_cycles" => self.target_cycles = parse_count(value).map_err(bad)?,
             "unlock_cycles" => self.unlock_cycles = parse_count(value).map_err(bad)?,
             "sync" => self.sync = parse(value).map_err(bad)?,
+            "iss" => self.iss = parse(value).map_err(bad)?,
             "dandrea_efficiency" => {
                 self.models.dandrea_efficiency = parse_fraction(value).map_err(bad)?
             }
@@ -465,6 +473,7 @@ impl RunConfig {
                 .map_or("off".to_string(), |c| c.to_string()),
             "pace" => self.pace.to_string(),
             "crtp_idle_s" => self.crtp_idle_s.to_string(),
+            "iss" => self.iss.to_string(),
             "stm32.position_source" => self.position_source.to_string(),
             "stm32.range_max_m" => self.range_max_m.to_string(),
             "stm32.flow_std_m_s" => self.flow_std_m_s.to_string(),
@@ -544,6 +553,11 @@ impl RunConfig {
             // Only a swarm member has a radio identifier: a single drone's
             // file stays as it was before the radios existed.
             if key == "radio_id" && self.radio_id == 0 {
+                continue;
+            }
+            // The back end changes no result: files and outputs name it
+            // only when it is not the host's default.
+            if key == "iss" && self.iss == crate::iss::Backend::DEFAULT {
                 continue;
             }
             let text = self.get(key).expect("RUN_KEYS are known keys");

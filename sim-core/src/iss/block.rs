@@ -126,6 +126,15 @@ fn ends_block(o: u8) -> bool {
     matches!(o, op::JAL | op::JALR) || (op::ECALL..=op::CSRRCI).contains(&o) || o == op::ILLEGAL
 }
 
+/// Length of the block whose instructions start `insts` (up to and
+/// including its last: a control transfer, a system instruction or `END`).
+pub(super) fn block_len(insts: &[Inst]) -> usize {
+    insts
+        .iter()
+        .position(|i| i.op == op::END || ends_block(i.op))
+        .map_or(insts.len(), |k| k + 1)
+}
+
 /// Computations without side effects: writing x0 makes them no-ops.
 fn pure(o: u8) -> bool {
     matches!(o, op::LUI | op::AUIPC)
@@ -251,6 +260,10 @@ impl Memory {
             r.clear_code();
         }
         self.insts.clear();
+        #[cfg(target_arch = "x86_64")]
+        if let Some(j) = &mut self.jit {
+            j.flush();
+        }
     }
 }
 

@@ -272,6 +272,11 @@ pub struct Memory {
     /// The L1 bank arbiter when the platform has a cluster: the cores'
     /// [`MemTiming::l1_port`] accesses go through it.
     pub tcdm: Option<Tcdm>,
+    /// Translated code of the cached blocks (`iss/jit`), made on first use
+    /// by a core running the translator, shared by every core on this
+    /// memory.
+    #[cfg(target_arch = "x86_64")]
+    pub(crate) jit: Option<Box<super::jit::JitCache>>,
 }
 
 fn check_range(base: u32, size: u32) -> Result<(), MemError> {
@@ -418,6 +423,12 @@ impl Memory {
             self.flush_blocks();
         }
         true
+    }
+
+    /// The block translator's counters, if a core on this memory used it.
+    #[cfg(target_arch = "x86_64")]
+    pub fn jit_stats(&self) -> Option<super::jit::JitStats> {
+        self.jit.as_ref().map(|j| j.stats())
     }
 
     /// Drop every cached block (`fence.i` does not need this since

@@ -96,13 +96,17 @@ pub mod cpu;
 pub mod decode;
 pub mod elf;
 mod exec;
+#[cfg(target_arch = "x86_64")]
+mod jit;
+#[cfg(target_arch = "x86_64")]
+pub use jit::JitStats;
 pub mod mem;
 pub mod run_elf;
 pub mod semihost;
 pub mod timing;
 pub mod xcv;
 
-pub use cpu::{cause, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason};
+pub use cpu::{cause, Backend, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason};
 pub use elf::{load_elf, ElfError, LoadedElf, Segment};
 pub use mem::{AccessSize, MemError, MemTiming, Memory, Mmio, MmioError, NoDevices};
 

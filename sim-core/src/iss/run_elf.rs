@@ -9,7 +9,7 @@ use anyhow::{bail, Context};
 use crate::cluster::{Cluster, ClusterConfig};
 use crate::units::{Hertz, Picos};
 
-use super::{load_elf, map, Cpu, CpuConfig, Memory, NoDevices, StopReason};
+use super::{load_elf, map, Backend, Cpu, CpuConfig, Memory, NoDevices, StopReason};
 
 /// Default RAM: 16 MiB from the lowest loaded address rounded down to 64 KiB.
 pub const DEFAULT_RAM_SIZE: u32 = 16 << 20;
@@ -95,6 +95,10 @@ pub struct RunElfArgs {
     /// then 0, and 0x1000_0000 is free for --ram).
     #[arg(long)]
     pub no_cluster: bool,
+    /// The ISS back end: `jit` (the block translator, x86-64 hosts) or
+    /// `interp` (the interpreter, the reference); identical results.
+    #[arg(long, value_name = "interp|jit", default_value_t = Backend::DEFAULT)]
+    pub iss: Backend,
 }
 
 /// Build the memory map for `run-elf`: the given regions (or the default
@@ -129,6 +133,7 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
 
     let fc_cfg = CpuConfig {
         idle_skip: !args.no_idle_skip,
+        iss: args.iss,
         ..CpuConfig::default()
     };
     let mut cluster = if args.no_cluster {
@@ -138,6 +143,7 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
             cores: args.cluster_cores,
             clock: Hertz(args.cluster_mhz.saturating_mul(1_000_000)),
             idle_skip: !args.no_idle_skip,
+            iss: args.iss,
             ..ClusterConfig::default()
         };
         Some(
@@ -202,6 +208,15 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
             "sleep cycles: {}, polling cycles: {}, skipped instructions: {}",
             s.sleep_cycles, s.poll_cycles, s.skipped_instructions
         );
+        #[cfg(target_arch = "x86_64")]
+        if let Some(j) = mem.jit_stats() {
+            eprintln!(
+                "jit: {} blocks translated, {} KiB of code, {} flushes",
+                j.translated,
+                j.code_bytes / 1024,
+                j.flushes
+            );
+        }
         if let Some(c) = &cluster {
             print_cluster_stats(c, &mem, secs);
         }

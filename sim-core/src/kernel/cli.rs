@@ -63,6 +63,10 @@ pub struct PlatformArgs {
     /// Steps every polling loop instead of skipping it (same results, slower).
     #[arg(long)]
     pub no_idle_skip: bool,
+    /// The ISS back end, `jit` or `interp` (same results; overrides the
+    /// run key `iss`).
+    #[arg(long, value_name = "interp|jit")]
+    pub iss: Option<crate::iss::Backend>,
     /// Extra core cycles per access to the peripheral window.
     #[arg(long, value_name = "CYCLES", default_value_t = 0)]
     pub mmio_latency: u64,
@@ -93,6 +97,9 @@ pub fn load_run_config(args: &PlatformArgs) -> anyhow::Result<RunConfig> {
     run.apply_overrides(&args.set)?;
     if let Some(spec) = &args.crtp {
         run.set("crtp", spec)?;
+    }
+    if let Some(iss) = args.iss {
+        run.iss = iss;
     }
     Ok(run)
 }

@@ -211,7 +211,7 @@ impl<W: WorldLink> Run<W> {
 
         let cluster = match &cfg.platform.cluster {
             Some(section) => {
-                let cc = section.cluster_config(cfg.idle_skip);
+                let cc = section.cluster_config(cfg.idle_skip, cfg.run.iss);
                 let c =
                     Cluster::new(cc, &mut mem).map_err(|e| KernelError::Config(e.to_string()))?;
                 Some((c, Meter::new(cc.vref, cc.clock)))
@@ -222,6 +222,7 @@ impl<W: WorldLink> Run<W> {
             clock: Hertz(cfg.platform.core.frequency),
             mmio_latency: Cycles(cfg.mmio_latency),
             idle_skip: cfg.idle_skip,
+            iss: cfg.run.iss,
             ..CpuConfig::default()
         };
         let mut cpu = Cpu::new(match cluster {

@@ -18,7 +18,7 @@
 //!   function codes) make the instruction illegal.
 //! - [`alu`], [`bitmanip`], [`mac`], [`simd`]: the semantic functions;
 //!   [`mem`]: the addressing of the loads and stores. The block executor's
-//!   handlers (`exec/xcv.rs`) call them; the general path (`cpu.rs`) uses
+//!   handlers (`exec/xcv.rs`) call them; the general path (`cpu/mod.rs`) uses
 //!   [`mem`] for loads and stores outside the fast RAM.
 //!
 //! Not implemented: hardware loops (`xcvhwlp`: Debian's clang-19 does not

@@ -1,0 +1,103 @@
+//! The core's side of the block translator (`iss/jit`): enter translated
+//! code when the block's worst case fits before the deadline, and take
+//! back the state it leaves, exactly as the interpreter's `exec_block`
+//! would have left it.
+
+use super::*;
+use crate::iss::jit::ctx::{Ctx, NO_TOHOST};
+use crate::iss::jit::JitCache;
+
+/// Cycles the interpreter runs, having started on a block the translator
+/// does not take, before it hands back (a Rust round trip costs about a
+/// hundred host cycles; 2048 guest cycles interpreted cost ~5 µs). Handing
+/// back after every block made cluster cores, whose L1 accesses the
+/// translator leaves to the interpreter, 2x slower (`cosim bench iss`).
+pub(super) const RETURN_BUDGET: u64 = 2048;
+
+/// What [`Cpu::run_translated`] did.
+pub(super) enum Translated {
+    /// Translated code ran; the core is on an instruction boundary.
+    Ran,
+    /// The block's first instruction is not translated: the interpreter
+    /// does this block (and only this one).
+    Uncovered,
+    /// The block might reach the deadline (or the translator is not
+    /// available): the interpreter runs on to it.
+    TooLong,
+}
+
+impl Cpu {
+    /// Run the block at `self.pc` (`mem.insts[first]` its first
+    /// instruction) and the translated blocks it chains to.
+    pub(super) fn run_translated(&mut self, mem: &mut Memory, first: usize) -> Translated {
+        // `lookup` has just put the pc's region in the code window.
+        let off = self.pc.wrapping_sub(self.code_base);
+        if off >= self.code_size {
+            return Translated::TooLong;
+        }
+        let region = self.code_idx;
+        if mem.jit.is_none() {
+            match JitCache::new() {
+                Ok(j) => mem.jit = Some(Box::new(j)),
+                Err(e) => {
+                    tracing::warn!("no executable memory for the translator ({e}); interpreting");
+                    self.cfg.iss = Backend::Interp;
+                    return Translated::TooLong;
+                }
+            }
+        }
+        let jit = mem.jit.as_mut().expect("made above");
+        let Some(e) = jit.entry(&mem.regions, &mem.insts, region, off as usize, first) else {
+            return Translated::Uncovered;
+        };
+        let r = &mut mem.regions[region];
+        // The fast region is the code's, as in `exec::Run::set_code_region`
+        // (L1 code under the bank arbiter has none).
+        let banked = self.mem_timing.l1_port.is_some() && r.base == self.mem_timing.l1.0;
+        let extra = self.mem_timing.extra(None, r.base, 0);
+        let stall = (mem.insts[first].reads() & self.load_mask != 0) as u64;
+        let entry = self.cycles;
+        let cycles = entry + stall * timing::LOAD_USE_STALL;
+        if cycles.saturating_add(e.worst_case(extra)) >= self.deadline {
+            return Translated::TooLong;
+        }
+        let mut ctx = Ctx {
+            regs: self.regs.as_mut_ptr(),
+            fast_ptr: r.data.as_mut_ptr(),
+            fast_base: r.base as u64,
+            fast_size: if banked { 0 } else { r.size as u64 },
+            code_lo: r.code_lo as u64,
+            code_hi: r.code_hi as u64,
+            tohost: self.tohost.map_or(NO_TOHOST, |t| t as u64),
+            deadline: self.deadline,
+            extra,
+            jumps: 0,
+            exit_pc: 0,
+            load_mask: 0,
+            code_base: r.base as u64,
+            code_size: r.size as u64,
+            table: jit.table(region),
+            cycles: 0,
+            retired: 0,
+        };
+        // SAFETY: the register file and the region's buffer outlive the
+        // call and nothing else touches them meanwhile (`&mut self`, `&mut
+        // mem`); the table is the cache's own, not resized during a run;
+        // `e.code` was just returned by this cache.
+        unsafe { jit.run(&mut ctx, e.code, cycles) };
+        self.cycles = ctx.cycles;
+        self.pc = ctx.exit_pc as u32;
+        self.instret += ctx.retired;
+        self.jumps += ctx.jumps;
+        if ctx.retired == 0 {
+            // Left before the block's first instruction (an access the
+            // fast path does not do): nothing happened, the interpreter
+            // does this block.
+            self.cycles = entry;
+            jit.demote(region, off as usize);
+            return Translated::Uncovered;
+        }
+        self.load_mask = ctx.load_mask as u32;
+        Translated::Ran
+    }
+}

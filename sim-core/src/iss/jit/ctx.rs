@@ -1,0 +1,99 @@
+//! What translated code and the core share during one run: a `#[repr(C)]`
+//! record whose field offsets the templates (`emit.rs`) use directly.
+//!
+//! Host registers while translated code runs (all callee-saved in the
+//! System V ABI, so calls to Rust helpers keep them):
+//! - `rbx`: this [`Ctx`],
+//! - `r12`: the guest register file (`[u32; 32]` in the `Cpu`),
+//! - `r13`: the core's cycle count,
+//! - `r14`: the host address of the fast RAM region's first byte,
+//! - `r15`: instructions retired since the run began,
+//! - `rbp`: [`Ctx::extra`], the extra cycles of every fast-region access.
+
+use std::mem::offset_of;
+
+/// A translated block as the dispatcher sees it (16 bytes, one per
+/// halfword of a RAM region; `code == 0`: none).
+#[derive(Debug, Clone, Copy, Default)]
+#[repr(C)]
+pub(crate) struct Entry {
+    /// Host address of its code.
+    pub code: u64,
+    /// Its worst-case cycles apart from the memory extras: the sum of its
+    /// instruction costs, a taken branch and the longest divisions, one
+    /// split cycle per access.
+    pub worst: u32,
+    /// Loads and stores in it, each of which may cost `Ctx::extra` more.
+    pub nmem: u32,
+}
+
+impl Entry {
+    /// The most cycles the block can take for a core whose accesses cost
+    /// `extra` more each.
+    pub fn worst_case(&self, extra: u64) -> u64 {
+        self.worst as u64 + self.nmem as u64 * extra
+    }
+}
+
+/// The shared record.
+#[derive(Debug)]
+#[repr(C)]
+pub(crate) struct Ctx {
+    pub regs: *mut u32,
+    /// Host address of the fast region's data.
+    pub fast_ptr: *mut u8,
+    /// Guest address and size of the fast region (size 0: none).
+    pub fast_base: u64,
+    pub fast_size: u64,
+    /// Byte offsets `[code_lo, code_hi)` in the fast region that hold
+    /// cached code: stores there leave translated code.
+    pub code_lo: u64,
+    pub code_hi: u64,
+    /// Address of `tohost` (stores to its 8 bytes leave translated code);
+    /// [`NO_TOHOST`] when there is none.
+    pub tohost: u64,
+    /// Translated code never starts a block that could reach this cycle.
+    pub deadline: u64,
+    /// Extra cycles of every fast-region access (a cluster core's L2).
+    pub extra: u64,
+    /// Taken jumps so far (`Cpu::jumps`).
+    pub jumps: u64,
+    /// Where the run stopped: the pc of the next instruction.
+    pub exit_pc: u64,
+    /// The load-use state at the exit (one-hot loaded register).
+    pub load_mask: u64,
+    /// The code region whose blocks chain through [`Ctx::table`].
+    pub code_base: u64,
+    pub code_size: u64,
+    pub table: *const Entry,
+    /// Cycles and retired instructions at the exit.
+    pub cycles: u64,
+    pub retired: u64,
+}
+
+/// `tohost` when there is none: far above any 32-bit address, so
+/// `addr - NO_TOHOST` (wrapping, 64-bit) is never below 8.
+pub(crate) const NO_TOHOST: u64 = 1 << 40;
+
+pub(crate) const REGS: i32 = offset_of!(Ctx, regs) as i32;
+pub(crate) const FAST_PTR: i32 = offset_of!(Ctx, fast_ptr) as i32;
+pub(crate) const FAST_BASE: i32 = offset_of!(Ctx, fast_base) as i32;
+pub(crate) const FAST_SIZE: i32 = offset_of!(Ctx, fast_size) as i32;
+pub(crate) const CODE_LO: i32 = offset_of!(Ctx, code_lo) as i32;
+pub(crate) const CODE_HI: i32 = offset_of!(Ctx, code_hi) as i32;
+pub(crate) const TOHOST: i32 = offset_of!(Ctx, tohost) as i32;
+pub(crate) const DEADLINE: i32 = offset_of!(Ctx, deadline) as i32;
+pub(crate) const EXTRA: i32 = offset_of!(Ctx, extra) as i32;
+pub(crate) const JUMPS: i32 = offset_of!(Ctx, jumps) as i32;
+pub(crate) const EXIT_PC: i32 = offset_of!(Ctx, exit_pc) as i32;
+pub(crate) const LOAD_MASK: i32 = offset_of!(Ctx, load_mask) as i32;
+pub(crate) const CODE_BASE: i32 = offset_of!(Ctx, code_base) as i32;
+pub(crate) const CODE_SIZE: i32 = offset_of!(Ctx, code_size) as i32;
+pub(crate) const TABLE: i32 = offset_of!(Ctx, table) as i32;
+pub(crate) const CYCLES: i32 = offset_of!(Ctx, cycles) as i32;
+pub(crate) const RETIRED: i32 = offset_of!(Ctx, retired) as i32;
+
+pub(crate) const ENTRY_CODE: i32 = offset_of!(Entry, code) as i32;
+/// log2 of `size_of::<Entry>()` (the dispatcher scales by a shift).
+pub(crate) const ENTRY_SHIFT: i8 = 4;
+const _: () = assert!(std::mem::size_of::<Entry>() == 1 << ENTRY_SHIFT);
