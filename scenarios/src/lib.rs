@@ -11,9 +11,11 @@
 //! - [`perturb`]: `cosim world perturb`, courses with displaced gates.
 //! - [`mapping`]: the map of an exploration run scored against the world.
 //! - [`bench_race`]: `cosim bench race`, what the thesis's race costs.
+//! - [`foxglove`]: `run.mcap`, the world's and the platforms' channels merged.
 
 pub mod bench_cluster;
 pub mod bench_race;
+pub mod foxglove;
 pub mod launch;
 pub mod mapping;
 pub mod perturb;
@@ -191,6 +193,31 @@ pub fn run_scenario(
     };
     if map.is_some() && draw {
         plots.push(out.join(mapping::files::MAP_PNG));
+    }
+    if scenario.mcap {
+        let name = world_server::WorldDesc::load(&scenario.world)
+            .ok()
+            .and_then(|w| w.drones.first().map(|d| d.name.clone()))
+            .unwrap_or_else(|| "cf1".into());
+        let drone = foxglove::DroneOutputs {
+            name,
+            dir: out.to_path_buf(),
+            map_cell_m: map.as_ref().map(|m| m.cell_m),
+        };
+        match foxglove::write_run_mcap(out, &[drone]) {
+            // A world that died left its file cut short: the run's own
+            // error says why; a clean run with a cut file is an error.
+            Ok(m) => match m.warning {
+                Some(w) if status.ok() => {
+                    report_error.get_or_insert(w);
+                }
+                Some(w) => tracing::debug!("{w}"),
+                None => {}
+            },
+            Err(e) => {
+                report_error.get_or_insert(e.to_string());
+            }
+        }
     }
     let text = match &summary {
         Some(s) => {

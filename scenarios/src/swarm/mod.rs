@@ -173,6 +173,25 @@ pub fn run_swarm(
         });
     }
 
+    if scenario.mcap {
+        let outputs: Vec<crate::foxglove::DroneOutputs> = drones
+            .iter()
+            .map(|d| crate::foxglove::DroneOutputs {
+                name: d.drone.clone(),
+                dir: d.dir.clone(),
+                map_cell_m: None,
+            })
+            .collect();
+        match crate::foxglove::write_run_mcap(out, &outputs) {
+            Ok(m) => {
+                if let Some(w) = m.warning {
+                    note(w);
+                }
+            }
+            Err(e) => note(e.to_string()),
+        }
+    }
+
     let ranging = ranging(scenario, out, &tracks);
     let positioning = match positioning::analyse(scenario, out, &tracks, draw) {
         Ok(p) => p,

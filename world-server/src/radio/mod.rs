@@ -21,7 +21,7 @@ mod log;
 pub mod profile;
 
 pub use config::{RadioConfig, P2P_RSSI_1M_DBM, P2P_RSSI_NOISE_DB};
-pub use log::{LogRow, Outcome, RadioLog, HEADER as LOG_HEADER};
+pub use log::{LogRow, Outcome, RadioEvent, RadioLog, HEADER as LOG_HEADER};
 
 use std::sync::Arc;
 
@@ -353,7 +353,7 @@ impl Channel {
             let outcome = self.outcome(i);
             let r = &self.live[i];
             if let Some(log) = &mut self.log {
-                log.write(&LogRow {
+                log.write(r.frame.from, r.to, &LogRow {
                     start_ps: r.frame.start.0,
                     end_ps: r.end.0,
                     radio: r.frame.radio,
@@ -476,7 +476,7 @@ impl Channel {
         if let Some(log) = &mut self.log {
             for &i in &gone {
                 let r = &self.live[i];
-                log.write(&LogRow {
+                log.write(r.frame.from, r.to, &LogRow {
                     start_ps: r.frame.start.0,
                     end_ps: r.end.0,
                     radio: r.frame.radio,
@@ -495,7 +495,21 @@ impl Channel {
 
     /// Writes one CSV row per (frame, receiver) from now on (header first).
     pub fn set_log(&mut self, w: Box<dyn std::io::Write + Send>) {
-        self.log = Some(RadioLog::new(w));
+        self.log.get_or_insert_with(RadioLog::default).set_csv(w);
+    }
+
+    /// Keeps every decided reception for [`Channel::take_events`] (the
+    /// world's MCAP, `crate::foxglove`).
+    pub fn keep_events(&mut self) {
+        self.log.get_or_insert_with(RadioLog::default).keep_events();
+    }
+
+    /// The receptions decided since the last call, in log order.
+    pub fn take_events(&mut self) -> Vec<RadioEvent> {
+        self.log
+            .as_mut()
+            .map(RadioLog::take_events)
+            .unwrap_or_default()
     }
 
     /// Flushes the log; returns the first write error met since
