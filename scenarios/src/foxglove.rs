@@ -19,7 +19,9 @@ use std::sync::Arc;
 
 use base64::Engine as _;
 use serde_json::json;
-use world_server::foxglove::{drone_topic, schemas, stamp, write_options, Channels};
+use world_server::foxglove::{
+    drone_topic, schemas, stamp, write_message, write_options, Channels, KnownChannels,
+};
 
 /// The merged file of a run.
 pub const RUN_MCAP: &str = "run.mcap";
@@ -63,6 +65,28 @@ struct Msg {
     data: Cow<'static, [u8]>,
 }
 
+/// [`write_run_mcap`] on a thread of its own (the caller draws its plots
+/// meanwhile); collect it with [`join`].
+pub fn spawn_run_mcap(
+    out: &Path,
+    drones: Vec<DroneOutputs>,
+) -> std::thread::JoinHandle<Result<Merged, McapMergeError>> {
+    let out = out.to_path_buf();
+    std::thread::spawn(move || write_run_mcap(&out, &drones))
+}
+
+/// The result of [`spawn_run_mcap`]; a panic on its thread is an error.
+pub fn join(
+    job: std::thread::JoinHandle<Result<Merged, McapMergeError>>,
+) -> Result<Merged, McapMergeError> {
+    job.join().unwrap_or_else(|_| {
+        Err(McapMergeError::Write {
+            path: PathBuf::from(RUN_MCAP),
+            message: "the writer thread panicked".into(),
+        })
+    })
+}
+
 /// Writes `out/run.mcap` from `out/world.mcap` (if the world wrote one)
 /// and each drone's outputs, then removes `world.mcap`.
 pub fn write_run_mcap(out: &Path, drones: &[DroneOutputs]) -> Result<Merged, McapMergeError> {
@@ -98,17 +122,11 @@ pub fn write_run_mcap(out: &Path, drones: &[DroneOutputs]) -> Result<Merged, Mca
     let mut w = write_options()
         .create(BufWriter::with_capacity(1 << 20, file))
         .map_err(|e| werr(&e))?;
-    let mut sequence: u32 = 0;
-    for m in &msgs {
-        sequence = sequence.wrapping_add(1);
-        w.write(&mcap::Message {
-            channel: m.channel.clone(),
-            sequence,
-            log_time: m.log_time,
-            publish_time: m.log_time,
-            data: Cow::Borrowed(&m.data),
-        })
-        .map_err(|e| werr(&e))?;
+    let mut known = KnownChannels::default();
+    for (i, m) in msgs.iter().enumerate() {
+        let sequence = (i as u32).wrapping_add(1);
+        write_message(&mut w, &mut known, &m.channel, sequence, m.log_time, &m.data)
+            .map_err(|e| werr(&e))?;
     }
     w.finish().map_err(|e| werr(&e))?;
     drop(w);
@@ -238,6 +256,16 @@ fn read_power(
     let power = channels.add(&drone_topic(drone, "power"), &power_schema);
     let battery = channels.add(&drone_topic(drone, "battery"), &battery_schema);
     let time_s = col("time_s");
+    // `"name":` of each column, escaped once.
+    let key = |k: &str| {
+        let mut v = Vec::new();
+        json_key(&mut v, k);
+        v
+    };
+    let power_keys: Vec<Vec<u8>> = names.iter().map(|n| key(n)).collect();
+    let battery_keys: Vec<(Vec<u8>, usize)> =
+        battery_cols.iter().map(|(k, i)| (key(k), *i)).collect();
+    let time_key = key("time_s");
     let mut rec = csv::ByteRecord::new();
     while r.read_byte_record(&mut rec).map_err(|e| rerr(&e))? {
         let Some(t) = std::str::from_utf8(&rec[t_ps])
@@ -249,24 +277,24 @@ fn read_power(
         let t_ns = t / 1000;
         let mut p = Vec::with_capacity(512);
         p.push(b'{');
-        for (i, name) in names.iter().enumerate() {
+        for (i, k) in power_keys.iter().enumerate() {
             if i > 0 {
                 p.push(b',');
             }
-            json_key(&mut p, name);
+            p.extend_from_slice(k);
             json_field(&mut p, &rec[i]);
         }
         p.push(b'}');
         let mut b = Vec::with_capacity(160);
         b.push(b'{');
-        json_key(&mut b, "time_s");
+        b.extend_from_slice(&time_key);
         match time_s {
             Some(i) => json_field(&mut b, &rec[i]),
             None => b.extend_from_slice((t as f64 * 1e-12).to_string().as_bytes()),
         }
-        for (k, i) in &battery_cols {
+        for (k, i) in &battery_keys {
             b.push(b',');
-            json_key(&mut b, k);
+            b.extend_from_slice(k);
             json_field(&mut b, &rec[*i]);
         }
         b.push(b'}');

@@ -56,7 +56,7 @@ const BODY_SIZE: [f64; 3] = [0.1, 0.1, 0.03];
 /// everywhere and the other core free for the simulation).
 pub fn write_options() -> mcap::WriteOptions {
     mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
+        .compression(Some(mcap::Compression::Lz4))
         .compression_threads(0)
 }
 
@@ -124,6 +124,58 @@ impl Channels {
     }
 }
 
+/// Channels registered with a writer once, so that each message is
+/// written by id (`write_to_known_channel`): `Writer::write` hashes the
+/// channel's and schema's content on every message, which on the 290 000
+/// messages of the race's power log cost more than the rest of the merge.
+#[derive(Default)]
+pub struct KnownChannels {
+    ids: std::collections::HashMap<usize, u16>,
+}
+
+impl KnownChannels {
+    /// The writer's id of `ch` (registered on first use). Keyed by the
+    /// `Arc`'s address: the caller keeps its channels alive while writing.
+    pub fn id<W: std::io::Write + std::io::Seek>(
+        &mut self,
+        w: &mut mcap::Writer<W>,
+        ch: &Arc<mcap::Channel<'_>>,
+    ) -> Result<u16, mcap::McapError> {
+        let key = Arc::as_ptr(ch) as *const () as usize;
+        if let Some(&id) = self.ids.get(&key) {
+            return Ok(id);
+        }
+        let schema = match &ch.schema {
+            Some(s) => w.add_schema(&s.name, &s.encoding, &s.data)?,
+            None => 0,
+        };
+        let id = w.add_channel(schema, &ch.topic, &ch.message_encoding, &ch.metadata)?;
+        self.ids.insert(key, id);
+        Ok(id)
+    }
+}
+
+/// Writes one message on `ch`; log time = publish time.
+pub fn write_message<W: std::io::Write + std::io::Seek>(
+    w: &mut mcap::Writer<W>,
+    known: &mut KnownChannels,
+    ch: &Arc<mcap::Channel<'_>>,
+    sequence: u32,
+    log_time: u64,
+    data: &[u8],
+) -> Result<(), mcap::McapError> {
+    let channel_id = known.id(w, ch)?;
+    w.write_to_known_channel(
+        &mcap::records::MessageHeader {
+            channel_id,
+            sequence,
+            log_time,
+            publish_time: log_time,
+        },
+        data,
+    )
+}
+
 /// The topic of one drone's channel.
 pub fn drone_topic(drone: &str, what: &str) -> String {
     format!("/{drone}/{what}")
@@ -146,6 +198,7 @@ pub struct McapLog {
     packets: Arc<mcap::Channel<'static>>,
     drones: Vec<DroneChannels>,
     image_every: u64,
+    known: KnownChannels,
     error: Option<mcap::McapError>,
 }
 
@@ -196,6 +249,7 @@ impl McapLog {
             w: Some(w),
             names: names.to_vec(),
             image_every,
+            known: KnownChannels::default(),
             error: None,
         };
         let scene = scene_update(boxes, names);
@@ -213,14 +267,7 @@ impl McapLog {
         let (Some(w), None) = (self.w.as_mut(), self.error.as_ref()) else {
             return;
         };
-        let msg = mcap::Message {
-            channel: channel.clone(),
-            sequence: 0,
-            log_time,
-            publish_time: log_time,
-            data: Cow::Owned(data),
-        };
-        if let Err(e) = w.write(&msg) {
+        if let Err(e) = write_message(w, &mut self.known, channel, 0, log_time, &data) {
             self.error = Some(e);
         }
     }
