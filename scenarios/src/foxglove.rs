@@ -239,6 +239,7 @@ fn read_power(
         "cosim.Power",
         &names
             .iter()
+            .filter(|n| n.as_str() != "t_ps" && n.as_str() != "power_model")
             .map(|n| (n.as_str(), "number", "a power.csv column (docs/COSIM.md)"))
             .collect::<Vec<_>>(),
     );
@@ -253,7 +254,16 @@ fn read_power(
             ("low_battery", "number", "1 once below the firmware's threshold"),
         ],
     );
-    let power = channels.add(&drone_topic(drone, "power"), &power_schema);
+    let mut power = channels.add(&drone_topic(drone, "power"), &power_schema);
+    // The first row's model (the column is the same on every row).
+    let mut first = csv::ByteRecord::new();
+    let has_first = r.read_byte_record(&mut first).map_err(|e| rerr(&e))?;
+    if let (true, Some(i)) = (has_first, col("power_model")) {
+        let model = String::from_utf8_lossy(&first[i]).into_owned();
+        Arc::make_mut(&mut power)
+            .metadata
+            .insert("power_model".into(), model);
+    }
     let battery = channels.add(&drone_topic(drone, "battery"), &battery_schema);
     let time_s = col("time_s");
     // `"name":` of each column, escaped once.
@@ -262,12 +272,21 @@ fn read_power(
         json_key(&mut v, k);
         v
     };
-    let power_keys: Vec<Vec<u8>> = names.iter().map(|n| key(n)).collect();
+    // t_ps is the log time; power_model (one value for the whole log) goes
+    // into the channel's metadata: 1 ms rows are the merge's bulk.
+    let skip = |n: &str| n == "t_ps" || n == "power_model";
+    let power_keys: Vec<(Vec<u8>, usize)> = names
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| !skip(n))
+        .map(|(i, n)| (key(n), i))
+        .collect();
     let battery_keys: Vec<(Vec<u8>, usize)> =
         battery_cols.iter().map(|(k, i)| (key(k), *i)).collect();
     let time_key = key("time_s");
-    let mut rec = csv::ByteRecord::new();
-    while r.read_byte_record(&mut rec).map_err(|e| rerr(&e))? {
+    let mut rec = first;
+    let mut more = has_first;
+    while more {
         let Some(t) = std::str::from_utf8(&rec[t_ps])
             .ok()
             .and_then(|s| s.parse::<u64>().ok())
@@ -277,12 +296,12 @@ fn read_power(
         let t_ns = t / 1000;
         let mut p = Vec::with_capacity(512);
         p.push(b'{');
-        for (i, k) in power_keys.iter().enumerate() {
-            if i > 0 {
+        for (j, (k, i)) in power_keys.iter().enumerate() {
+            if j > 0 {
                 p.push(b',');
             }
             p.extend_from_slice(k);
-            json_field(&mut p, &rec[i]);
+            json_field(&mut p, &rec[*i]);
         }
         p.push(b'}');
         let mut b = Vec::with_capacity(160);
@@ -308,6 +327,7 @@ fn read_power(
             channel: battery.clone(),
             data: Cow::Owned(b),
         });
+        more = r.read_byte_record(&mut rec).map_err(|e| rerr(&e))?;
     }
     Ok(())
 }

@@ -50,14 +50,21 @@ const LINK_LIFETIME_NS: u64 = 250_000_000;
 /// h 0.03 m) as a 0.1 × 0.1 × 0.03 m box.
 const BODY_SIZE: [f64; 3] = [0.1, 0.1, 0.03];
 
-/// Writer options shared by the world's file and `cosim`'s `run.mcap`:
-/// zstd chunks, compressed on the writing thread (a worker pool's count
-/// would depend on the host; one thread keeps the bytes the same
-/// everywhere and the other core free for the simulation).
+/// Writer options of `cosim`'s `run.mcap`: uncompressed chunks. lz4 (the
+/// cheapest codec the crate has) put the race's `cosim run` at +12 % of
+/// wall time on a loaded machine, over the 10 % budget; zstd at level 1
+/// was slower still (docs/FOXGLOVE.md "Cost"). No worker pool either: its
+/// size would depend on the host, and so would the bytes.
 pub fn write_options() -> mcap::WriteOptions {
     mcap::WriteOptions::new()
-        .compression(Some(mcap::Compression::Lz4))
+        .compression(None)
         .compression_threads(0)
+}
+
+/// Writer options of the world's file: the same (the world is on the run's
+/// critical path: every platform waits for it).
+pub fn world_write_options() -> mcap::WriteOptions {
+    write_options()
 }
 
 /// World time (ms) as MCAP time (ns).
@@ -211,7 +218,7 @@ impl McapLog {
         image_every: u64,
     ) -> Result<McapLog, mcap::McapError> {
         let file = File::create(path)?;
-        let w = write_options().create(BufWriter::with_capacity(1 << 20, file))?;
+        let w = world_write_options().create(BufWriter::with_capacity(1 << 20, file))?;
         let mut ch = Channels::after(0, 0);
         let motors_schema = schemas::plain(
             "cosim.Motors",
