@@ -231,8 +231,8 @@ def read_mcap(path: str | os.PathLike, topics: list[str] | None = None):
     if not path.is_file():
         raise OutputError(f"{path}: no such file")
     with open(path, "rb") as f:
-        reader = make_reader(f)
         try:
+            reader = make_reader(f)
             for schema, channel, message in reader.iter_messages(topics=topics, log_time_order=False):
                 if channel.message_encoding != "json":
                     raise OutputError(f"{path}: {channel.topic} is {channel.message_encoding}, not json")
