@@ -125,8 +125,10 @@ pub fn write_run_mcap(out: &Path, drones: &[DroneOutputs]) -> Result<Merged, Mca
     let mut known = KnownChannels::default();
     for (i, m) in msgs.iter().enumerate() {
         let sequence = (i as u32).wrapping_add(1);
-        write_message(&mut w, &mut known, &m.channel, sequence, m.log_time, &m.data)
-            .map_err(|e| werr(&e))?;
+        write_message(
+            &mut w, &mut known, &m.channel, sequence, m.log_time, &m.data,
+        )
+        .map_err(|e| werr(&e))?;
     }
     w.finish().map_err(|e| werr(&e))?;
     drop(w);
@@ -163,14 +165,12 @@ fn read_world(path: &Path) -> Result<(Vec<Msg>, Option<String>, u16, u16), McapM
     let (mut max_schema, mut max_channel) = (0u16, 0u16);
     let mut warning = None;
     // A world killed mid-run leaves no summary and no end magic.
-    let stream = mcap::MessageStream::new_with_options(
-        &bytes,
-        mcap::read::Options::IgnoreEndMagic.into(),
-    )
-    .map_err(|e| McapMergeError::Read {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let stream =
+        mcap::MessageStream::new_with_options(&bytes, mcap::read::Options::IgnoreEndMagic.into())
+            .map_err(|e| McapMergeError::Read {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
     for m in stream {
         match m {
             Ok(m) => {
@@ -251,7 +251,11 @@ fn read_power(
             ("soc", "number", "state of charge, 0-1"),
             ("current_a", "number", "battery current"),
             ("v_oc_v", "number", "open-circuit voltage"),
-            ("low_battery", "number", "1 once below the firmware's threshold"),
+            (
+                "low_battery",
+                "number",
+                "1 once below the firmware's threshold",
+            ),
         ],
     );
     let mut power = channels.add(&drone_topic(drone, "power"), &power_schema);
@@ -291,7 +295,10 @@ fn read_power(
             .ok()
             .and_then(|s| s.parse::<u64>().ok())
         else {
-            return Err(rerr(&format!("bad t_ps {:?}", String::from_utf8_lossy(&rec[t_ps]))));
+            return Err(rerr(&format!(
+                "bad t_ps {:?}",
+                String::from_utf8_lossy(&rec[t_ps])
+            )));
         };
         let t_ns = t / 1000;
         let mut p = Vec::with_capacity(512);
@@ -436,10 +443,30 @@ mod tests {
 
     #[test]
     fn json_numbers_are_recognised_as_rfc_8259_has_them() {
-        for ok in ["0", "-0.0", "1.5", "0.00014000000000000001", "1e-7", "2E+10", "42"] {
+        for ok in [
+            "0",
+            "-0.0",
+            "1.5",
+            "0.00014000000000000001",
+            "1e-7",
+            "2E+10",
+            "42",
+        ] {
             assert!(is_json_number(ok.as_bytes()), "{ok}");
         }
-        for bad in ["", "-", "01", ".5", "1.", "+1", "inf", "NaN", "1e", "empirical", "1,2"] {
+        for bad in [
+            "",
+            "-",
+            "01",
+            ".5",
+            "1.",
+            "+1",
+            "inf",
+            "NaN",
+            "1e",
+            "empirical",
+            "1,2",
+        ] {
             assert!(!is_json_number(bad.as_bytes()), "{bad}");
         }
     }

@@ -79,10 +79,17 @@ fn trajectory_times(path: &Path, drone: Option<&str>) -> Vec<u64> {
 fn a_flight_writes_a_complete_run_mcap_the_same_twice_and_none_with_no_mcap() {
     let b = Bins::new();
     let tmp = tempfile::tempdir().unwrap();
-    let (a, a2, none) = (tmp.path().join("a"), tmp.path().join("a2"), tmp.path().join("none"));
+    let (a, a2, none) = (
+        tmp.path().join("a"),
+        tmp.path().join("a2"),
+        tmp.path().join("none"),
+    );
     run(&b, &a, &[]);
     let mcap_path = a.join("run.mcap");
-    assert!(!a.join("world.mcap").exists(), "the world's half is merged and removed");
+    assert!(
+        !a.join("world.mcap").exists(),
+        "the world's half is merged and removed"
+    );
     let msgs = messages(&mcap_path);
     assert_complete(&mcap_path, msgs.len());
 
@@ -98,7 +105,10 @@ fn a_flight_writes_a_complete_run_mcap_the_same_twice_and_none_with_no_mcap() {
         assert_eq!(schemas.get(topic), Some(&schema), "{topic}: {schemas:?}");
     }
     // Log times: world time, in order.
-    assert!(msgs.windows(2).all(|w| w[0].2 <= w[1].2), "log times in order");
+    assert!(
+        msgs.windows(2).all(|w| w[0].2 <= w[1].2),
+        "log times in order"
+    );
 
     // One transform per world step: the trajectory's rows, at their times.
     let steps = trajectory_times(&a.join("trajectory.csv"), None);
@@ -116,7 +126,10 @@ fn a_flight_writes_a_complete_run_mcap_the_same_twice_and_none_with_no_mcap() {
     let mut r = csv::Reader::from_path(a.join("trajectory.csv")).unwrap();
     let last = r.records().last().unwrap().unwrap();
     let x: f64 = last[1].parse().unwrap();
-    assert_eq!(tf.last().unwrap().3["translation"]["x"].as_f64().unwrap(), x);
+    assert_eq!(
+        tf.last().unwrap().3["translation"]["x"].as_f64().unwrap(),
+        x
+    );
 
     // The scene: the course's ten gates, at t = 0.
     let scene = msgs.iter().find(|m| m.0 == "/scene").unwrap();
@@ -128,18 +141,27 @@ fn a_flight_writes_a_complete_run_mcap_the_same_twice_and_none_with_no_mcap() {
     let images: Vec<_> = msgs.iter().filter(|m| m.0 == "/cf1/camera").collect();
     assert!(!images.is_empty());
     for m in &images {
-        assert_eq!((m.3["width"].as_u64(), m.3["height"].as_u64()), (Some(320), Some(320)));
+        assert_eq!(
+            (m.3["width"].as_u64(), m.3["height"].as_u64()),
+            (Some(320), Some(320))
+        );
         assert_eq!(m.3["encoding"], "mono8");
         assert_eq!(m.3["step"], 320);
         let px = base64::engine::general_purpose::STANDARD
             .decode(m.3["data"].as_str().unwrap())
             .unwrap();
         assert_eq!(px.len(), 320 * 320);
-        assert!(px.iter().any(|&p| p != px[0]), "a rendered view, not a blank");
+        assert!(
+            px.iter().any(|&p| p != px[0]),
+            "a rendered view, not a blank"
+        );
     }
 
     // Power and battery: every 1 ms row of power.csv, the last SOC the summary's.
-    let rows = csv::Reader::from_path(a.join("power.csv")).unwrap().records().count();
+    let rows = csv::Reader::from_path(a.join("power.csv"))
+        .unwrap()
+        .records()
+        .count();
     let battery: Vec<_> = msgs.iter().filter(|m| m.0 == "/cf1/battery").collect();
     assert_eq!(battery.len(), rows);
     assert_eq!(msgs.iter().filter(|m| m.0 == "/cf1/power").count(), rows);
@@ -162,7 +184,12 @@ fn a_flight_writes_a_complete_run_mcap_the_same_twice_and_none_with_no_mcap() {
     assert_same_files(
         &a,
         &none,
-        &["trajectory.csv", "power.csv", "motor_empirical.csv", "console.log"],
+        &[
+            "trajectory.csv",
+            "power.csv",
+            "motor_empirical.csv",
+            "console.log",
+        ],
         "with and without run.mcap",
     );
 }
@@ -189,7 +216,10 @@ fn a_swarm_run_shows_every_drone_and_its_radio_links() {
     assert!(path.exists(), "{}", text(&o));
     let msgs = messages(&path);
     assert_complete(&path, msgs.len());
-    assert!(msgs.windows(2).all(|w| w[0].2 <= w[1].2), "log times in order");
+    assert!(
+        msgs.windows(2).all(|w| w[0].2 <= w[1].2),
+        "log times in order"
+    );
     for d in ["A", "B"] {
         let steps = trajectory_times(&out.join("trajectory.csv"), Some(d));
         let tf = msgs
@@ -213,7 +243,11 @@ fn a_swarm_run_shows_every_drone_and_its_radio_links() {
     // The drones are 1.5 m apart on the table (scenarios/worlds/swarm-ping.toml).
     let p = |i: usize| {
         let q = &line["points"][i];
-        [q["x"].as_f64().unwrap(), q["y"].as_f64().unwrap(), q["z"].as_f64().unwrap()]
+        [
+            q["x"].as_f64().unwrap(),
+            q["y"].as_f64().unwrap(),
+            q["z"].as_f64().unwrap(),
+        ]
     };
     let (a, c) = (p(0), p(1));
     let d = ((a[0] - c[0]).powi(2) + (a[1] - c[1]).powi(2) + (a[2] - c[2]).powi(2)).sqrt();
@@ -241,6 +275,9 @@ fn check_cut_world_file_merges(a: &Path, tmp: &Path) {
     assert!(merged.warning.is_some(), "the cut is reported");
     let msgs = messages(&merged.path);
     assert_complete(&merged.path, msgs.len());
-    assert!(msgs.iter().any(|m| m.0 == "/tf"), "what was written is kept");
+    assert!(
+        msgs.iter().any(|m| m.0 == "/tf"),
+        "what was written is kept"
+    );
     assert!(msgs.windows(2).all(|w| w[0].2 <= w[1].2));
 }

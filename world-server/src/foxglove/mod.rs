@@ -224,21 +224,41 @@ impl McapLog {
             "cosim.Motors",
             &[
                 ("time_s", "number", "world time"),
-                ("target_rad_s", "array", "m1..m4 signed target speeds (SET_VELOCITY)"),
-                ("speed_rad_s", "array", "m1..m4 signed speeds after the 30 rad/s² ramp (DESIGN.md §5)"),
+                (
+                    "target_rad_s",
+                    "array",
+                    "m1..m4 signed target speeds (SET_VELOCITY)",
+                ),
+                (
+                    "speed_rad_s",
+                    "array",
+                    "m1..m4 signed speeds after the 30 rad/s² ramp (DESIGN.md §5)",
+                ),
             ],
         );
         let packets_schema = schemas::plain(
             "cosim.RadioPacket",
             &[
-                ("start_s", "number", "world time the frame started to leave the sender"),
-                ("end_s", "number", "world time the reception ended (RX-done)"),
+                (
+                    "start_s",
+                    "number",
+                    "world time the frame started to leave the sender",
+                ),
+                (
+                    "end_s",
+                    "number",
+                    "world time the reception ended (RX-done)",
+                ),
                 ("radio", "string", "uwb | p2p"),
                 ("from", "string", "sender"),
                 ("to", "string", "receiver"),
                 ("distance_m", "number", "centre distance at the start"),
                 ("rssi_dbm", "number", "received signal strength"),
-                ("outcome", "string", "received | collision | half_duplex | out_of_range | lost | retired"),
+                (
+                    "outcome",
+                    "string",
+                    "received | collision | half_duplex | out_of_range | lost | retired",
+                ),
             ],
         );
         let mut log = McapLog {
@@ -308,8 +328,16 @@ impl McapLog {
 
     /// Drone `d`'s `n`-th camera frame (0-based), served at `time`: kept
     /// when `n` is a multiple of the image interval.
-    pub fn image(&mut self, d: usize, n: u64, time: Millis, width: usize, height: usize, mono8: &[u8]) {
-        if self.image_every == 0 || n % self.image_every != 0 {
+    pub fn image(
+        &mut self,
+        d: usize,
+        n: u64,
+        time: Millis,
+        width: usize,
+        height: usize,
+        mono8: &[u8],
+    ) {
+        if self.image_every == 0 || !n.is_multiple_of(self.image_every) {
             return;
         }
         let t = ns_of_ms(time);

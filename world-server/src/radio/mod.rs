@@ -353,18 +353,22 @@ impl Channel {
             let outcome = self.outcome(i);
             let r = &self.live[i];
             if let Some(log) = &mut self.log {
-                log.write(r.frame.from, r.to, &LogRow {
-                    start_ps: r.frame.start.0,
-                    end_ps: r.end.0,
-                    radio: r.frame.radio,
-                    from: &self.drones[r.frame.from].desc.name,
-                    to: &self.drones[r.to].desc.name,
-                    distance_m: r.distance_m,
-                    rssi_dbm: r.rssi_dbm,
-                    outcome,
-                    tx_stamp: r.frame.tx_stamp,
-                    rx_stamp: r.rx_stamp,
-                });
+                log.write(
+                    r.frame.from,
+                    r.to,
+                    &LogRow {
+                        start_ps: r.frame.start.0,
+                        end_ps: r.end.0,
+                        radio: r.frame.radio,
+                        from: &self.drones[r.frame.from].desc.name,
+                        to: &self.drones[r.to].desc.name,
+                        distance_m: r.distance_m,
+                        rssi_dbm: r.rssi_dbm,
+                        outcome,
+                        tx_stamp: r.frame.tx_stamp,
+                        rx_stamp: r.rx_stamp,
+                    },
+                );
             }
             if outcome == Outcome::Received {
                 let packet = RadioPacket {
@@ -476,18 +480,22 @@ impl Channel {
         if let Some(log) = &mut self.log {
             for &i in &gone {
                 let r = &self.live[i];
-                log.write(r.frame.from, r.to, &LogRow {
-                    start_ps: r.frame.start.0,
-                    end_ps: r.end.0,
-                    radio: r.frame.radio,
-                    from: &self.drones[r.frame.from].desc.name,
-                    to: &self.drones[r.to].desc.name,
-                    distance_m: r.distance_m,
-                    rssi_dbm: r.rssi_dbm,
-                    outcome: Outcome::Retired,
-                    tx_stamp: r.frame.tx_stamp,
-                    rx_stamp: r.rx_stamp,
-                });
+                log.write(
+                    r.frame.from,
+                    r.to,
+                    &LogRow {
+                        start_ps: r.frame.start.0,
+                        end_ps: r.end.0,
+                        radio: r.frame.radio,
+                        from: &self.drones[r.frame.from].desc.name,
+                        to: &self.drones[r.to].desc.name,
+                        distance_m: r.distance_m,
+                        rssi_dbm: r.rssi_dbm,
+                        outcome: Outcome::Retired,
+                        tx_stamp: r.frame.tx_stamp,
+                        rx_stamp: r.rx_stamp,
+                    },
+                );
             }
         }
         self.live.retain(|r| r.to != drone);
