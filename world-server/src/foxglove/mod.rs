@@ -77,8 +77,10 @@ pub fn stamp(ns: u64) -> Value {
     json!({"sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000})
 }
 
-/// Schemas and channels with ids of our own choosing, so that channels
-/// added here never collide with those of a file being merged.
+/// Schemas and channels to write: one schema per name, shared by its
+/// channels. Their ids are distinct from those of a file being merged (the
+/// merge keeps both in one list), though the writer gives each channel its
+/// own id when it is registered ([`KnownChannels`]).
 pub struct Channels {
     schemas: BTreeMap<String, Arc<mcap::Schema<'static>>>,
     next_schema: u16,
