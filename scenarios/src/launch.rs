@@ -568,6 +568,7 @@ pub fn world_command(
         .arg(out.join(files::TRAJECTORY))
         .arg("--busy-poll-us")
         .arg(scenario.busy_poll_us.to_string());
+    mcap_args(&mut cmd, scenario, out);
     if opts.traces {
         cmd.arg("--trace").arg(out.join(files::WORLD_TRACE));
         if opts.trace_images {
@@ -581,6 +582,17 @@ pub fn world_command(
         cmd.arg("--frames-dir").arg(frames);
     }
     Ok(cmd)
+}
+
+/// `--mcap OUT/world.mcap` (merged into `run.mcap` after the run,
+/// [`crate::foxglove`]) unless the scenario says `mcap = false`.
+pub(crate) fn mcap_args(cmd: &mut Command, scenario: &Scenario, out: &Path) {
+    if scenario.mcap {
+        cmd.arg("--mcap")
+            .arg(out.join(crate::foxglove::WORLD_MCAP))
+            .arg("--mcap-image-every")
+            .arg(scenario.mcap_image_every.to_string());
+    }
 }
 
 /// `sim-core` for `scenario`, connecting to `world`, its outputs into `out`

@@ -11,11 +11,13 @@
 //! - [`perturb`]: `cosim world perturb`, courses with displaced gates.
 //! - [`mapping`]: the map of an exploration run scored against the world.
 //! - [`bench_race`]: `cosim bench race`, what the thesis's race costs.
+//! - [`foxglove`]: `run.mcap`, the world's and the platforms' channels merged.
 
 pub mod bench_cluster;
 pub mod bench_iss;
 pub mod bench_race;
 pub mod endurance;
+pub mod foxglove;
 pub mod launch;
 pub mod mapping;
 pub mod nn;
@@ -174,18 +176,34 @@ pub fn run_scenario(
             None
         }
     };
+    // The map first: run.mcap carries it.
+    let map = mapping::process(
+        &scenario.world,
+        out,
+        summary.as_ref().map(|s| s.cycles),
+        draw,
+    );
+    // run.mcap is written on its own thread while the plots are drawn
+    // (docs/FOXGLOVE.md "Cost").
+    let mcap_job = scenario.mcap.then(|| {
+        let name = world_server::WorldDesc::load(&scenario.world)
+            .ok()
+            .and_then(|w| w.drones.first().map(|d| d.name.clone()))
+            .unwrap_or_else(|| "cf1".into());
+        let drone = foxglove::DroneOutputs {
+            name,
+            dir: out.to_path_buf(),
+            map_cell_m: map.as_ref().ok().and_then(|m| m.as_ref()).map(|m| m.cell_m),
+        };
+        foxglove::spawn_run_mcap(out, vec![drone])
+    });
     if draw && summary.is_some() {
         match report::draw_run_plots(scenario, out) {
             Ok(p) => plots = p,
             Err(e) => report_error = Some(e.to_string()),
         }
     }
-    let map = match mapping::process(
-        &scenario.world,
-        out,
-        summary.as_ref().map(|s| s.cycles),
-        draw,
-    ) {
+    let map = match map {
         Ok(m) => m,
         Err(e) => {
             report_error = Some(e.to_string());
@@ -194,6 +212,22 @@ pub fn run_scenario(
     };
     if map.is_some() && draw {
         plots.push(out.join(mapping::files::MAP_PNG));
+    }
+    if let Some(job) = mcap_job {
+        match foxglove::join(job) {
+            // A world that died left its file cut short: the run's own
+            // error says why; a clean run with a cut file is an error.
+            Ok(m) => match m.warning {
+                Some(w) if status.ok() => {
+                    report_error.get_or_insert(w);
+                }
+                Some(w) => tracing::debug!("{w}"),
+                None => {}
+            },
+            Err(e) => {
+                report_error.get_or_insert(e.to_string());
+            }
+        }
     }
     let text = match &summary {
         Some(s) => {

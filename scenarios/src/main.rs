@@ -81,6 +81,9 @@ struct RunArgs {
     /// Let the world write every camera frame as a PNG into OUT/frames.
     #[arg(long)]
     frames: bool,
+    /// No run.mcap (the same as `--set mcap=false`; docs/FOXGLOVE.md).
+    #[arg(long)]
+    no_mcap: bool,
     /// Kill the run after this many seconds of wall time.
     #[arg(long, value_name = "S")]
     timeout: Option<f64>,
@@ -393,11 +396,14 @@ enum TraceCmd {
 }
 
 impl RunArgs {
-    /// The `--set` assignments, `--world` last.
+    /// The `--set` assignments, then `--world` and `--no-mcap`.
     fn sets(&self) -> Vec<String> {
         let mut sets = self.set.clone();
         if let Some(w) = &self.world {
             sets.push(format!("world={}", w.display()));
+        }
+        if self.no_mcap {
+            sets.push("mcap=false".into());
         }
         sets
     }

@@ -84,6 +84,12 @@ pub struct ScenarioFile {
     /// `array` (the thesis's) or `base64`.
     #[serde(default = "default_encoding")]
     pub image_encoding: String,
+    /// Write `run.mcap` (docs/FOXGLOVE.md).
+    #[serde(default)]
+    pub mcap: Option<bool>,
+    /// Every Nth camera frame into `run.mcap` (0: none).
+    #[serde(default)]
+    pub mcap_image_every: Option<u64>,
     /// The firmware's targets, for the top-view plot (the firmware holds
     /// its own copy: the platform does not learn them from the scenario).
     #[serde(default)]
@@ -109,11 +115,11 @@ fn default_encoding() -> String {
     "array".into()
 }
 
-/// Keys `--set` accepts besides the run keys.
 /// The firmware of a drone flown over CRTP (`sim-core/firmware/src/crtp/`).
 pub const CRTP_FIRMWARE: &str = "crtp_host.elf";
 
-pub const SCENARIO_KEYS: [(&str, &str); 9] = [
+/// Keys `--set` accepts besides the run keys.
+pub const SCENARIO_KEYS: [(&str, &str); 11] = [
     ("world", "world file (TOML)"),
     ("firmware", "firmware ELF"),
     ("timestep_ms", "basicTimeStep in ms"),
@@ -128,6 +134,14 @@ pub const SCENARIO_KEYS: [(&str, &str); 9] = [
     (
         "radio_seed",
         "the world's [radio] seed for this run (a copy of the world file in the run's directory)",
+    ),
+    (
+        "mcap",
+        "write run.mcap for Foxglove (true | false; `--no-mcap` sets false; docs/FOXGLOVE.md)",
+    ),
+    (
+        "mcap_image_every",
+        "keep every Nth camera frame in run.mcap (0: none; default 30)",
     ),
 ];
 
@@ -151,6 +165,11 @@ pub struct Scenario {
     /// `--busy-poll-us` of sim-core and our world-server: a host setting
     /// (how the processes wait for each other), never a simulated one.
     pub busy_poll_us: u64,
+    /// Write `run.mcap` (docs/FOXGLOVE.md; a host-side output: no
+    /// simulated result depends on it).
+    pub mcap: bool,
+    /// Every Nth camera frame served goes into `run.mcap` (0: none).
+    pub mcap_image_every: u64,
     pub targets: Vec<[f64; 3]>,
     /// The run configuration sim-core gets (written to `run.toml`).
     pub run: RunConfig,
@@ -278,6 +297,10 @@ impl Scenario {
             radio_seed: None,
             image_encoding: protocol::ImageEncoding::Array,
             busy_poll_us: protocol::busy_poll::DEFAULT_US,
+            mcap: file.mcap.unwrap_or(true),
+            mcap_image_every: file
+                .mcap_image_every
+                .unwrap_or(world_server::foxglove::DEFAULT_IMAGE_EVERY),
             targets: file.targets,
             run,
             overrides: Vec::new(),
@@ -424,6 +447,18 @@ impl Scenario {
                 self.image_encoding = value
                     .parse()
                     .map_err(|_| bad("expected array, base64 or shm"))?
+            }
+            "mcap" => {
+                self.mcap = match value {
+                    "true" => true,
+                    "false" => false,
+                    _ => return Err(bad("expected true or false")),
+                }
+            }
+            "mcap_image_every" => {
+                self.mcap_image_every = value
+                    .parse::<u64>()
+                    .map_err(|_| bad("expected a whole number >= 0"))?
             }
             "busy_poll_us" => {
                 self.busy_poll_us = match value.parse::<u64>() {

@@ -7,6 +7,7 @@
 pub mod camera;
 pub mod crazyflie;
 pub mod dataset;
+pub mod foxglove;
 pub mod gates;
 pub mod lockstep;
 pub mod physics;

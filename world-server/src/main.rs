@@ -2,7 +2,8 @@
 //!
 //! `world-server --socket PATH [--world FILE] [--timestep MS] [--substeps N]
 //! [--trace FILE] [--trace-images] [--frames-dir DIR] [--tcp HOST:PORT]
-//! [--trajectory FILE] [--radio-log FILE] [--connect-timeout S]
+//! [--trajectory FILE] [--radio-log FILE] [--mcap FILE [--mcap-image-every N]]
+//! [--connect-timeout S]
 //! [--replay TRACE [--replay-frames DIR]]`
 
 use std::path::PathBuf;
@@ -51,6 +52,14 @@ struct Cli {
     /// Write one CSV row per radio frame and receiver with its outcome.
     #[arg(long, value_name = "FILE")]
     radio_log: Option<PathBuf>,
+    /// Write what the world sees (every drone's pose per step, the scene,
+    /// camera frames, motors, radio) as an MCAP file Foxglove opens
+    /// (docs/FOXGLOVE.md); log time = world time.
+    #[arg(long, value_name = "FILE")]
+    mcap: Option<PathBuf>,
+    /// With --mcap: keep every Nth camera frame served (0: none).
+    #[arg(long, value_name = "N", default_value_t = world_server::foxglove::DEFAULT_IMAGE_EVERY, requires = "mcap")]
+    mcap_image_every: u64,
     /// Seconds to wait for every drone of the world file to be claimed by a
     /// platform (wall time); then exit non-zero naming the unclaimed ones.
     #[arg(long, value_name = "S", default_value_t = 60.0)]
@@ -140,6 +149,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         frames_dir: cli.frames_dir,
         trajectory: cli.trajectory,
         radio_log: cli.radio_log,
+        mcap: cli.mcap,
+        mcap_image_every: cli.mcap_image_every,
         connect_timeout: Duration::from_secs_f64(cli.connect_timeout),
         busy_poll: protocol::busy_poll::BusyPoll::from_micros(cli.busy_poll_us),
     };

@@ -65,6 +65,10 @@ pub struct ServerConfig {
     pub trajectory: Option<PathBuf>,
     /// `--radio-log`: one CSV row per (frame, receiver).
     pub radio_log: Option<PathBuf>,
+    /// `--mcap`: the world's half of a run's run.mcap (docs/FOXGLOVE.md).
+    pub mcap: Option<PathBuf>,
+    /// `--mcap-image-every`: every Nth camera frame into the MCAP (0: none).
+    pub mcap_image_every: u64,
     /// How long to wait for every drone to be claimed (wall time).
     pub connect_timeout: Duration,
     /// How long the world polls for the next request before it sleeps
@@ -128,6 +132,8 @@ pub async fn serve(cfg: ServerConfig) -> Result<(), ServerError> {
             trajectory: cfg.trajectory.as_deref(),
             frames_dir: cfg.frames_dir.as_deref(),
             radio_log: cfg.radio_log.as_deref(),
+            mcap: cfg.mcap.as_deref(),
+            mcap_image_every: cfg.mcap_image_every,
         },
     )?;
     let mut trace = match &cfg.trace {

@@ -24,6 +24,7 @@ use protocol::{Image, ImageEncoding, ProtocolError, Reply, Request, Sensors, Sta
 
 use crate::camera::{write_png, Camera};
 use crate::crazyflie::MotorCommands;
+use crate::foxglove::McapLog;
 use crate::lockstep::{Lockstep, Next};
 use crate::physics::{StepConfig, World, WorldError};
 use crate::radio::geometry::Obstacle;
@@ -98,6 +99,8 @@ pub enum SessionError {
     World(#[from] WorldError),
     #[error("cannot write the trajectory: {0}")]
     Trajectory(#[from] csv::Error),
+    #[error("cannot write the MCAP file: {0}")]
+    Mcap(#[from] mcap::McapError),
     #[error("cannot write {path}: {source}")]
     Output {
         path: PathBuf,
@@ -157,6 +160,7 @@ pub struct Session {
     trajectory_error: Option<csv::Error>,
     frames_dir: Option<PathBuf>,
     frames: Vec<u64>,
+    mcap: Option<McapLog>,
 }
 
 /// Optional outputs of a session.
@@ -165,6 +169,10 @@ pub struct SessionOutputs<'a> {
     pub trajectory: Option<&'a Path>,
     pub frames_dir: Option<&'a Path>,
     pub radio_log: Option<&'a Path>,
+    /// `--mcap`: the world's channels for Foxglove ([`crate::foxglove`]).
+    pub mcap: Option<&'a Path>,
+    /// Keep every Nth camera frame in the MCAP file (0: none).
+    pub mcap_image_every: u64,
 }
 
 impl Session {
@@ -206,13 +214,26 @@ impl Session {
             })?;
             channel.set_log(Box::new(std::io::BufWriter::new(f)));
         }
+        let names: Vec<String> = desc.drones.iter().map(|d| d.name.clone()).collect();
+        let mcap = match outputs.mcap {
+            Some(path) => {
+                channel.keep_events();
+                Some(McapLog::create(
+                    path,
+                    &names,
+                    world.scene_boxes(),
+                    outputs.mcap_image_every,
+                )?)
+            }
+            None => None,
+        };
         let n = desc.drones.len();
         let positions = world.positions();
         Ok(Session {
             lockstep: Lockstep::new(n, world.time(), step.timestep),
             camera,
             channel,
-            names: desc.drones.iter().map(|d| d.name.clone()).collect(),
+            names,
             radios: desc.drones.iter().map(|d| d.radios.clone()).collect(),
             multi,
             before: Snapshot {
@@ -228,6 +249,7 @@ impl Session {
             trajectory_error: None,
             frames_dir: outputs.frames_dir.map(Path::to_path_buf),
             frames: vec![0; n],
+            mcap,
         })
     }
 
@@ -258,8 +280,12 @@ impl Session {
             &self.names,
         );
         let (before, after) = (&mut self.before, &mut self.after);
+        let mcap = &mut self.mcap;
         self.world.warm_up(|w| {
             record(traj, err, names, w);
+            if let Some(m) = mcap.as_mut() {
+                m.step(w);
+            }
             snapshot(before, after, w);
         });
         self.lockstep = Lockstep::new(
@@ -398,11 +424,15 @@ impl Session {
         }
     }
 
-    /// Flushes the trajectory and the radio log (every exit path calls it).
+    /// Flushes the trajectory and the radio log and finishes the MCAP file
+    /// (every exit path calls it; the MCAP file is closed even when another
+    /// output failed).
     pub fn flush(&mut self) -> Result<(), SessionError> {
+        let mcap = self.mcap.as_mut().map_or(Ok(()), McapLog::finish);
         if let Some(t) = self.trajectory.as_mut() {
             t.flush().map_err(|e| SessionError::Trajectory(e.into()))?;
         }
+        mcap?;
         self.channel
             .flush_log()
             .map_err(|source| SessionError::Output {
@@ -430,6 +460,9 @@ impl Session {
             &self.world,
         );
         self.take_trajectory_error()?;
+        if let Some(m) = self.mcap.as_mut() {
+            m.step(&self.world);
+        }
         snapshot(&mut self.before, &mut self.after, &self.world);
         self.lockstep.stepped();
         let now = self.world.time();
@@ -438,6 +471,12 @@ impl Session {
         self.channel.resolve(Picos::from_ms(now.0), &|d, t| {
             position_at(world, before, after, d, t)
         });
+        if let Some(m) = self.mcap.as_mut() {
+            let events = self.channel.take_events();
+            m.radio(&events, |d, ps| {
+                position_at(world, before, after, d, Picos(ps))
+            });
+        }
         let stopping: Vec<usize> = self.lockstep.stopping().collect();
         for d in stopping {
             if self.world.propellers_stopped(d) {
@@ -701,6 +740,9 @@ impl Session {
             let path = dir.join(name);
             write_png(&path, w, h, &data)
                 .map_err(|source| SessionError::Output { path, source })?;
+        }
+        if let Some(m) = self.mcap.as_mut() {
+            m.image(d, self.frames[d], self.world.time(), w, h, &data);
         }
         self.frames[d] += 1;
         Ok(Image {

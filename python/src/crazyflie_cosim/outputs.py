@@ -5,7 +5,8 @@
 (``motor_empirical.csv``, ``motor_dandrea.csv``, ``motor_stolaroff.csv``),
 ``console.log``, and for a swarm run the world's ``radio.csv`` and one
 ``Run`` per drone (``run.drones``, the ``out/<scenario>/<drone>/``
-directories).  ``Sweep(DIR)`` reads ``cosim sweep``'s ``sweep.csv`` and
+directories), and ``run.mcap`` (``read_mcap``, with the PyPI package
+``mcap``: ``pip install ./python[mcap]``).  ``Sweep(DIR)`` reads ``cosim sweep``'s ``sweep.csv`` and
 opens its runs.
 
 Tables are pandas DataFrames when pandas is installed (``tables="pandas"``,
@@ -141,6 +142,14 @@ class Run:
         """A swarm run's ``radio.csv`` (one row per frame and receiver)."""
         return self._csv("radio.csv")
 
+    def mcap(self) -> Path:
+        """The run's ``run.mcap`` (docs/FOXGLOVE.md); read it with
+        :func:`read_mcap`."""
+        path = self.file("run.mcap")
+        if not path.is_file():
+            raise OutputError(f"{path}: no such file (the run was made with --no-mcap?)")
+        return path
+
     def console(self) -> str:
         """What the firmware printed (``console.log``)."""
         path = self.file("console.log")
@@ -179,3 +188,61 @@ class Sweep:
 
     def __repr__(self) -> str:
         return f"Sweep({str(self.path)!r})"
+
+
+class McapMessage:
+    """One message of a run's ``run.mcap``: its ``topic``, ``schema`` name,
+    ``log_time`` (world time, ns) and ``data`` (the decoded JSON object)."""
+
+    __slots__ = ("topic", "schema", "log_time", "data")
+
+    def __init__(self, topic: str, schema: str, log_time: int, data: dict[str, Any]):
+        self.topic, self.schema, self.log_time, self.data = topic, schema, log_time, data
+
+    def image(self):
+        """A ``foxglove.RawImage`` message's pixels as a ``height × width``
+        NumPy ``uint8`` array (mono8)."""
+        import base64
+
+        import numpy as np
+
+        if self.schema != "foxglove.RawImage":
+            raise ValueError(f"{self.topic}: a {self.schema}, not a foxglove.RawImage")
+        d = self.data
+        if d.get("encoding") != "mono8":
+            raise ValueError(f"{self.topic}: encoding {d.get('encoding')!r}, not mono8")
+        px = np.frombuffer(base64.b64decode(d["data"]), dtype=np.uint8)
+        return px.reshape(d["height"], d["width"])
+
+    def __repr__(self) -> str:
+        return f"McapMessage({self.topic!r}, {self.schema!r}, {self.log_time})"
+
+
+def read_mcap(path: str | os.PathLike, topics: list[str] | None = None):
+    """Yields the messages of a ``run.mcap`` (or a world's ``--mcap`` file)
+    in file order — log-time order for cosim's files — as
+    :class:`McapMessage`, optionally only those of ``topics``.  Needs the
+    PyPI package ``mcap``."""
+    try:
+        from mcap.reader import make_reader
+    except ImportError:
+        raise OutputError("reading MCAP files needs the `mcap` package (pip install mcap)") from None
+    path = Path(path)
+    if not path.is_file():
+        raise OutputError(f"{path}: no such file")
+    with open(path, "rb") as f:
+        try:
+            reader = make_reader(f)
+            for schema, channel, message in reader.iter_messages(topics=topics, log_time_order=False):
+                if channel.message_encoding != "json":
+                    raise OutputError(f"{path}: {channel.topic} is {channel.message_encoding}, not json")
+                yield McapMessage(
+                    channel.topic,
+                    schema.name if schema is not None else "",
+                    message.log_time,
+                    json.loads(message.data),
+                )
+        except OutputError:
+            raise
+        except Exception as e:  # the mcap package's own errors: a broken file
+            raise OutputError(f"{path}: not a readable MCAP file ({e})") from None

@@ -144,6 +144,7 @@ fn world_command(
         .arg(CONNECT_TIMEOUT_S.to_string())
         .arg("--busy-poll-us")
         .arg(scenario.busy_poll_us.to_string());
+    crate::launch::mcap_args(&mut c, scenario, out);
     if opts.traces {
         c.arg("--trace").arg(out.join(files::WORLD_TRACE));
         if opts.trace_images {

@@ -58,6 +58,20 @@ pub fn run_swarm(
     draw: bool,
 ) -> Result<RunOutcome, LaunchError> {
     let st = launch_swarm(scenario, bins, out, opts)?;
+    // run.mcap on its own thread while the reports and plots are made
+    // (docs/FOXGLOVE.md "Cost").
+    let mcap_job = scenario.mcap.then(|| {
+        let outputs = scenario
+            .platforms
+            .iter()
+            .map(|p| crate::foxglove::DroneOutputs {
+                name: p.drone.clone(),
+                dir: drone_dir(out, &p.drone),
+                map_cell_m: None,
+            })
+            .collect();
+        crate::foxglove::spawn_run_mcap(out, outputs)
+    });
     let names: Vec<String> = scenario.platforms.iter().map(|p| p.drone.clone()).collect();
     let mut report_error: Option<String> = None;
     // After a failure, outputs cut short are its consequence, not news.
@@ -171,6 +185,17 @@ pub fn run_swarm(
             exit_code: exit_of(&p.drone),
             text,
         });
+    }
+
+    if let Some(job) = mcap_job {
+        match crate::foxglove::join(job) {
+            Ok(m) => {
+                if let Some(w) = m.warning {
+                    note(w);
+                }
+            }
+            Err(e) => note(e.to_string()),
+        }
     }
 
     let ranging = ranging(scenario, out, &tracks);

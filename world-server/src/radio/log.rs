@@ -72,27 +72,71 @@ pub struct LogRow<'a> {
     pub rx_stamp: Option<u64>,
 }
 
-/// The CSV writer and the first error it met: the channel's methods do not
-/// fail on a log error; it is kept and returned by [`RadioLog::flush`].
+/// One row of the log as the world's MCAP takes it (`crate::foxglove`):
+/// drones by index, so their positions can be looked up.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RadioEvent {
+    pub start_ps: u64,
+    pub end_ps: u64,
+    pub radio: Radio,
+    pub from: usize,
+    pub to: usize,
+    pub distance_m: f64,
+    pub rssi_dbm: f64,
+    pub outcome: Outcome,
+}
+
+/// Where the rows go: the CSV writer (and the first error it met: the
+/// channel's methods do not fail on a log error; it is kept and returned
+/// by [`RadioLog::flush`]) and/or a list of events taken by
+/// [`RadioLog::take_events`].
+#[derive(Default)]
 pub struct RadioLog {
-    w: csv::Writer<Box<dyn Write + Send>>,
+    w: Option<csv::Writer<Box<dyn Write + Send>>>,
     error: Option<std::io::Error>,
+    events: Option<Vec<RadioEvent>>,
 }
 
 impl RadioLog {
     /// The header row is written at once, so a run without frames still
     /// leaves a well-formed CSV.
-    pub fn new(w: Box<dyn Write + Send>) -> RadioLog {
+    pub fn set_csv(&mut self, w: Box<dyn Write + Send>) {
         let mut w = csv::WriterBuilder::new().has_headers(false).from_writer(w);
-        let error = w.write_record(HEADER).err().map(into_io);
-        RadioLog { w, error }
+        self.error = w.write_record(HEADER).err().map(into_io);
+        self.w = Some(w);
     }
 
-    pub fn write(&mut self, row: &LogRow<'_>) {
+    /// Keeps every row from now on until [`RadioLog::take_events`].
+    pub fn keep_events(&mut self) {
+        self.events.get_or_insert_with(Vec::new);
+    }
+
+    /// The rows kept since the last call (empty unless kept).
+    pub fn take_events(&mut self) -> Vec<RadioEvent> {
+        self.events.as_mut().map(std::mem::take).unwrap_or_default()
+    }
+
+    /// One row; `from` and `to` are the drones' indices.
+    pub fn write(&mut self, from: usize, to: usize, row: &LogRow<'_>) {
+        if let Some(events) = &mut self.events {
+            events.push(RadioEvent {
+                start_ps: row.start_ps,
+                end_ps: row.end_ps,
+                radio: row.radio,
+                from,
+                to,
+                distance_m: row.distance_m,
+                rssi_dbm: row.rssi_dbm,
+                outcome: row.outcome,
+            });
+        }
+        let Some(w) = &mut self.w else {
+            return;
+        };
         if self.error.is_some() {
             return;
         }
-        if let Err(e) = self.w.serialize(row) {
+        if let Err(e) = w.serialize(row) {
             self.error = Some(into_io(e));
         }
     }
@@ -102,7 +146,10 @@ impl RadioLog {
         if let Some(e) = self.error.take() {
             return Err(e);
         }
-        self.w.flush()
+        match &mut self.w {
+            Some(w) => w.flush(),
+            None => Ok(()),
+        }
     }
 }
 

@@ -21,7 +21,7 @@ mod log;
 pub mod profile;
 
 pub use config::{RadioConfig, P2P_RSSI_1M_DBM, P2P_RSSI_NOISE_DB};
-pub use log::{LogRow, Outcome, RadioLog, HEADER as LOG_HEADER};
+pub use log::{LogRow, Outcome, RadioEvent, RadioLog, HEADER as LOG_HEADER};
 
 use std::sync::Arc;
 
@@ -353,18 +353,22 @@ impl Channel {
             let outcome = self.outcome(i);
             let r = &self.live[i];
             if let Some(log) = &mut self.log {
-                log.write(&LogRow {
-                    start_ps: r.frame.start.0,
-                    end_ps: r.end.0,
-                    radio: r.frame.radio,
-                    from: &self.drones[r.frame.from].desc.name,
-                    to: &self.drones[r.to].desc.name,
-                    distance_m: r.distance_m,
-                    rssi_dbm: r.rssi_dbm,
-                    outcome,
-                    tx_stamp: r.frame.tx_stamp,
-                    rx_stamp: r.rx_stamp,
-                });
+                log.write(
+                    r.frame.from,
+                    r.to,
+                    &LogRow {
+                        start_ps: r.frame.start.0,
+                        end_ps: r.end.0,
+                        radio: r.frame.radio,
+                        from: &self.drones[r.frame.from].desc.name,
+                        to: &self.drones[r.to].desc.name,
+                        distance_m: r.distance_m,
+                        rssi_dbm: r.rssi_dbm,
+                        outcome,
+                        tx_stamp: r.frame.tx_stamp,
+                        rx_stamp: r.rx_stamp,
+                    },
+                );
             }
             if outcome == Outcome::Received {
                 let packet = RadioPacket {
@@ -476,18 +480,22 @@ impl Channel {
         if let Some(log) = &mut self.log {
             for &i in &gone {
                 let r = &self.live[i];
-                log.write(&LogRow {
-                    start_ps: r.frame.start.0,
-                    end_ps: r.end.0,
-                    radio: r.frame.radio,
-                    from: &self.drones[r.frame.from].desc.name,
-                    to: &self.drones[r.to].desc.name,
-                    distance_m: r.distance_m,
-                    rssi_dbm: r.rssi_dbm,
-                    outcome: Outcome::Retired,
-                    tx_stamp: r.frame.tx_stamp,
-                    rx_stamp: r.rx_stamp,
-                });
+                log.write(
+                    r.frame.from,
+                    r.to,
+                    &LogRow {
+                        start_ps: r.frame.start.0,
+                        end_ps: r.end.0,
+                        radio: r.frame.radio,
+                        from: &self.drones[r.frame.from].desc.name,
+                        to: &self.drones[r.to].desc.name,
+                        distance_m: r.distance_m,
+                        rssi_dbm: r.rssi_dbm,
+                        outcome: Outcome::Retired,
+                        tx_stamp: r.frame.tx_stamp,
+                        rx_stamp: r.rx_stamp,
+                    },
+                );
             }
         }
         self.live.retain(|r| r.to != drone);
@@ -495,7 +503,21 @@ impl Channel {
 
     /// Writes one CSV row per (frame, receiver) from now on (header first).
     pub fn set_log(&mut self, w: Box<dyn std::io::Write + Send>) {
-        self.log = Some(RadioLog::new(w));
+        self.log.get_or_insert_with(RadioLog::default).set_csv(w);
+    }
+
+    /// Keeps every decided reception for [`Channel::take_events`] (the
+    /// world's MCAP, `crate::foxglove`).
+    pub fn keep_events(&mut self) {
+        self.log.get_or_insert_with(RadioLog::default).keep_events();
+    }
+
+    /// The receptions decided since the last call, in log order.
+    pub fn take_events(&mut self) -> Vec<RadioEvent> {
+        self.log
+            .as_mut()
+            .map(RadioLog::take_events)
+            .unwrap_or_default()
     }
 
     /// Flushes the log; returns the first write error met since
