@@ -228,12 +228,12 @@ impl McapLog {
                 ("time_s", "number", "world time"),
                 (
                     "target_rad_s",
-                    "array",
+                    "number[]",
                     "m1..m4 signed target speeds (SET_VELOCITY)",
                 ),
                 (
                     "speed_rad_s",
-                    "array",
+                    "number[]",
                     "m1..m4 signed speeds after the 30 rad/s² ramp (DESIGN.md §5)",
                 ),
             ],

@@ -76,6 +76,27 @@ pub fn foxglove(name: &str) -> Option<Value> {
                 "color": color(),
                 "colors": {"type": "array", "items": color()},
                 "indices": {"type": "array", "items": {"type": "integer"}}}});
+            // The primitives we never write still need typed items: Foxglove's and
+            // Lichtblick's JSON-schema reader rejects the whole channel on an
+            // array whose items have no type ("Unsupported type undefined for
+            // array item entities.cylinders"), and the 3D panel then shows no scene.
+            let sphere = json!({"type": "object", "properties": {
+                "pose": pose(), "size": xyz(), "color": color()}});
+            let cylinder = json!({"type": "object", "properties": {
+                "pose": pose(), "size": xyz(), "bottom_scale": {"type": "number"},
+                "top_scale": {"type": "number"}, "color": color()}});
+            let triangles = json!({"type": "object", "properties": {
+                "pose": pose(), "points": {"type": "array", "items": xyz()},
+                "color": color(), "colors": {"type": "array", "items": color()},
+                "indices": {"type": "array", "items": {"type": "integer"}}}});
+            let text = json!({"type": "object", "properties": {
+                "pose": pose(), "billboard": {"type": "boolean"},
+                "font_size": {"type": "number"}, "scale_invariant": {"type": "boolean"},
+                "color": color(), "text": {"type": "string"}}});
+            let model = json!({"type": "object", "properties": {
+                "pose": pose(), "scale": xyz(), "color": color(),
+                "override_color": {"type": "boolean"}, "url": {"type": "string"},
+                "media_type": {"type": "string"}, "data": bytes()}});
             let entity = json!({"type": "object", "properties": {
                 "timestamp": time(), "frame_id": {"type": "string"}, "id": {"type": "string"},
                 "lifetime": time(), "frame_locked": {"type": "boolean"},
@@ -83,12 +104,12 @@ pub fn foxglove(name: &str) -> Option<Value> {
                     "key": {"type": "string"}, "value": {"type": "string"}}}},
                 "arrows": {"type": "array", "items": arrow},
                 "cubes": {"type": "array", "items": cube},
-                "spheres": {"type": "array", "items": {}},
-                "cylinders": {"type": "array", "items": {}},
+                "spheres": {"type": "array", "items": sphere},
+                "cylinders": {"type": "array", "items": cylinder},
                 "lines": {"type": "array", "items": line},
-                "triangles": {"type": "array", "items": {}},
-                "texts": {"type": "array", "items": {}},
-                "models": {"type": "array", "items": {}}}});
+                "triangles": {"type": "array", "items": triangles},
+                "texts": {"type": "array", "items": text},
+                "models": {"type": "array", "items": model}}});
             json!({"properties": {
                 "deletions": {"type": "array", "items": {"type": "object", "properties": {
                     "timestamp": time(), "type": {"type": "integer"}, "id": {"type": "string"}}}},
@@ -115,11 +136,18 @@ pub fn foxglove(name: &str) -> Option<Value> {
 }
 
 /// The schema of one of our plain JSON channels: an object with these
-/// keys, each `(name, JSON type, description)`.
+/// keys, each `(name, JSON type, description)`; a type `T[]` is an array
+/// of `T` (a reader needs the items' type to decode the array at all).
 pub fn plain(name: &str, keys: &[(&str, &str, &str)]) -> Value {
     let props: serde_json::Map<String, Value> = keys
         .iter()
-        .map(|(k, t, d)| (k.to_string(), json!({"type": t, "description": d})))
+        .map(|(k, t, d)| {
+            let field = match t.strip_suffix("[]") {
+                Some(item) => json!({"type": "array", "items": {"type": item}, "description": d}),
+                None => json!({"type": t, "description": d}),
+            };
+            (k.to_string(), field)
+        })
         .collect();
     with_title(name, json!({"properties": props}))
 }
@@ -145,5 +173,38 @@ mod tests {
             assert!(s["properties"].is_object());
         }
         assert!(foxglove("foxglove.Nothing").is_none());
+    }
+
+    /// Every array node names its items' type, everywhere below `v`.
+    fn arrays_typed(v: &Value, at: &str, bad: &mut Vec<String>) {
+        match v {
+            Value::Object(m) => {
+                if m.get("type") == Some(&json!("array"))
+                    && m.get("items").and_then(|i| i.get("type")).is_none()
+                {
+                    bad.push(at.to_string());
+                }
+                for (k, c) in m {
+                    arrays_typed(c, &format!("{at}.{k}"), bad);
+                }
+            }
+            Value::Array(a) => a.iter().for_each(|c| arrays_typed(c, at, bad)),
+            _ => {}
+        }
+    }
+
+    #[test]
+    fn every_array_has_typed_items() {
+        let mut bad = Vec::new();
+        for name in [FRAME_TRANSFORM, SCENE_UPDATE, RAW_IMAGE, GRID] {
+            arrays_typed(&foxglove(name).unwrap(), name, &mut bad);
+        }
+        let motors = plain("m", &[("speed_rad_s", "number[]", "")]);
+        assert_eq!(
+            motors["properties"]["speed_rad_s"]["items"]["type"],
+            "number"
+        );
+        arrays_typed(&motors, "m", &mut bad);
+        assert!(bad.is_empty(), "arrays without typed items: {bad:?}");
     }
 }
