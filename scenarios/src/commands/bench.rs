@@ -1,11 +1,10 @@
 //! `cosim bench swarm|race|cluster|iss`.
 
+use crate::BinArgs;
 use anyhow::bail;
 use scenarios::launch::LaunchOptions;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-
-use crate::*;
 
 pub(crate) fn cmd_bench_swarm(
     sizes: Vec<usize>,

@@ -1,5 +1,6 @@
 //! `cosim run`, `cosim world` (and `world perturb`), `cosim list`: one scenario.
 
+use crate::{BinArgs, PerturbArgs, RunArgs};
 use anyhow::{bail, Context};
 use scenarios::launch::LaunchOptions;
 use scenarios::scenario::{find_repo_file, resolve_scenario, SCENARIO_KEYS};
@@ -7,8 +8,6 @@ use scenarios::{run_scenario, Scenario};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
-
-use crate::*;
 
 impl RunArgs {
     /// The `--set` assignments, then `--world` and `--no-mcap`.

@@ -1,11 +1,11 @@
 //! `cosim sweep` (plans, shards, merges).
 
+use super::run::{launch_options, load_scenario};
+use crate::{BinArgs, RunArgs};
 use anyhow::{bail, Context};
 use scenarios::sweep::{self, Param, Plan, Shard};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-
-use crate::*;
 
 pub(crate) struct SweepArgs {
     pub(crate) scenario: Option<String>,

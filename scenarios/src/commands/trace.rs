@@ -1,5 +1,6 @@
 //! `cosim replay`, `cosim trace-check`.
 
+use crate::BinArgs;
 use anyhow::{bail, Context};
 use scenarios::scenario::find_repo_file;
 use scenarios::tracetool;
@@ -7,8 +8,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use world_server::replay::{self, ReplayOptions};
-
-use crate::*;
 
 pub(crate) fn cmd_replay(
     trace: PathBuf,
