@@ -91,19 +91,7 @@ fn run_once(sim_core: &Path, elf: &Path, iss: &str) -> Result<Run, BenchError> {
         .find_map(|l| l.split("skipped instructions:").nth(1))
         .and_then(|v| v.trim().parse::<u64>().ok())
         .unwrap_or(0);
-    // Every cluster core's instructions too (`cluster core I: instructions N, ...`).
-    let cluster: u64 = stderr
-        .lines()
-        .filter(|l| l.starts_with("cluster core "))
-        .filter_map(|l| {
-            l.split("instructions ")
-                .nth(1)?
-                .split(',')
-                .next()?
-                .parse::<u64>()
-                .ok()
-        })
-        .sum();
+    let cluster = cluster_instructions(&stderr);
     Ok(Run {
         instructions: fc - skipped + cluster,
         cycles: stat(&stderr, "cycles:").ok_or_else(|| err("no cycle count".into()))?,
@@ -223,6 +211,23 @@ pub fn markdown(rows: &[IssRow]) -> String {
     s
 }
 
+/// Every cluster core's instructions in `run-elf --stats` output (`cluster
+/// core I: instructions N, ...`), summed.
+fn cluster_instructions(stderr: &str) -> u64 {
+    stderr
+        .lines()
+        .filter(|l| l.starts_with("cluster core "))
+        .filter_map(|l| {
+            l.split("instructions ")
+                .nth(1)?
+                .split(',')
+                .next()?
+                .parse::<u64>()
+                .ok()
+        })
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -232,18 +237,6 @@ mod tests {
         let text = "instructions: 1000\ncycles: 1500\nsimulated time: 6 us\nsleep cycles: 0, polling cycles: 10, skipped instructions: 100\ncluster core 0: instructions 50, cycles 60 (gated 0), L1 accesses 0, L1 stall cycles 0\ncluster core 1: instructions 70, cycles 80 (gated 0), L1 accesses 0, L1 stall cycles 0\n";
         assert_eq!(stat(text, "instructions:"), Some(1000));
         assert_eq!(stat(text, "cycles:"), Some(1500));
-        let cluster: u64 = text
-            .lines()
-            .filter(|l| l.starts_with("cluster core "))
-            .filter_map(|l| {
-                l.split("instructions ")
-                    .nth(1)?
-                    .split(',')
-                    .next()?
-                    .parse::<u64>()
-                    .ok()
-            })
-            .sum();
-        assert_eq!(cluster, 120);
+        assert_eq!(cluster_instructions(text), 120);
     }
 }

@@ -3,6 +3,8 @@
 //! core takes. Instructions are encoded here by an encoder written from the
 //! ISA manual's formats, independent of the ISS's decoder.
 
+mod iss_util;
+
 use sim_core::iss::{cause, Cpu, CpuConfig, Memory, NoDevices, Privilege, StopReason};
 use sim_core::units::Picos;
 
@@ -479,19 +481,7 @@ proptest::proptest! {
         // 4 KiB and some rewrite code. The four custom opcodes are the
         // CORE-V XCV instructions (post-increment loads and stores move
         // their base by small amounts; dot products, MACs, SIMD).
-        const MAJOR: [u32; 15] = [
-            0x13, 0x33, 0x03, 0x23, 0x63, 0x37, 0x17, 0x6f, 0x67, 0x73, 0x0f, 0x0b, 0x2b, 0x5b, 0x7b,
-        ];
-        const HIGH_REG_BITS: u32 = 0x18 << 7 | 0x18 << 15 | 0x18 << 20;
-        let words: Vec<u32> = raw
-            .iter()
-            .zip(&opcodes)
-            .map(|(&w, &k)| match MAJOR.get(k) {
-                Some(&m @ (0x03 | 0x23 | 0x0b | 0x2b)) => (w & !0x7f & !HIGH_REG_BITS & 0x0fff_ffff) | m,
-                Some(&m) => (w & !0x7f & !HIGH_REG_BITS) | m,
-                None => w,
-            })
-            .collect();
+        let words = iss_util::random_code(&raw, &opcodes);
         let run = |stepwise: bool| {
             let mut prog = vec![csr(1, 0, 31, 0x305)];
             prog.extend_from_slice(&words);

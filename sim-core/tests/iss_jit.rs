@@ -255,19 +255,7 @@ proptest::proptest! {
         regs in proptest::collection::vec(0u32..0x200, 30),
         slices in proptest::collection::vec(1u64..400, 1..12),
     ) {
-        const MAJOR: [u32; 15] = [
-            0x13, 0x33, 0x03, 0x23, 0x63, 0x37, 0x17, 0x6f, 0x67, 0x73, 0x0f, 0x0b, 0x2b, 0x5b, 0x7b,
-        ];
-        const HIGH_REG_BITS: u32 = 0x18 << 7 | 0x18 << 15 | 0x18 << 20;
-        let words: Vec<u32> = raw
-            .iter()
-            .zip(&opcodes)
-            .map(|(&w, &k)| match MAJOR.get(k) {
-                Some(&m @ (0x03 | 0x23 | 0x0b | 0x2b)) => (w & !0x7f & !HIGH_REG_BITS & 0x0fff_ffff) | m,
-                Some(&m) => (w & !0x7f & !HIGH_REG_BITS) | m,
-                None => w,
-            })
-            .collect();
+        let words = iss_util::random_code(&raw, &opcodes);
         let run = |iss, sliced: bool| {
             let mut prog = vec![csr(1, 0, 31, 0x305)];
             prog.extend_from_slice(&words);

@@ -62,3 +62,28 @@ pub fn run_firmware(name: &str) -> (i32, String, Cpu) {
     };
     (code, console.text(), cpu)
 }
+
+/// Random code for the ISS property tests (`iss_instructions`' block-vs-step
+/// test, `iss_jit`'s translator-vs-interpreter test): real major opcodes
+/// chosen by `opcodes` (an index past the table keeps the raw word: any
+/// encoding, illegal ones included) with random fields from `raw`, every
+/// register field x0..x7 (results often used by the next instruction:
+/// load-use stalls), loads and stores (XCV's post-increment ones too) with
+/// small positive offsets, so most accesses hit the program's own memory
+/// and some rewrite code. The four custom opcodes are CORE-V XCV.
+pub fn random_code(raw: &[u32], opcodes: &[usize]) -> Vec<u32> {
+    const MAJOR: [u32; 15] = [
+        0x13, 0x33, 0x03, 0x23, 0x63, 0x37, 0x17, 0x6f, 0x67, 0x73, 0x0f, 0x0b, 0x2b, 0x5b, 0x7b,
+    ];
+    const HIGH_REG_BITS: u32 = 0x18 << 7 | 0x18 << 15 | 0x18 << 20;
+    raw.iter()
+        .zip(opcodes)
+        .map(|(&w, &k)| match MAJOR.get(k) {
+            Some(&m @ (0x03 | 0x23 | 0x0b | 0x2b)) => {
+                (w & !0x7f & !HIGH_REG_BITS & 0x0fff_ffff) | m
+            }
+            Some(&m) => (w & !0x7f & !HIGH_REG_BITS) | m,
+            None => w,
+        })
+        .collect()
+}

@@ -351,25 +351,8 @@ impl Channel {
         });
         for i in ready {
             let outcome = self.outcome(i);
+            self.log_row(i, outcome);
             let r = &self.live[i];
-            if let Some(log) = &mut self.log {
-                log.write(
-                    r.frame.from,
-                    r.to,
-                    &LogRow {
-                        start_ps: r.frame.start.0,
-                        end_ps: r.end.0,
-                        radio: r.frame.radio,
-                        from: &self.drones[r.frame.from].desc.name,
-                        to: &self.drones[r.to].desc.name,
-                        distance_m: r.distance_m,
-                        rssi_dbm: r.rssi_dbm,
-                        outcome,
-                        tx_stamp: r.frame.tx_stamp,
-                        rx_stamp: r.rx_stamp,
-                    },
-                );
-            }
             if outcome == Outcome::Received {
                 let packet = RadioPacket {
                     radio: r.frame.radio,
@@ -387,6 +370,28 @@ impl Channel {
 
     /// The outcome of reception `i`, all of whose possible interferers are
     /// known (it ends at or before `resolved`).
+    /// Writes live frame `i`'s row to the radio log, if one is kept.
+    fn log_row(&mut self, i: usize, outcome: Outcome) {
+        let Some(log) = &mut self.log else { return };
+        let r = &self.live[i];
+        log.write(
+            r.frame.from,
+            r.to,
+            &LogRow {
+                start_ps: r.frame.start.0,
+                end_ps: r.end.0,
+                radio: r.frame.radio,
+                from: &self.drones[r.frame.from].desc.name,
+                to: &self.drones[r.to].desc.name,
+                distance_m: r.distance_m,
+                rssi_dbm: r.rssi_dbm,
+                outcome,
+                tx_stamp: r.frame.tx_stamp,
+                rx_stamp: r.rx_stamp,
+            },
+        );
+    }
+
     fn outcome(&self, i: usize) -> Outcome {
         let r = &self.live[i];
         if !r.audible || r.faded {
@@ -477,26 +482,8 @@ impl Channel {
             let r = &self.live[i];
             (r.end, r.frame.from, r.frame.number)
         });
-        if let Some(log) = &mut self.log {
-            for &i in &gone {
-                let r = &self.live[i];
-                log.write(
-                    r.frame.from,
-                    r.to,
-                    &LogRow {
-                        start_ps: r.frame.start.0,
-                        end_ps: r.end.0,
-                        radio: r.frame.radio,
-                        from: &self.drones[r.frame.from].desc.name,
-                        to: &self.drones[r.to].desc.name,
-                        distance_m: r.distance_m,
-                        rssi_dbm: r.rssi_dbm,
-                        outcome: Outcome::Retired,
-                        tx_stamp: r.frame.tx_stamp,
-                        rx_stamp: r.rx_stamp,
-                    },
-                );
-            }
+        for &i in &gone {
+            self.log_row(i, Outcome::Retired);
         }
         self.live.retain(|r| r.to != drone);
     }
