@@ -18,7 +18,7 @@ def run_dir(tmp_path_factory, binaries):
     course = ROOT / "scenarios" / "worlds" / "thesis-course.toml"
     subprocess.run(
         [str(binaries["cosim"]), "run", "short-hop", "--quiet", "--no-plots", "--no-trace",
-         "--world", str(course), "--set", "mcap_image_every=20", "--out", str(out)],
+         "--world", str(course), "--set", "mcap_image_every=20", "--set", "mcap_power_every=5", "--out", str(out)],
         check=True,
         capture_output=True,
     )
@@ -50,9 +50,12 @@ def test_schemas_transforms_times_and_images(run_dir):
         assert px.shape == (320, 320) and px.dtype == np.uint8
         assert px.std() > 0  # a rendered view of the course
 
-    # The battery channel is power.csv's rows.
+    # The battery channel is power.csv's rows 0, 5, 10, … (mcap_power_every=5)
+    # and its last.
     battery = [m.data for m in msgs if m.topic == "/cf1/battery"]
-    assert len(battery) == len(run.power())
+    power = run.power()
+    kept = [r for i, r in enumerate(power) if i % 5 == 0 or i == len(power) - 1]
+    assert [b["time_s"] for b in battery] == pytest.approx([r["time_s"] for r in kept])
     assert battery[-1]["soc"] == pytest.approx(run.summary["battery"]["soc_end"], abs=1e-6)
 
 

@@ -27,6 +27,11 @@ use world_server::foxglove::{
 pub const RUN_MCAP: &str = "run.mcap";
 /// The world's half, written during the run and removed by the merge.
 pub const WORLD_MCAP: &str = "world.mcap";
+/// Default for the `mcap_power_every` key: every 10th 1 ms row of
+/// `power.csv` (100 Hz) goes into `run.mcap`. Every row made the race's
+/// file 103 MB, 70 MB of it these channels; 100 Hz still resolves the
+/// motors' current steps in a plot, and `power.csv` keeps every row.
+pub const DEFAULT_POWER_EVERY: u64 = 10;
 
 /// Why `run.mcap` could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -70,9 +75,10 @@ struct Msg {
 pub fn spawn_run_mcap(
     out: &Path,
     drones: Vec<DroneOutputs>,
+    power_every: u64,
 ) -> std::thread::JoinHandle<Result<Merged, McapMergeError>> {
     let out = out.to_path_buf();
-    std::thread::spawn(move || write_run_mcap(&out, &drones))
+    std::thread::spawn(move || write_run_mcap(&out, &drones, power_every))
 }
 
 /// The result of [`spawn_run_mcap`]; a panic on its thread is an error.
@@ -88,13 +94,20 @@ pub fn join(
 }
 
 /// Writes `out/run.mcap` from `out/world.mcap` (if the world wrote one)
-/// and each drone's outputs, then removes `world.mcap`.
-pub fn write_run_mcap(out: &Path, drones: &[DroneOutputs]) -> Result<Merged, McapMergeError> {
+/// and each drone's outputs, then removes `world.mcap`. Of each
+/// `power.csv`, every `power_every`th row and the last go in (0: none).
+pub fn write_run_mcap(
+    out: &Path,
+    drones: &[DroneOutputs],
+    power_every: u64,
+) -> Result<Merged, McapMergeError> {
     let world_path = out.join(WORLD_MCAP);
     let (mut msgs, warning, max_schema, max_channel) = read_world(&world_path)?;
     let mut channels = Channels::after(max_schema, max_channel);
     for d in drones {
-        read_power(&d.dir, &d.name, &mut channels, &mut msgs)?;
+        if power_every > 0 {
+            read_power(&d.dir, &d.name, power_every, &mut channels, &mut msgs)?;
+        }
     }
     // Stable: the world's messages first at equal times, then the drones'.
     msgs.sort_by_key(|m| m.log_time);
@@ -197,11 +210,13 @@ fn read_world(path: &Path) -> Result<(Vec<Msg>, Option<String>, u16, u16), McapM
     Ok((msgs, warning, max_schema, max_channel))
 }
 
-/// `power.csv` → `/D/power` (every column of every 1 ms row) and
-/// `/D/battery` (voltage, SOC, current, open-circuit voltage, low flag).
+/// `power.csv` → `/D/power` (every column) and `/D/battery` (voltage, SOC,
+/// current, open-circuit voltage, low flag): rows 0, `every`, 2·`every`, …
+/// and the last (so the file ends on the summary's SOC).
 fn read_power(
     dir: &Path,
     drone: &str,
+    every: u64,
     channels: &mut Channels,
     msgs: &mut Vec<Msg>,
 ) -> Result<(), McapMergeError> {
@@ -289,8 +304,18 @@ fn read_power(
         battery_cols.iter().map(|(k, i)| (key(k), *i)).collect();
     let time_key = key("time_s");
     let mut rec = first;
+    let mut next = csv::ByteRecord::new();
     let mut more = has_first;
+    let mut row: u64 = 0;
     while more {
+        let has_next = r.read_byte_record(&mut next).map_err(|e| rerr(&e))?;
+        let keep = row.is_multiple_of(every) || !has_next;
+        row += 1;
+        if !keep {
+            std::mem::swap(&mut rec, &mut next);
+            more = has_next;
+            continue;
+        }
         let Some(t) = std::str::from_utf8(&rec[t_ps])
             .ok()
             .and_then(|s| s.parse::<u64>().ok())
@@ -334,7 +359,8 @@ fn read_power(
             channel: battery.clone(),
             data: Cow::Owned(b),
         });
-        more = r.read_byte_record(&mut rec).map_err(|e| rerr(&e))?;
+        std::mem::swap(&mut rec, &mut next);
+        more = has_next;
     }
     Ok(())
 }

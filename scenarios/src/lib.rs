@@ -195,7 +195,7 @@ pub fn run_scenario(
             dir: out.to_path_buf(),
             map_cell_m: map.as_ref().ok().and_then(|m| m.as_ref()).map(|m| m.cell_m),
         };
-        foxglove::spawn_run_mcap(out, vec![drone])
+        foxglove::spawn_run_mcap(out, vec![drone], scenario.mcap_power_every)
     });
     if draw && summary.is_some() {
         match report::draw_run_plots(scenario, out) {

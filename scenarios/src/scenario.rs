@@ -90,6 +90,9 @@ pub struct ScenarioFile {
     /// Every Nth camera frame into `run.mcap` (0: none).
     #[serde(default)]
     pub mcap_image_every: Option<u64>,
+    /// Every Nth 1 ms row of `power.csv` into `run.mcap` (0: none).
+    #[serde(default)]
+    pub mcap_power_every: Option<u64>,
     /// The firmware's targets, for the top-view plot (the firmware holds
     /// its own copy: the platform does not learn them from the scenario).
     #[serde(default)]
@@ -119,7 +122,7 @@ fn default_encoding() -> String {
 pub const CRTP_FIRMWARE: &str = "crtp_host.elf";
 
 /// Keys `--set` accepts besides the run keys.
-pub const SCENARIO_KEYS: [(&str, &str); 11] = [
+pub const SCENARIO_KEYS: [(&str, &str); 12] = [
     ("world", "world file (TOML)"),
     ("firmware", "firmware ELF"),
     ("timestep_ms", "basicTimeStep in ms"),
@@ -142,6 +145,10 @@ pub const SCENARIO_KEYS: [(&str, &str); 11] = [
     (
         "mcap_image_every",
         "keep every Nth camera frame in run.mcap (0: none; default 30)",
+    ),
+    (
+        "mcap_power_every",
+        "keep every Nth 1 ms power/battery row (and the last) in run.mcap (0: none; default 10)",
     ),
 ];
 
@@ -170,6 +177,9 @@ pub struct Scenario {
     pub mcap: bool,
     /// Every Nth camera frame served goes into `run.mcap` (0: none).
     pub mcap_image_every: u64,
+    /// Every Nth 1 ms row of `power.csv` (and the last) goes into
+    /// `run.mcap` (0: none).
+    pub mcap_power_every: u64,
     pub targets: Vec<[f64; 3]>,
     /// The run configuration sim-core gets (written to `run.toml`).
     pub run: RunConfig,
@@ -301,6 +311,9 @@ impl Scenario {
             mcap_image_every: file
                 .mcap_image_every
                 .unwrap_or(world_server::foxglove::DEFAULT_IMAGE_EVERY),
+            mcap_power_every: file
+                .mcap_power_every
+                .unwrap_or(crate::foxglove::DEFAULT_POWER_EVERY),
             targets: file.targets,
             run,
             overrides: Vec::new(),
@@ -457,6 +470,11 @@ impl Scenario {
             }
             "mcap_image_every" => {
                 self.mcap_image_every = value
+                    .parse::<u64>()
+                    .map_err(|_| bad("expected a whole number >= 0"))?
+            }
+            "mcap_power_every" => {
+                self.mcap_power_every = value
                     .parse::<u64>()
                     .map_err(|_| bad("expected a whole number >= 0"))?
             }

@@ -157,14 +157,25 @@ fn a_flight_writes_a_complete_run_mcap_the_same_twice_and_none_with_no_mcap() {
         );
     }
 
-    // Power and battery: every 1 ms row of power.csv, the last SOC the summary's.
-    let rows = csv::Reader::from_path(a.join("power.csv"))
+    // Power and battery: rows 0, 10, 20, … of power.csv (the default
+    // mcap_power_every) and its last, at their times; the last SOC the
+    // summary's.
+    let t_ps: Vec<u64> = csv::Reader::from_path(a.join("power.csv"))
         .unwrap()
-        .records()
-        .count();
+        .deserialize::<std::collections::HashMap<String, String>>()
+        .map(|r| r.unwrap()["t_ps"].parse().unwrap())
+        .collect();
+    let kept: Vec<u64> = t_ps
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| i % 10 == 0 || *i == t_ps.len() - 1)
+        .map(|(_, t)| t / 1000)
+        .collect();
+    assert!(kept.len() * 9 < t_ps.len(), "thinned");
     let battery: Vec<_> = msgs.iter().filter(|m| m.0 == "/cf1/battery").collect();
-    assert_eq!(battery.len(), rows);
-    assert_eq!(msgs.iter().filter(|m| m.0 == "/cf1/power").count(), rows);
+    assert_eq!(battery.iter().map(|m| m.2).collect::<Vec<_>>(), kept);
+    let power: Vec<_> = msgs.iter().filter(|m| m.0 == "/cf1/power").collect();
+    assert_eq!(power.iter().map(|m| m.2).collect::<Vec<_>>(), kept);
     let soc_end = summary(&a)["battery"]["soc_end"].as_f64().unwrap();
     assert!((battery.last().unwrap().3["soc"].as_f64().unwrap() - soc_end).abs() < 1e-6);
     assert!(battery[0].3["voltage_v"].as_f64().unwrap() > 3.0);
@@ -270,6 +281,7 @@ fn check_cut_world_file_merges(a: &Path, tmp: &Path) {
             dir: cut.clone(),
             map_cell_m: None,
         }],
+        1,
     )
     .unwrap();
     assert!(merged.warning.is_some(), "the cut is reported");

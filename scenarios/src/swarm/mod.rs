@@ -70,7 +70,7 @@ pub fn run_swarm(
                 map_cell_m: None,
             })
             .collect();
-        crate::foxglove::spawn_run_mcap(out, outputs)
+        crate::foxglove::spawn_run_mcap(out, outputs, scenario.mcap_power_every)
     });
     let names: Vec<String> = scenario.platforms.iter().map(|p| p.drone.clone()).collect();
     let mut report_error: Option<String> = None;
