@@ -7,7 +7,8 @@
 #     builds: `make -C sim-core/firmware check`, the cluster's kernels);
 #   - a Python venv in target/py-venv with python/requirements-test.txt
 #     (pytest, numpy, gymnasium, pandas, cflib) for python/tests and training/tests.
-# System packages come from apt-get (root, or sudo when there is one); set
+# System packages come from apt-get through scripts/install-deps.sh (root,
+# or sudo when there is one); set
 # COSIM_NO_INSTALL=1 to only check and fail with what is missing.
 # Usage: scripts/test-all.sh [extra `cargo test` arguments]
 set -euo pipefail
@@ -15,37 +16,8 @@ cd "$(dirname "$0")/.."
 
 step() { printf '\n=== %s (%ss)\n' "$1" "$SECONDS"; }
 
-apt_install() {
-  if [ "${COSIM_NO_INSTALL:-0}" = 1 ]; then
-    echo "test-all: missing: $* (COSIM_NO_INSTALL=1: not installing)" >&2
-    exit 1
-  fi
-  local sudo=()
-  if [ "$(id -u)" != 0 ]; then
-    command -v sudo >/dev/null 2>&1 || {
-      echo "test-all: missing: $*; install them (apt-get install $*) or run as root" >&2
-      exit 1
-    }
-    sudo=(sudo)
-  fi
-  echo "test-all: installing $*"
-  export DEBIAN_FRONTEND=noninteractive
-  "${sudo[@]}" apt-get update -qq
-  "${sudo[@]}" apt-get install -y -qq "$@" >/dev/null
-}
-
 step "system packages"
-missing=()
-# moreutils ships another program called parallel: check for GNU's.
-parallel --version 2>/dev/null | grep -q '^GNU parallel' || missing+=(parallel)
-command -v riscv64-unknown-elf-gcc >/dev/null 2>&1 || missing+=(gcc-riscv64-unknown-elf)
-[ -f /usr/lib/picolibc/riscv64-unknown-elf/picolibc.specs ] || missing+=(picolibc-riscv64-unknown-elf)
-command -v clang-19 >/dev/null 2>&1 || missing+=(clang-19)
-python3 -c 'import venv, ensurepip' 2>/dev/null || missing+=(python3-venv)
-if [ ${#missing[@]} -gt 0 ]; then
-  apt_install "${missing[@]}"
-fi
-parallel --version | head -n 1
+"$(dirname "$0")/install-deps.sh"
 
 step "Python venv (target/py-venv, python/requirements-test.txt)"
 venv=target/py-venv
