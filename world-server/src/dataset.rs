@@ -40,7 +40,8 @@ use rapier3d::glamx::{DQuat, DVec3, EulerRot};
 use serde::Serialize;
 
 use crate::camera::Camera;
-use crate::scene::scene_boxes;
+use crate::crazyflie::{CAMERA_HEIGHT, CAMERA_WIDTH};
+use crate::scene::{scene_boxes, SceneBox};
 use crate::world_file::{Finite, Point3, WorldDesc};
 
 /// Gates farther than this are not labelled: at 8 m the 0.8 m opening of
@@ -133,6 +134,9 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> DatasetError + '_ {
 /// One drawn scene: the world with moved gates, and the drone's pose.
 struct Sample {
     world: WorldDesc,
+    /// The varied world's boxes (drawn once: the pose's clearance test
+    /// and the renderer both need them).
+    boxes: Vec<SceneBox>,
     position: DVec3,
     rotation: DQuat,
 }
@@ -157,7 +161,7 @@ pub fn write_dataset(
     let meta = serde_json::json!({
         "world": world.name,
         "spec": spec,
-        "image": {"format": "pgm", "width": 320, "height": 320},
+        "image": {"format": "pgm", "width": CAMERA_WIDTH, "height": CAMERA_HEIGHT},
         "max_range_m": MAX_RANGE_M,
         "max_obliquity_rad": MAX_OBLIQUITY_RAD,
     });
@@ -168,11 +172,10 @@ pub fn write_dataset(
     writeln!(rows, "file,gate_visible,u,v,distance_m,corners").map_err(io_err(&csv_path))?;
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let mut labels = Vec::with_capacity(spec.count);
-    let mut pgm = Vec::with_capacity(16 + 320 * 320);
+    let mut pgm = Vec::with_capacity(16 + CAMERA_WIDTH * CAMERA_HEIGHT);
     for i in 0..spec.count {
         let s = draw_sample(world, spec, &mut rng).ok_or(DatasetError::NoPose(i))?;
-        let boxes = scene_boxes(&s.world);
-        let mut camera = Camera::new(&s.world, &boxes);
+        let mut camera = Camera::new(&s.world, &s.boxes);
         camera.render(s.position, s.rotation);
         let file = format!("img_{i:06}.pgm");
         pgm.clear();
@@ -356,6 +359,7 @@ fn draw_sample(world: &WorldDesc, spec: &DatasetSpec, rng: &mut ChaCha8Rng) -> O
         if free {
             return Some(Sample {
                 world: w,
+                boxes,
                 position,
                 rotation,
             });
