@@ -722,4 +722,37 @@ mod tests {
         let e = c.set("firmware.x", "3000000000").unwrap_err().to_string();
         assert!(e.contains("32-bit signed integer"), "{e}");
     }
+
+    #[test]
+    fn cluster_keys_override_the_platform_file_and_round_trip() {
+        let aideck = Path::new(env!("CARGO_MANIFEST_DIR")).join("platforms/crazyflie-aideck.json");
+        let mut c = RunConfig::default();
+        // Unset: absent from the file, the platform's own cluster.
+        assert!(!c.to_toml().contains("cluster"));
+        c.platform = Some(aideck.clone());
+        let p = c.load_platform().unwrap();
+        let file = super::super::PlatformConfig::from_path(&aideck).unwrap();
+        assert_eq!(p.cluster, file.cluster);
+        c.set("cluster.cores", "2").unwrap();
+        c.set("cluster.mhz", "90").unwrap();
+        let back = RunConfig::from_toml_str(&c.to_toml(), "test").unwrap();
+        assert_eq!(back, c);
+        let cl = c.load_platform().unwrap().cluster.unwrap();
+        assert_eq!((cl.cores, cl.mhz), (2, 90));
+        assert_eq!(cl.vref, file.cluster.unwrap().vref);
+        c.set("cluster.cores", "platform").unwrap();
+        assert_eq!(c.cluster_cores, None);
+        for (k, v) in [
+            ("cluster.cores", "0"),
+            ("cluster.cores", "9"),
+            ("cluster.mhz", "0"),
+        ] {
+            assert!(c.set(k, v).is_err(), "{k}={v}");
+        }
+        // A platform without a cluster: an error naming the key.
+        let mut d = RunConfig::default();
+        d.set("cluster.mhz", "50").unwrap();
+        let e = d.load_platform().unwrap_err().to_string();
+        assert!(e.contains("cluster.mhz") && e.contains("no cluster"), "{e}");
+    }
 }

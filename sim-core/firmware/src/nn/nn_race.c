@@ -23,7 +23,7 @@
  *
  * The cluster is powered up for each inference and down after it
  * (pi_cluster_open ... pi_cluster_close, GAP8's cluster power gating): it
- * works about 4 ms of every 150 ms, and an open idle cluster would leak
+ * works about 3.5 ms of every 120 ms, and an open idle cluster would leak
  * the rest of the time. The power-up, the cores' boot and the L1
  * allocation are in the latency, not in the cluster cycles of the
  * network (network.c measures from the input's DMA).
@@ -53,7 +53,7 @@
  * gate: vision_race's cadence (LOOK_EVERY 5), so that the two detectors
  * are compared at the same rate. A frame is the 16 ms capture, the
  * inference's ITER_ADVANCE and the PID step on the platform's clock: 5
- * gives 7.8 inferences per second (3: 13), within PULP-DroNet's 6-18 fps
+ * gives 8.1 inferences per second (3: 13), within PULP-DroNet's 6-18 fps
  * on the AI deck, and keeps the ISS's work (about 18 ms of host CPU per
  * inference) within the 10x-real-time budget (docs/NN.md "nn-race"). */
 int32_t nn_look_every = 5;
