@@ -47,6 +47,11 @@
 #include "network.h"
 #include "weights.h"
 
+/* The network's input is the camera's whole image (DESIGN.md §5: 320x320). */
+#if NN_CAMERA != GATE_IMAGE_WIDTH || NN_CAMERA != GATE_IMAGE_HEIGHT
+#error "weights.h's NN_CAMERA is not the camera's image size"
+#endif
+
 /* The tunables, globals so that a scenario may set them (`firmware.NAME`,
  * RunConfig::firmware_params) without a rebuild. */
 /* A network on every nn_look_every-th camera frame while approaching a
