@@ -282,6 +282,21 @@ pub fn summary_text(
             d.final_m, d.max_m, d.mean_m
         );
     }
+    if let Some(nn) = &s.nn {
+        t += &format!(
+            "   nn             {} inferences on {} cores at {} MHz: {:.0} cluster cycles (max {}), {:.2} MAC/cycle, latency {:.2} ms, {:.1} fps, cluster {:.3} J ({:.3} mJ per inference)\n",
+            nn.inferences,
+            nn.cores,
+            nn.cluster_mhz,
+            nn.cycles_per_inference.mean,
+            nn.cycles_per_inference.max,
+            nn.mac_per_cycle,
+            nn.latency_ms,
+            nn.fps,
+            nn.energy_j,
+            nn.energy_per_inference_mj,
+        );
+    }
     t += &format!("   outputs        {}\n", out.display());
     for p in plots {
         t += &format!("   plot           {}\n", p.display());

@@ -8,6 +8,7 @@
 //! its directory; [`merge`] rebuilds the table and plots from shard outputs.
 
 pub mod merge;
+pub mod nn;
 pub mod plan;
 
 use std::path::{Path, PathBuf};
@@ -382,6 +383,10 @@ pub fn table(params: &[Param], rows: &[SweepRow]) -> (Vec<String>, Vec<Vec<Strin
     if mapped {
         header.extend(MAP_COLUMNS.iter().map(|c| c.to_string()));
     }
+    let with_nn = nn::any(rows);
+    if with_nn {
+        header.extend(nn::NN_COLUMNS.iter().map(|c| c.to_string()));
+    }
     header.push("dir".into());
     let mut table: Vec<Vec<String>> = Vec::new();
     for r in rows {
@@ -400,6 +405,9 @@ pub fn table(params: &[Param], rows: &[SweepRow]) -> (Vec<String>, Vec<Vec<Strin
             v.extend(row_values(r));
             if mapped {
                 v.extend(map_values(r));
+            }
+            if with_nn {
+                v.extend(nn::values(r));
             }
             v.push(r.dir.display().to_string());
             table.push(v);
@@ -489,6 +497,7 @@ fn write_plots(params: &[Param], rows: &[SweepRow], out: &Path) -> Result<(), Sw
         )
         .map_err(perr)?;
     }
+    nn::write_plot(rows, out).map_err(perr)?;
     // Wall time and world time against the timestep (Tables 5.1-5.4),
     // one line per combination of the other parameters; completed runs
     // only, as the thesis's tables (a run cut short has a shorter wall time

@@ -114,7 +114,7 @@ impl fmt::Display for DebugLevel {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 23] = [
+pub const RUN_KEYS: [(&str, &str); 25] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -198,6 +198,14 @@ pub const RUN_KEYS: [(&str, &str); 23] = [
         "iss",
         "ISS back end: jit (block translator, default on x86-64) | interp (interpreter); identical results",
     ),
+    (
+        "cluster.cores",
+        "the GAP8 cluster's cores, 1-8, in place of the platform file's (platform: the file's); the platform must have a cluster",
+    ),
+    (
+        "cluster.mhz",
+        "the GAP8 cluster's clock in MHz, in place of the platform file's (platform: the file's)",
+    ),
 ];
 
 /// The run configuration. [`RunConfig::default`] is the thesis's setting of
@@ -252,6 +260,10 @@ pub struct RunConfig {
     pub crtp_idle_s: f64,
     /// The ISS back end of every core (no effect on any result).
     pub iss: crate::iss::Backend,
+    /// The cluster's cores and clock (MHz) in place of the platform
+    /// file's (`None`: the file's), so that a sweep varies them.
+    pub cluster_cores: Option<usize>,
+    pub cluster_mhz: Option<u64>,
 }
 
 /// The prefix of the firmware-parameter keys (`firmware.NAME`).
@@ -291,6 +303,8 @@ impl Default for RunConfig {
             pace: 1.0,
             crtp_idle_s: 10.0,
             iss: crate::iss::Backend::DEFAULT,
+            cluster_cores: None,
+            cluster_mhz: None,
         }
     }
 }
@@ -421,6 +435,24 @@ impl RunConfig {
             "stm32.position_source" => self.position_source = value.parse().map_err(bad)?,
             "stm32.range_max_m" => self.range_max_m = parse_positive(value).map_err(bad)?,
             "stm32.flow_std_m_s" => self.flow_std_m_s = parse_non_negative(value).map_err(bad)?,
+            "cluster.cores" => {
+                self.cluster_cores = match value.trim() {
+                    "platform" => None,
+                    v => match v.parse::<usize>() {
+                        Ok(n) if (1..=8).contains(&n) => Some(n),
+                        _ => return Err(bad("expected 1 to 8 cores, or platform".into())),
+                    },
+                }
+            }
+            "cluster.mhz" => {
+                self.cluster_mhz = match value.trim() {
+                    "platform" => None,
+                    v => match v.parse::<u64>() {
+                        Ok(f) if (1..=10_000).contains(&f) => Some(f),
+                        _ => return Err(bad("expected a whole number of MHz, or platform".into())),
+                    },
+                }
+            }
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -477,6 +509,12 @@ impl RunConfig {
             "stm32.position_source" => self.position_source.to_string(),
             "stm32.range_max_m" => self.range_max_m.to_string(),
             "stm32.flow_std_m_s" => self.flow_std_m_s.to_string(),
+            "cluster.cores" => self
+                .cluster_cores
+                .map_or_else(|| "platform".to_string(), |v| v.to_string()),
+            "cluster.mhz" => self
+                .cluster_mhz
+                .map_or_else(|| "platform".to_string(), |v| v.to_string()),
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -560,6 +598,12 @@ impl RunConfig {
             if key == "iss" && self.iss == crate::iss::Backend::DEFAULT {
                 continue;
             }
+            // The cluster keys only when they override the platform file.
+            if (key == "cluster.cores" && self.cluster_cores.is_none())
+                || (key == "cluster.mhz" && self.cluster_mhz.is_none())
+            {
+                continue;
+            }
             let text = self.get(key).expect("RUN_KEYS are known keys");
             // Likewise the STM32 extension's settings at their defaults (a
             // value's text is its shortest round-trip form, so equal texts
@@ -578,7 +622,7 @@ impl RunConfig {
                 | "stm32.flow_std_m_s"
                 | "pace"
                 | "crtp_idle_s" => toml::Value::Float(text.parse().expect("a number")),
-                "target_cycles" | "unlock_cycles" => {
+                "target_cycles" | "unlock_cycles" | "cluster.cores" | "cluster.mhz" => {
                     toml::Value::Integer(text.parse().expect("an integer"))
                 }
                 // TOML integers are i64: larger identifiers stay text.
@@ -605,11 +649,30 @@ impl RunConfig {
     }
 
     /// The platform file this run uses.
+    /// The platform file this run uses, with `cluster.cores` and
+    /// `cluster.mhz` applied.
     pub fn load_platform(&self) -> Result<super::PlatformConfig, ConfigError> {
-        match &self.platform {
-            None => Ok(super::PlatformConfig::default_crazyflie()),
-            Some(path) => super::PlatformConfig::from_path(path),
+        let mut p = match &self.platform {
+            None => super::PlatformConfig::default_crazyflie(),
+            Some(path) => super::PlatformConfig::from_path(path)?,
+        };
+        for (key, set) in [
+            ("cluster.cores", self.cluster_cores.is_some()),
+            ("cluster.mhz", self.cluster_mhz.is_some()),
+        ] {
+            if set && p.cluster.is_none() {
+                return Err(ConfigError::BadValue {
+                    key: key.to_string(),
+                    value: self.get(key)?,
+                    reason: "the platform file has no cluster (\"cluster\": {...})".into(),
+                });
+            }
         }
+        if let Some(c) = p.cluster.as_mut() {
+            c.cores = self.cluster_cores.unwrap_or(c.cores);
+            c.mhz = self.cluster_mhz.unwrap_or(c.mhz);
+        }
+        Ok(p)
     }
 }
 
@@ -658,5 +721,38 @@ mod tests {
         assert!(e.contains("32-bit signed integer"), "{e}");
         let e = c.set("firmware.x", "3000000000").unwrap_err().to_string();
         assert!(e.contains("32-bit signed integer"), "{e}");
+    }
+
+    #[test]
+    fn cluster_keys_override_the_platform_file_and_round_trip() {
+        let aideck = Path::new(env!("CARGO_MANIFEST_DIR")).join("platforms/crazyflie-aideck.json");
+        let mut c = RunConfig::default();
+        // Unset: absent from the file, the platform's own cluster.
+        assert!(!c.to_toml().contains("cluster"));
+        c.platform = Some(aideck.clone());
+        let p = c.load_platform().unwrap();
+        let file = super::super::PlatformConfig::from_path(&aideck).unwrap();
+        assert_eq!(p.cluster, file.cluster);
+        c.set("cluster.cores", "2").unwrap();
+        c.set("cluster.mhz", "90").unwrap();
+        let back = RunConfig::from_toml_str(&c.to_toml(), "test").unwrap();
+        assert_eq!(back, c);
+        let cl = c.load_platform().unwrap().cluster.unwrap();
+        assert_eq!((cl.cores, cl.mhz), (2, 90));
+        assert_eq!(cl.vref, file.cluster.unwrap().vref);
+        c.set("cluster.cores", "platform").unwrap();
+        assert_eq!(c.cluster_cores, None);
+        for (k, v) in [
+            ("cluster.cores", "0"),
+            ("cluster.cores", "9"),
+            ("cluster.mhz", "0"),
+        ] {
+            assert!(c.set(k, v).is_err(), "{k}={v}");
+        }
+        // A platform without a cluster: an error naming the key.
+        let mut d = RunConfig::default();
+        d.set("cluster.mhz", "50").unwrap();
+        let e = d.load_platform().unwrap_err().to_string();
+        assert!(e.contains("cluster.mhz") && e.contains("no cluster"), "{e}");
     }
 }

@@ -14,10 +14,12 @@ pub mod cli;
 mod console;
 mod firmware_params;
 mod map_dump;
+mod nn_stats;
 mod summary;
 
 pub use console::Console;
 pub use map_dump::MAP_FILE;
+pub use nn_stats::{CyclesSummary, NnSummary, NN_STATS_SYMBOL};
 pub use summary::{
     BatterySummary, EnergySummary, FlowDriftSummary, RadioSummary, RadiosSummary, Summary,
 };
@@ -190,6 +192,8 @@ struct Run<W: WorldLink> {
     end_time: Picos,
     /// The firmware's map image, copied to `map.cfog` at the end.
     map: Option<map_dump::MapSymbols>,
+    /// The firmware's inference counters, read into `summary.json`'s `nn`.
+    nn_stats: Option<nn_stats::NnStatsSymbol>,
     /// The GAP8 cluster, when the platform file has one (DESIGN.md §12),
     /// and its energy meter.
     cluster: Option<(Cluster, Meter)>,
@@ -201,6 +205,7 @@ impl<W: WorldLink> Run<W> {
     fn new(firmware: &[u8], cfg: &KernelConfig, mut world: W) -> Result<Self, KernelError> {
         let elf = load_elf(firmware)?;
         let map = map_dump::MapSymbols::find(&elf);
+        let nn_stats = nn_stats::NnStatsSymbol::find(&elf);
         let mut mem = Memory::new();
         mem.add_ram(L2_BASE, L2_SIZE)
             .map_err(|e| KernelError::Memory(e.to_string()))?;
@@ -287,6 +292,7 @@ impl<W: WorldLink> Run<W> {
             battery_empty_at: None,
             end_time: Picos::ZERO,
             map,
+            nn_stats,
             cluster,
         })
     }
@@ -511,6 +517,23 @@ impl<W: WorldLink> Run<W> {
         );
         let mut summary = summary;
         summary.energy_j.cluster = self.cluster.as_ref().map(|(_, meter)| meter.energy_j);
+        // §13's `nn` block: a firmware with the counters on a platform with
+        // a cluster (the counters without a cluster would be all zero).
+        if let (Some(sym), Some(section), Some(energy)) = (
+            &self.nn_stats,
+            &cfg.platform.cluster,
+            summary.energy_j.cluster,
+        ) {
+            let fc_hz = cfg.platform.core.frequency;
+            match sym.read(&self.mem, fc_hz, section.cores, section.mhz, energy) {
+                Ok(nn) => summary.nn = Some(nn),
+                Err(e) => {
+                    summary.completed = false;
+                    summary.error.get_or_insert(e.to_string());
+                    error.get_or_insert(e);
+                }
+            }
+        }
         summary.battery.empty_at_s = self.battery_empty_at.map(|t| t.as_secs_f64());
         if let Some(dir) = &cfg.out_dir {
             if let Err(e) = summary.write(&dir.join("summary.json")) {

@@ -123,6 +123,10 @@ pub struct Summary {
     /// dead-reckoned x, y strayed from the world's GPS.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub flow_drift: Option<FlowDriftSummary>,
+    /// The network's inferences (DESIGN.md §13; a firmware with
+    /// `nn_race_stats` on a platform with a cluster only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nn: Option<super::NnSummary>,
 }
 
 /// The flow estimate's horizontal distance from the GPS over a run (m).
@@ -192,6 +196,7 @@ impl Summary {
             gates_passed: None,
             gates_total: cfg.gates_total,
             flow_drift: None,
+            nn: None,
         }
     }
 

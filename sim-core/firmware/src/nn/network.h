@@ -34,4 +34,9 @@ typedef struct {
  * nn_job_t *), forking every tile's computation on the task's cores. */
 void nn_network_run(void *job);
 
+/* Forgets the L1 working set (on the FC, after pi_cluster_close: a powered
+ * down cluster's L1 is lost and the next open starts a new L1 heap); the
+ * next nn_network_run allocates it again, outside its measured cycles. */
+void nn_network_release(void);
+
 #endif
