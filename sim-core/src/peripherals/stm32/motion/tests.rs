@@ -143,8 +143,8 @@ fn the_register_file_has_a_faulting_gap_before_the_extension() {
     // The firmware's offsets (cosim_regs.h) minus the STM32's base 102402.
     assert_eq!((EXT_CTRL, EST_X, RANGE_FRONT, FLOW_VX), (30, 38, 94, 142));
     assert_eq!(
-        (CMD_VX, CMD_SPEED_LIMIT, EST_PITCH, EST_TIME, EXT_END),
-        (158, 198, 214, 222, 230)
+        (CMD_VX, CMD_SPEED_LIMIT, EST_PITCH, EST_TIME, P2P_ENABLE, EXT_END),
+        (158, 198, 214, 222, 230, 246)
     );
 }
 
