@@ -177,8 +177,10 @@ class Grid:
                 if d is None:
                     window[cone & (dist <= self.max_range)] += L_FREE
                 else:
-                    window[cone & (dist < d - c / 2.0)] += L_FREE
-                    window[cone & (np.abs(dist - d) <= c / 2.0)] += L_OCC
+                    # The hit's cell: its centre within half a cell of d
+                    # (one cell when d falls on a cell edge).
+                    window[cone & (dist <= d - c / 2.0)] += L_FREE
+                    window[cone & (dist - d > -c / 2.0) & (dist - d <= c / 2.0)] += L_OCC
             # The drone's own cell is free.
             window[dist <= c / 2.0] += L_FREE
             np.clip(window, -L_MAX, L_MAX, out=window)

@@ -61,6 +61,8 @@ class Telemetry:
         self.period_ms = period_ms
         self.max_range = max_range
         self.pose: Pose | None = None
+        #: The drone's time (ms, the log's timestamp) of the last pose.
+        self.t_ms: int | None = None
         self.measurements: Measurements = {k: None for k in ("front", "back", "left", "right", "up", "down")}
         self.listeners: list[Callable[[Pose, Measurements], None]] = []
         self._lock = threading.Lock()
@@ -102,8 +104,9 @@ class Telemetry:
         """Wait until both the pose and the ranges have arrived once."""
         return self._fresh.wait(timeout)
 
-    def _on_pose(self, _ts: int, data: dict[str, float], _conf: Any) -> None:
+    def _on_pose(self, ts: int, data: dict[str, float], _conf: Any) -> None:
         with self._lock:
+            self.t_ms = ts
             self.pose = Pose(data["stateEstimate.x"], data["stateEstimate.y"], data["stateEstimate.z"],
                              data["stateEstimate.yaw"], data["stateEstimate.roll"], data["stateEstimate.pitch"])
 
