@@ -25,7 +25,7 @@ import json
 import sys
 
 import labcommon
-from labcommon import Clock, land, take_off
+from labcommon import drone_clock, land, take_off
 
 import cflib.crtp
 from cflib.crazyflie import Crazyflie
@@ -63,9 +63,9 @@ def main() -> int:
     with labcommon.simulator(args):
         with SyncCrazyflie(labcommon.uris(args)[0], cf=Crazyflie(rw_cache=None)) as scf:
             cf = scf.cf
-            clock = Clock(0.1, args.pace)
             with Telemetry(cf) as tel:
                 tel.wait()
+                clock = drone_clock(tel, args.pace)
                 take_off(cf, clock, HEIGHT)
                 # Scripted keys on the drone's own clock (the log's time), so
                 # a slow machine flies the same script.
@@ -76,13 +76,16 @@ def main() -> int:
                     pilot.on("l", lambda: landing.append(True))
                     pilot.on("esc", lambda: landing.append(True))
                     held = frozenset()
-                    while not landing and not keys.finished:
+                    while not landing:
+                        finished = keys.finished  # before reading the keys: the last release is seen
                         now_held = pilot.held
                         pose = tel.pose
                         for k in held ^ now_held:
                             events.append({"key": k, "event": "press" if k in now_held else "release",
                                            "t_ms": tel.t_ms, "x": pose.x, "y": pose.y, "yaw": pose.yaw})
                         held = now_held
+                        if finished:
+                            break
                         cf.commander.send_hover_setpoint(*assisted(pilot.command, tel.measurements))
                         clock.tick()
                     z = pilot.height

@@ -24,7 +24,7 @@ import math
 import sys
 
 import labcommon
-from labcommon import Clock, land, take_off
+from labcommon import drone_clock, land, take_off
 
 import cflib.crtp
 from cflib.crazyflie import Crazyflie
@@ -110,9 +110,9 @@ def main() -> int:
                 lambda ts, d, _: battery.update(vbat=d["pm.vbat"], level=d["pm.batteryLevel"]))
             cf.log.add_config(conf)
             conf.start()
-            clock = Clock(0.1, args.pace)
             with Grid(cf, cell_size=0.05, fov_deg=4.0, max_range=3.0) as grid:
                 grid.telemetry.wait()
+                clock = drone_clock(grid.telemetry, args.pace)
                 print(f"battery {battery['vbat']:.2f} V ({battery['level']} %)", flush=True)
                 take_off(cf, clock, HEIGHT)
                 explorer = RoomExplorer(grid, height=HEIGHT, speed=0.2)

@@ -19,7 +19,7 @@ import sys
 
 import labcommon
 from guide1_pilot import assisted
-from labcommon import Clock, land, take_off
+from labcommon import drone_clock, land, take_off
 
 import cflib.crtp
 from cflib.crazyflie import Crazyflie
@@ -49,9 +49,9 @@ def main() -> int:
             conf.data_received_cb.add_callback(lambda ts, d, _: vbat.append(d["pm.vbat"]))
             cf.log.add_config(conf)
             conf.start()
-            clock = Clock(0.1, args.pace)
             with Grid(cf, cell_size=0.05, fov_deg=5.0) as grid:
                 grid.telemetry.wait()
+                clock = drone_clock(grid.telemetry, args.pace)
                 take_off(cf, clock, HEIGHT)
                 tel = grid.telemetry
                 keys = TerminalKeys() if args.keyboard else ScriptedKeys(

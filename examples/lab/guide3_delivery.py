@@ -32,7 +32,7 @@ import threading
 import traceback
 
 import labcommon
-from labcommon import Clock, land, take_off
+from labcommon import Clock, drone_clock, land, take_off
 
 import cflib.crtp
 from cflib.crazyflie import Crazyflie
@@ -92,10 +92,10 @@ class Group(threading.Thread):
     def fly(self):
         with SyncCrazyflie(self.uri, cf=Crazyflie(rw_cache=None)) as scf:
             cf = scf.cf
-            clock = Clock(0.1, self.pace)
             locations = {n: (x - self.home[0], y - self.home[1]) for n, (x, y) in STATIONS.items()}
             # Exercise 1: the radar (beaconing from here on).
             with Radar(cf) as radar, DDS(cf, locations=locations, height=HEIGHT, seed=self.seed) as dds:
+                clock = drone_clock(dds.telemetry, self.pace)
                 self.report.update(id=radar.my_id, landings=[])
                 for _ in clock.seconds(STAGGER_S * self.index):
                     cf.commander.send_stop_setpoint()

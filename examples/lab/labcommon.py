@@ -56,31 +56,61 @@ def uris(args) -> list[str]:
 
 
 class Clock:
-    """Ticks every ``period_s`` of the drone's time: ``period_s / pace`` on
-    the wall clock (a paced world runs ``pace`` times faster). ``now`` is
-    the drone's time since the start (s)."""
+    """The control loop's clock: ticks every ``period_s`` of the drone's
+    time. With ``drone_time`` (a callable giving the drone's time in s, e.g.
+    the log's timestamps, or None before the first) it follows the drone,
+    so a world that lags its pace (a loaded machine) gets the same number
+    of set-points per drone second; otherwise the wall clock, ``pace``
+    times slower. ``now`` is the time since the start (s)."""
 
-    def __init__(self, period_s: float = 0.1, pace: float = 1.0):
+    def __init__(self, period_s: float = 0.1, pace: float = 1.0, drone_time=None):
         self.period = period_s
         self.pace = pace
+        self.drone_time = drone_time
         self.t0 = time.monotonic()
         self.next = self.t0
+        self.d0 = None
+        self.d_next = None
+
+    def _drone(self):
+        t = self.drone_time() if self.drone_time else None
+        if t is not None and self.d0 is None:
+            self.d0 = t
+            self.d_next = t
+        return t
 
     @property
     def now(self) -> float:
+        t = self._drone()
+        if t is not None:
+            return t - self.d0
         return (time.monotonic() - self.t0) * self.pace
 
     def tick(self) -> None:
+        t = self._drone()
+        if t is not None:
+            self.d_next += self.period
+            deadline = time.monotonic() + 5.0  # the link is gone: stop waiting
+            while (t := self._drone()) < self.d_next - 1e-6 and time.monotonic() < deadline:
+                time.sleep(0.002)
+            if t > self.d_next + self.period:
+                self.d_next = t  # late: do not rush to catch up
+            return
         self.next += self.period / self.pace
         wait = self.next - time.monotonic()
         if wait > 0:
             time.sleep(wait)
         else:
-            self.next = time.monotonic()  # late: do not rush to catch up
+            self.next = time.monotonic()
 
     def seconds(self, s: float) -> range:
         """Ticks in ``s`` seconds of the drone's time."""
         return range(max(1, round(s / self.period)))
+
+
+def drone_clock(telemetry, pace: float, period_s: float = 0.1) -> Clock:
+    """A Clock on the drone's time as a lab Telemetry logs it."""
+    return Clock(period_s, pace, lambda: None if telemetry.t_ms is None else telemetry.t_ms / 1000.0)
 
 
 def take_off(cf, clock: Clock, z: float = 0.3, seconds: float = 4.0) -> None:

@@ -1,7 +1,7 @@
 """Seed 004's lab API (crazyflie_cosim.lab, docs/LAB.md): its pieces
 against closed-form expectations, and the three laboratory guides'
 examples end to end — each a real `cosim run` served over cflib's UDP link
-at pace 4, flown by the example's own code, judged from the run's outputs
+at pace 8 (the examples' control loops follow the drone's clock), flown by the example's own code, judged from the run's outputs
 (the world's trajectory.csv and summary.json, the map the example saved
 scored against the world file's plan)."""
 
@@ -33,7 +33,7 @@ PORT = 19880
 
 def run_example(name: str, out: Path, port: int, timeout: float = 240.0) -> str:
     cmd = [sys.executable, str(EXAMPLES / name), "--out", str(out), "--uri", f"udp://127.0.0.1:{port}",
-           "--pace", "4"]
+           "--pace", "8"]
     p = subprocess.run(cmd, cwd=EXAMPLES, capture_output=True, text=True, timeout=timeout)
     assert p.returncode == 0, p.stdout + p.stderr
     return p.stdout
