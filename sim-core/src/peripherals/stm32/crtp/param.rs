@@ -313,5 +313,19 @@ mod tests {
         let mut g = PidGains::default();
         p.apply_gains(&mut g);
         assert_eq!(g.kd_att_rp, 0.2f32 as f64);
+        assert!(toc::find(p.entries(), "radar.enable").is_none());
+    }
+
+    #[test]
+    fn the_radar_adds_its_flag_and_its_id() {
+        let mut p = Params::new(Decks::default(), &PidGains::default(), Some(3));
+        let en = toc::find(p.entries(), "radar.enable").unwrap();
+        let me = toc::find(p.entries(), "radar.myId").unwrap();
+        assert_eq!(p.read(&me.to_le_bytes()), Some(vec![me as u8, 0, 0, 3]));
+        assert_eq!(p.write(&[me as u8, 0, 5]), None); // read-only
+        assert_eq!(p.get(Known::RadarEnable), 0.0);
+        let (ans, k) = p.write(&[en as u8, 0, 1]).unwrap();
+        assert_eq!((ans, k), (vec![en as u8, 0, 1], Known::RadarEnable));
+        assert_eq!(p.get(Known::RadarEnable), 1.0);
     }
 }
