@@ -43,8 +43,10 @@ def simulator(args):
         yield None
         return
     port = int(args.uri.rsplit(":", 1)[1])
+    # The link closes after 10 s of the drone's time without a packet (a
+    # script busy planning on a loaded machine may be silent a while).
     with CosimRun(args.scenario, port=port, pace=args.pace, drones=args.drones, out=args.out / "cosim",
-                  extra=tuple(args.set)) as run:
+                  idle_s=10.0, extra=tuple(args.set)) as run:
         yield run
 
 
@@ -90,8 +92,10 @@ class Clock:
         t = self._drone()
         if t is not None:
             self.d_next += self.period
-            deadline = time.monotonic() + 5.0  # the link is gone: stop waiting
-            while (t := self._drone()) < self.d_next - 1e-6 and time.monotonic() < deadline:
+            deadline = time.monotonic() + 10.0
+            while (t := self._drone()) < self.d_next - 1e-6:
+                if time.monotonic() > deadline:
+                    raise ConnectionError("the drone's clock has stopped for 10 s: the link is lost")
                 time.sleep(0.002)
             if t > self.d_next + self.period:
                 self.d_next = t  # late: do not rush to catch up
