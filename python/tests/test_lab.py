@@ -1,7 +1,7 @@
 """Seed 004's lab API (crazyflie_cosim.lab, docs/LAB.md): its pieces
 against closed-form expectations, and the three laboratory guides'
 examples end to end — each a real `cosim run` served over cflib's UDP link
-at pace 8 (the examples' control loops follow the drone's clock), flown by the example's own code, judged from the run's outputs
+at pace 6 (the examples' control loops follow the drone's clock), flown by the example's own code, judged from the run's outputs
 (the world's trajectory.csv and summary.json, the map the example saved
 scored against the world file's plan)."""
 
@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -28,11 +29,14 @@ ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples" / "lab"
 # Ports above cflib's scan range and test_cflib.py's (19870-19879).
 PORT = 19880
+# The world's pace in the end-to-end tests ($LAB_TEST_PACE: a loaded
+# machine that cannot keep 8x the wall clock runs them slower, same flights).
+PACE = os.environ.get("LAB_TEST_PACE", "6")
 
 
 def run_example(name: str, out: Path, port: int, timeout: float = 240.0) -> str:
     cmd = [sys.executable, str(EXAMPLES / name), "--out", str(out), "--uri", f"udp://127.0.0.1:{port}",
-           "--pace", "8"]
+           "--pace", PACE]
     p = subprocess.run(cmd, cwd=EXAMPLES, capture_output=True, text=True, timeout=timeout)
     assert p.returncode == 0, p.stdout + p.stderr
     return p.stdout
@@ -84,8 +88,6 @@ def test_true_plan_scores_a_perfect_map_full():
 def test_keyboard_pilot_returns_what_the_held_keys_ask_and_never_sends():
     """Scripted keys on a clock the test moves: the pilot's command is the
     held keys' (diagonal = both, a turn, a climb), callbacks fire on press."""
-    import time
-
     t = [0.0]
     keys = ScriptedKeys([Hold(0.0, "up", 1.0), Hold(0.5, "a", 1.0), Hold(2.0, "q", 0.5), Hold(3.0, "r", 0.1)],
                         clock=lambda: t[0])
@@ -93,9 +95,6 @@ def test_keyboard_pilot_returns_what_the_held_keys_ask_and_never_sends():
 
     def command_at(now, pilot, expected):
         t[0] = now
-        deadline = time.monotonic() + 2.0
-        while pilot.command != expected and time.monotonic() < deadline:
-            time.sleep(0.01)
         return pilot.command
 
     with KeyboardPilot(keys, speed=0.2, yaw_rate=45.0, height=0.3) as pilot:

@@ -7,8 +7,8 @@ source is a small interface so that a script can drive the same pilot:
   library, works over ssh). A terminal reports presses only, so a press
   holds its key for ``hold_s``; the keyboard's auto-repeat renews it while
   the key is held down.
-- :class:`ScriptedKeys` replays a list of key holds in wall time: what the
-  tests and the headless examples use.
+- :class:`ScriptedKeys` replays a list of key holds on a clock (the wall's,
+  or the drone's): what the tests and the headless examples use.
 """
 
 from __future__ import annotations
@@ -35,6 +35,9 @@ class KeySource(ABC):
     @abstractmethod
     def stop(self) -> None: ...
 
+    def poll(self) -> None:
+        """Deliver what is due now (sources without a thread of their own)."""
+
     @property
     def finished(self) -> bool:
         """True when the source has nothing more to say (a script's end)."""
@@ -52,8 +55,14 @@ class Hold:
 
 
 class ScriptedKeys(KeySource):
-    """Key holds replayed on the wall clock, e.g.
-    ``ScriptedKeys([Hold(0.0, "up", 1.0), Hold(1.5, "left", 0.5)])``."""
+    """Key holds replayed on a clock, e.g.
+    ``ScriptedKeys([Hold(0.0, "up", 1.0), Hold(1.5, "left", 0.5)])``.
+
+    No thread: the events that are due fire when the pilot is asked for its
+    command (:meth:`poll`), so a script on the drone's clock flies the same
+    however late the caller's loop runs (a hold shorter than the loop's
+    period would press and release in one poll).
+    """
 
     def __init__(self, holds: Iterable[Hold], clock: Callable[[], float] = time.monotonic):
         self.holds = sorted(holds, key=lambda h: h.start_s)
@@ -66,37 +75,33 @@ class ScriptedKeys(KeySource):
         # Releases before presses at the same instant: a key released and
         # pressed again stays held.
         self._events = sorted(events)
+        self._next = 0
         self._clock = clock
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._done = threading.Event()
+        self._t0: float | None = None
+        self._calls: tuple[Press, Press] | None = None
+        self._lock = threading.Lock()
 
     def start(self, on_press: Press, on_release: Press) -> None:
-        t0 = self._clock()
-
-        def play():
-            for t, down, key in self._events:
-                while not self._stop.is_set():
-                    wait = t0 + t - self._clock()
-                    if wait <= 0.0:
-                        break
-                    self._stop.wait(min(wait, 0.05))
-                if self._stop.is_set():
-                    return
-                (on_press if down else on_release)(key)
-            self._done.set()
-
-        self._thread = threading.Thread(target=play, name="ScriptedKeys", daemon=True)
-        self._thread.start()
+        self._t0 = self._clock()
+        self._calls = (on_press, on_release)
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
+        self._calls = None
+
+    def poll(self) -> None:
+        if self._calls is None or self._t0 is None:
+            return
+        with self._lock:
+            elapsed = self._clock() - self._t0
+            while self._next < len(self._events) and self._events[self._next][0] <= elapsed:
+                _, down, key = self._events[self._next]
+                self._next += 1
+                self._calls[0 if down else 1](key)
 
     @property
     def finished(self) -> bool:
-        return self._done.is_set()
+        self.poll()
+        return self._next >= len(self._events)
 
 
 class TerminalKeys(KeySource):

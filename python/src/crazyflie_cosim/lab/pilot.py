@@ -111,6 +111,7 @@ class KeyboardPilot:
     # -- what the user sends ---------------------------------------------
     @property
     def held(self) -> frozenset[str]:
+        self.keys.poll()
         with self._lock:
             return frozenset(self._held)
 
@@ -121,6 +122,7 @@ class KeyboardPilot:
     @property
     def command(self) -> Command:
         """The command the held keys ask for (not sent: send it yourself)."""
+        self.keys.poll()
         with self._lock:
             held = set(self._held)
             z = self._height
