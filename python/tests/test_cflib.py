@@ -30,6 +30,8 @@ from cflib.crazyflie import Crazyflie  # noqa: E402
 from cflib.crazyflie.log import LogConfig  # noqa: E402
 from cflib.crazyflie.syncCrazyflie import SyncCrazyflie  # noqa: E402
 from cflib.crazyflie.syncLogger import SyncLogger  # noqa: E402
+from crazyflie_cosim.lab.cosim import CosimError  # noqa: E402
+from crazyflie_cosim.lab.cosim import wait_for_link as probe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 # Ports above cflib's scan range (19850-19859), one block per test, so a
@@ -77,20 +79,10 @@ class Lab:
 def wait_for_link(uri: str, timeout: float = 30.0):
     """The drone answers only once the world is up and EXT_CRTP runs: probe
     with the null packet as cflib's UDP scan does."""
-    host, port = uri.removeprefix("udp://").split(":")
-    deadline = time.time() + timeout
-    while time.time() < deadline:
-        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        s.settimeout(0.2)
-        try:
-            s.sendto(b"\xff", (host, int(port)))
-            s.recv(64)
-            return
-        except OSError:
-            time.sleep(0.2)
-        finally:
-            s.close()
-    pytest.fail(f"{uri} never answered")
+    try:
+        probe(uri, timeout)
+    except CosimError as e:
+        pytest.fail(str(e))
 
 
 @pytest.fixture

@@ -120,6 +120,9 @@ fn default_encoding() -> String {
 
 /// The firmware of a drone flown over CRTP (`sim-core/firmware/src/crtp/`).
 pub const CRTP_FIRMWARE: &str = "crtp_host.elf";
+/// The firmwares that serve the CRTP link themselves (`crtp=` keeps them):
+/// the host and the host with seed 004's radar (docs/LAB.md, guide 3).
+pub const CRTP_FIRMWARES: [&str; 2] = [CRTP_FIRMWARE, "crtp_radar.elf"];
 
 /// Keys `--set` accepts besides the run keys.
 pub const SCENARIO_KEYS: [(&str, &str); 12] = [
@@ -405,13 +408,24 @@ impl Scenario {
     /// `crtp=udp:HOST:PORT` on any scenario (docs/CFLIB.md): every drone is
     /// flown by a CRTP client instead of the scenario's firmware — the
     /// platforms run `crtp_host.elf` (next to the scenario's firmware, in
-    /// `sim-core/firmware/bin/`) and the swarm's drones listen at PORT,
+    /// `sim-core/firmware/bin/`) unless theirs already serves CRTP
+    /// ([`CRTP_FIRMWARES`]), and the swarm's drones listen at PORT,
     /// PORT+1, … in `[[platform]]` order.
     fn fly_over_crtp(&mut self) -> Result<(), String> {
         let Some(spec) = self.run.crtp.clone() else {
             return Ok(());
         };
-        let host = |fw: &Path| fw.with_file_name(CRTP_FIRMWARE);
+        let host = |fw: &Path| {
+            let serves = fw
+                .file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| CRTP_FIRMWARES.contains(&n));
+            if serves {
+                fw.to_path_buf()
+            } else {
+                fw.with_file_name(CRTP_FIRMWARE)
+            }
+        };
         self.firmware = host(&self.firmware);
         let several = self.platforms.len() > 1;
         for (i, p) in self.platforms.iter_mut().enumerate() {

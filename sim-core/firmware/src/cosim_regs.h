@@ -80,7 +80,16 @@
  * STM32's steps), so a flying firmware stamps what it derives from the
  * state, or does between two steps, with this (docs/SWARM_RESULTS.md §5). */
 #define STM32_EST_TIME_OFFSET 102624
-#define STM32_EXT_END 102632
+/* Seed 004's radar on a drone flown over CRTP (crtp/crtp_radar.c,
+ * docs/LAB.md), u32 each, while EXT_CRTP runs: P2P_ENABLE (R) the
+ * `radar.enable` parameter cflib wrote; P2P_SELF (W) this drone's radio id,
+ * before EXT_CRTP (0: no radar); P2P_ID (W) the last drone heard (0: none
+ * for 3 s); P2P_RSSI (W, int32) its RSSI in centi-dBm. */
+#define STM32_P2P_ENABLE_OFFSET 102632
+#define STM32_P2P_SELF_OFFSET 102636
+#define STM32_P2P_ID_OFFSET 102640
+#define STM32_P2P_RSSI_OFFSET 102644
+#define STM32_EXT_END 102648
 
 /* Bytes STM32_EXT_END to 0x1A000 are reserved for future STM32 registers:
  * any access faults (as do 102428-102431). */

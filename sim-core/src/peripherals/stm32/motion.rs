@@ -79,8 +79,20 @@ pub const EST_PITCH: u32 = 214;
 /// World time (s) of the last sensor read (issue 11; agreed with issue 12,
 /// which adds nothing before EXT_END).
 pub const EST_TIME: u32 = 222;
+/// Seed 004's radar on a drone flown over CRTP (§4.3.1; `crtp_radar.c`,
+/// docs/LAB.md): the nRF51 broadcasts and hears the P2P beacons, the STM32
+/// serves the `radar` log variables and parameters. While EXT_CRTP runs
+/// they share four u32 registers (the syslink of a real Crazyflie):
+/// P2P_ENABLE (R) the `radar.enable` parameter, written by the STM32 each
+/// iteration; P2P_SELF (W) the drone's radio id, written before EXT_CRTP
+/// (0: no radar, no `radar` group in the TOCs); P2P_ID (W) the last drone
+/// heard (0: none for 3 s) and P2P_RSSI (W, i32) its RSSI in centi-dBm.
+pub const P2P_ENABLE: u32 = 230;
+pub const P2P_SELF: u32 = 234;
+pub const P2P_ID: u32 = 238;
+pub const P2P_RSSI: u32 = 242;
 /// End of the extension (and of the STM32's register file).
-pub const EXT_END: u32 = 230;
+pub const EXT_END: u32 = 246;
 /// The bytes between the race's registers and EXT_CTRL fault.
 pub const GAP: std::ops::Range<u32> = 26..EXT_CTRL;
 
@@ -182,6 +194,8 @@ pub(super) struct Motion {
     last: Option<(f64, [f64; 3])>,
     /// Iterations on the ground while landing.
     pub(super) landed_for: u32,
+    /// P2P_ENABLE, P2P_SELF, P2P_ID, P2P_RSSI.
+    p2p: [u8; (EXT_END - P2P_ENABLE) as usize],
 }
 
 impl Motion {
@@ -207,6 +221,7 @@ impl Motion {
             drift: None,
             last: None,
             landed_for: 0,
+            p2p: [0; (EXT_END - P2P_ENABLE) as usize],
         }
     }
 
@@ -219,6 +234,7 @@ impl Motion {
                 self.est[i / 8].to_le_bytes()[i % 8]
             }
             CMD_VX..EST_ROLL => self.args[(offset - CMD_VX) as usize],
+            P2P_ENABLE..EXT_END => self.p2p[(offset - P2P_ENABLE) as usize],
             _ => {
                 let i = (offset - EST_ROLL) as usize;
                 self.tail[i / 8].to_le_bytes()[i % 8]
@@ -231,9 +247,34 @@ impl Motion {
         let next = next.unwrap_or(Picos::MAX);
         match offset {
             EXT_STAT..EST_X => self.stat.stable_until(now).min(next),
-            EST_X..CMD_VX | EST_ROLL..EXT_END => next,
+            EST_X..CMD_VX | EST_ROLL..P2P_SELF => next,
             _ => Picos::MAX,
         }
+    }
+
+    fn p2p_reg(&self, offset: u32) -> u32 {
+        let i = (offset - P2P_ENABLE) as usize;
+        u32::from_le_bytes(self.p2p[i..i + 4].try_into().expect("4 bytes"))
+    }
+
+    /// The drone's radio id if its firmware runs the radar (P2P_SELF).
+    pub(super) fn p2p_self(&self) -> Option<u8> {
+        match self.p2p_reg(P2P_SELF) {
+            0 => None,
+            id => Some(id as u8),
+        }
+    }
+
+    /// The last drone heard and its RSSI (dBm), if any (P2P_ID, P2P_RSSI).
+    pub(super) fn p2p_heard(&self) -> Option<(u8, f64)> {
+        match self.p2p_reg(P2P_ID) {
+            0 => None,
+            id => Some((id as u8, self.p2p_reg(P2P_RSSI) as i32 as f64 / 100.0)),
+        }
+    }
+
+    pub(super) fn set_p2p_enable(&mut self, on: bool) {
+        self.p2p[..4].copy_from_slice(&u32::from(on).to_le_bytes());
     }
 
     fn arg(&self, offset: u32) -> f64 {
@@ -415,6 +456,10 @@ impl Stm32 {
                 self.motion.args[(offset - CMD_VX) as usize] = value;
                 Ok(())
             }
+            P2P_SELF..EXT_END => {
+                self.motion.p2p[(offset - P2P_ENABLE) as usize] = value;
+                Ok(())
+            }
             // EXT_STAT, the estimate, ranges, flow, attitude and time are
             // read-only: a write is ignored, as a write to a read-only
             // register of the STM32.
@@ -530,6 +575,9 @@ impl Stm32 {
                     return Ok(Err("no CRTP link (sim-core --crtp udp:HOST:PORT)".into()));
                 }
                 self.flush_iteration(now, ctx)?;
+                if let (Some(id), Some(crtp)) = (self.motion.p2p_self(), self.crtp.as_mut()) {
+                    crtp.enable_radar(id);
+                }
                 self.start_process(Process::Crtp, now);
                 return Ok(Ok(()));
             }

@@ -132,6 +132,8 @@ pub struct CrtpServer {
     last_packet: Option<Picos>,
     /// The height a velocity-world set-point integrates (its vz).
     z_hold: Option<f64>,
+    /// The drone's radio id when its firmware runs seed 004's radar.
+    radar: Option<u8>,
     pub stats: CrtpStats,
 }
 
@@ -149,7 +151,7 @@ impl CrtpServer {
         };
         let pace = if source.is_live() { cfg.pace } else { 0.0 };
         Ok(CrtpServer {
-            log: log::Log::new(cfg.cluster),
+            log: log::Log::new(cfg.cluster, false),
             cfg,
             source,
             recorder,
@@ -160,12 +162,35 @@ impl CrtpServer {
             telemetry: Telemetry::default(),
             last_packet: None,
             z_hold: None,
+            radar: None,
             stats: CrtpStats::default(),
         })
     }
 
     pub fn config(&self) -> &CrtpConfig {
         &self.cfg
+    }
+
+    /// The firmware runs seed 004's radar as drone `id` (P2P_SELF, before
+    /// EXT_CRTP, so before any packet is served): the `radar` log variables
+    /// and parameters join the TOCs.
+    pub fn enable_radar(&mut self, id: u8) {
+        self.radar = Some(id);
+        self.log = log::Log::new(self.cfg.cluster, true);
+    }
+
+    /// What the radar heard last (P2P_ID, P2P_RSSI), for the log.
+    fn radar_heard(&mut self, heard: Option<(u8, f64)>) {
+        let (id, rssi) = heard.map_or((0.0, 0.0), |(id, r)| (f64::from(id), r));
+        self.telemetry.radar_id = id;
+        self.telemetry.radar_rssi = rssi;
+    }
+
+    /// The `radar.enable` parameter (P2P_ENABLE).
+    fn radar_enabled(&self) -> bool {
+        self.params
+            .as_ref()
+            .is_some_and(|p| p.get(Known::RadarEnable) != 0.0)
     }
 
     /// The estimate and ranges of this step's sensor read; the decks from
@@ -179,6 +204,7 @@ impl CrtpServer {
         t.roll = s.roll;
         t.pitch = s.pitch;
         let ai = self.cfg.ai_deck;
+        let radar = self.radar;
         self.params.get_or_insert_with(|| {
             Params::new(
                 Decks {
@@ -187,6 +213,7 @@ impl CrtpServer {
                     ai,
                 },
                 gains,
+                radar,
             )
         });
     }
@@ -481,8 +508,10 @@ impl Stm32 {
         let (dt, actual) = self.measured(&s);
         let mut server = self.crtp.take().expect("the CRTP process has a link");
         server.observe(&s, &self.motion.est, &self.flight.pid.gains);
+        server.radar_heard(self.motion.p2p_heard());
         let result = (|| {
             server.serve(now).map_err(io_device)?;
+            self.motion.set_p2p_enable(server.radar_enabled());
             if let Some(p) = &server.params {
                 p.apply_gains(&mut self.flight.pid.gains);
             }

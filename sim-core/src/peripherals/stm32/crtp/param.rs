@@ -46,6 +46,10 @@ pub enum Known {
     /// A gain of the Bitcraze controller (DESIGN.md §4), by the firmware's
     /// name for the same loop.
     Gain(Gain),
+    /// Seed 004's radar (§4.3.1): the flag that makes the drone broadcast
+    /// its P2P beacon, and the drone's own id (its radio's).
+    RadarEnable,
+    RadarId,
 }
 
 /// The gains of [`PidGains`] served as parameters. The Webots controller
@@ -122,7 +126,9 @@ pub struct Params {
 }
 
 impl Params {
-    pub fn new(decks: Decks, gains: &PidGains) -> Self {
+    /// `radar`: the drone's radio id when its firmware runs the radar
+    /// (adds `radar.enable` and the read-only `radar.myId`).
+    pub fn new(decks: Decks, gains: &PidGains, radar: Option<u8>) -> Self {
         let b = |v: bool| if v { 1.0 } else { 0.0 };
         let p = |ty: u8, group: &'static str, name: &'static str, known: Known, value: f64| Param {
             entry: TocEntry { ty, group, name },
@@ -164,6 +170,10 @@ impl Params {
         ];
         for (group, name, g) in GAINS {
             params.push(p(PARAM_FLOAT, group, name, Known::Gain(g), g.of(gains)));
+        }
+        if let Some(id) = radar {
+            params.push(p(PARAM_UINT8, "radar", "enable", Known::RadarEnable, 0.0));
+            params.push(p(ro, "radar", "myId", Known::RadarId, f64::from(id)));
         }
         let entries = params.iter().map(|p| p.entry.clone()).collect();
         Params {
@@ -268,6 +278,7 @@ mod tests {
                 ai: false,
             },
             &PidGains::default(),
+            None,
         );
         let flow = toc::find(p.entries(), "deck.bcFlow2").unwrap();
         let ai = toc::find(p.entries(), "deck.bcAI").unwrap();
@@ -302,5 +313,19 @@ mod tests {
         let mut g = PidGains::default();
         p.apply_gains(&mut g);
         assert_eq!(g.kd_att_rp, 0.2f32 as f64);
+        assert!(toc::find(p.entries(), "radar.enable").is_none());
+    }
+
+    #[test]
+    fn the_radar_adds_its_flag_and_its_id() {
+        let mut p = Params::new(Decks::default(), &PidGains::default(), Some(3));
+        let en = toc::find(p.entries(), "radar.enable").unwrap();
+        let me = toc::find(p.entries(), "radar.myId").unwrap();
+        assert_eq!(p.read(&me.to_le_bytes()), Some(vec![me as u8, 0, 0, 3]));
+        assert_eq!(p.write(&[me as u8, 0, 5]), None); // read-only
+        assert_eq!(p.get(Known::RadarEnable), 0.0);
+        let (ans, k) = p.write(&[en as u8, 0, 1]).unwrap();
+        assert_eq!((ans, k), (vec![en as u8, 0, 1], Known::RadarEnable));
+        assert_eq!(p.get(Known::RadarEnable), 1.0);
     }
 }

@@ -4,7 +4,8 @@
 //! names and types are the firmware's (`LOG_GROUP_START(stateEstimate)` in
 //! `estimator.c`, `range` in `range.c`, `pm` in `pm_stm32f4.c`, `stabilizer`
 //! in `stabilizer.c`, `motor` in `motors.c`); `power` and `gap8` are this
-//! platform's own.
+//! platform's own, `radar` seed 004's modified firmware's (§4.3.1: the last
+//! drone heard and its RSSI; the seed does not name them).
 
 use super::toc::TocEntry;
 use crate::peripherals::motors::MAX_SPEED;
@@ -59,6 +60,9 @@ pub struct Telemetry {
     pub sp_yaw: f64,
     pub collective: f64,
     pub power: PowerTelemetry,
+    /// The radar's last drone heard (0: none for 3 s) and its RSSI (dBm).
+    pub radar_id: f64,
+    pub radar_rssi: f64,
 }
 
 fn mm(m: f64) -> f64 {
@@ -101,8 +105,9 @@ macro_rules! var {
 }
 
 /// The log TOC; `gap8.*` only on a platform with a cluster (the AI deck's
-/// GAP8). Angles in degrees as the firmware logs them.
-pub fn log_toc(with_cluster: bool) -> Vec<LogVar> {
+/// GAP8), `radar.*` only on a drone whose firmware runs seed 004's radar.
+/// Angles in degrees as the firmware logs them.
+pub fn log_toc(with_cluster: bool, with_radar: bool) -> Vec<LogVar> {
     let mut v = vec![
         var!(LOG_FLOAT, "stateEstimate", "x", |t| t.pos[0]),
         var!(LOG_FLOAT, "stateEstimate", "y", |t| t.pos[1]),
@@ -147,6 +152,10 @@ pub fn log_toc(with_cluster: bool) -> Vec<LogVar> {
             .power
             .p_cluster
             .unwrap_or(0.0)));
+    }
+    if with_radar {
+        v.push(var!(LOG_UINT8, "radar", "id", |t| t.radar_id));
+        v.push(var!(LOG_FLOAT, "radar", "rssi", |t| t.radar_rssi));
     }
     v
 }

@@ -143,9 +143,43 @@ fn the_register_file_has_a_faulting_gap_before_the_extension() {
     // The firmware's offsets (cosim_regs.h) minus the STM32's base 102402.
     assert_eq!((EXT_CTRL, EST_X, RANGE_FRONT, FLOW_VX), (30, 38, 94, 142));
     assert_eq!(
-        (CMD_VX, CMD_SPEED_LIMIT, EST_PITCH, EST_TIME, EXT_END),
-        (158, 198, 214, 222, 230)
+        (
+            CMD_VX,
+            CMD_SPEED_LIMIT,
+            EST_PITCH,
+            EST_TIME,
+            P2P_ENABLE,
+            EXT_END
+        ),
+        (158, 198, 214, 222, 230, 246)
     );
+}
+
+#[test]
+fn the_radar_registers_carry_the_p2p_side_to_the_stm32_and_the_flag_back() {
+    let mut world = SoloWorld::new([0.0, 0.0, 0.015], Millis(32));
+    let mut sink = |_: &str| {};
+    let mut rig = Rig::new();
+    let mut ctx = rig.ctx(&mut world, &mut sink);
+    let mut stm32 = Stm32::new(Stm32Config::default(), DevicePower::new(Picos::ZERO));
+    let t = Picos::from_ms(1);
+    let word =
+        |s: &Stm32, o: u32| u32::from_le_bytes(std::array::from_fn(|i| s.read(o + i as u32, t)));
+    // Nothing written: no radar, nobody heard, the flag down.
+    assert_eq!(stm32.motion.p2p_self(), None);
+    assert_eq!(stm32.motion.p2p_heard(), None);
+    write_bytes(&mut stm32, P2P_SELF, &2u32.to_le_bytes(), t, &mut ctx);
+    write_bytes(&mut stm32, P2P_ID, &3u32.to_le_bytes(), t, &mut ctx);
+    write_bytes(&mut stm32, P2P_RSSI, &(-4550i32).to_le_bytes(), t, &mut ctx);
+    assert_eq!(stm32.motion.p2p_self(), Some(2));
+    assert_eq!(stm32.motion.p2p_heard(), Some((3, -45.5)));
+    // P2P_ENABLE is the STM32's to write (a core write is ignored).
+    write_bytes(&mut stm32, P2P_ENABLE, &1u32.to_le_bytes(), t, &mut ctx);
+    assert_eq!(word(&stm32, P2P_ENABLE), 0);
+    stm32.motion.set_p2p_enable(true);
+    assert_eq!(word(&stm32, P2P_ENABLE), 1);
+    write_bytes(&mut stm32, P2P_ID, &0u32.to_le_bytes(), t, &mut ctx);
+    assert_eq!(stm32.motion.p2p_heard(), None);
 }
 
 fn est_time(stm32: &Stm32, now: Picos) -> f64 {
