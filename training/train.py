@@ -3,7 +3,12 @@ CPU with JAX + optax, seeded; writes the float checkpoint (framework-neutral
 .npz) with the activation ranges for int8 quantization (docs/NN.md).
 
     python3 training/train.py --data DIR [DIR ...] --out training/checkpoint.npz \
-        [--epochs 12] [--seed 0] [--heldout DIR] [--bn]
+        [--epochs 12] [--seed 0] [--heldout DIR] [--bn] [--init NPZ] [--max-seconds S]
+
+--init starts from a checkpoint (or a --bn run's OUT-bn.npz), layer by layer
+where the shapes match, so a new shape can reuse an older network's first
+layers; --max-seconds ends the schedule early on a time budget (the
+checkpoint's meta records the steps done).
 
 With --bn every ReLU convolution is trained with batch normalisation (batch
 statistics); after training the statistics are re-estimated over 4096

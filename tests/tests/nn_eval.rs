@@ -36,7 +36,8 @@ fn read_json(p: &Path) -> Value {
 /// A `#define NAME value` of the committed weights.h (the network's shape
 /// is the export's, not this test's).
 fn weights_define(name: &str) -> u64 {
-    let h = std::fs::read_to_string(repo_root().join("sim-core/firmware/src/nn/weights.h")).unwrap();
+    let h =
+        std::fs::read_to_string(repo_root().join("sim-core/firmware/src/nn/weights.h")).unwrap();
     let prefix = format!("#define {name} ");
     h.lines()
         .find_map(|l| l.strip_prefix(&prefix))
@@ -97,7 +98,10 @@ fn the_cluster_reproduces_the_int8_reference_bit_for_bit() {
     let c3 = r3["cycles_per_inference"].as_f64().unwrap();
     assert!(c3 > 2.0 * c8, "3 cores {c3} cycles vs 8 cores {c8}");
     let mpc = r8["mac_per_cycle"].as_f64().unwrap();
-    assert!((mpc - macs as f64 / c8).abs() < 1e-3, "{mpc} vs {c8} cycles");
+    assert!(
+        (mpc - macs as f64 / c8).abs() < 1e-3,
+        "{mpc} vs {c8} cycles"
+    );
     let layers: f64 = r8["layer_cycles"]
         .as_array()
         .unwrap()
