@@ -116,16 +116,15 @@ def smooth_l1(d, beta=0.02):
     return jnp.where(a < beta, 0.5 * a * a / beta, a - 0.5 * beta)
 
 
-def loss_fn(params, x, obj, reg, mask, ignore=0.0, pos_weight=1.0):
+def loss_fn(params, x, obj, reg, mask, ignore=0.0):
     """BCE of the objectness over the cells plus the weighted smooth-L1 of the
     regression over the positive 3x3 cells. With ignore = 1 the centre cell's
     8 neighbours are left out of the objectness (neither pushed up nor down):
     a gate near a cell border may then raise both cells instead of splitting
     its probability between them (each below 0.5, a miss at the decoding's
-    threshold of logit 0). pos_weight scales the positive cell's term (the
-    calibration of the logit against the decoding's threshold 0)."""
+    threshold of logit 0)."""
     out = forward(params, x)
-    w_obj = (1.0 - ignore * (mask - obj)) * (1.0 + (pos_weight - 1.0) * obj)
+    w_obj = 1.0 - ignore * (mask - obj)
     bce = (optax.sigmoid_binary_cross_entropy(out[..., 0], obj) * w_obj).sum(axis=(1, 2))
     w = jnp.array([1.0, 1.0, 0.5] + [0.25] * 8)
     r = (smooth_l1(out[..., 1:] - reg) * w).sum(-1) * mask
@@ -230,8 +229,6 @@ def main():
     ap.add_argument("--offset", type=float, default=0.0, help="brightness offset augmentation, +- levels")
     ap.add_argument("--max-seconds", type=float,
                     help="stop the schedule early after this much training time (a shared machine's budget)")
-    ap.add_argument("--pos-weight", type=float, default=1.0,
-                    help="weight of the positive cell's objectness term")
     ap.add_argument("--ignore-neighbours", action="store_true",
                     help="leave the centre cell's 8 neighbours out of the objectness loss")
     a = ap.parse_args()
@@ -262,7 +259,7 @@ def main():
 
     @jax.jit
     def step(params, state, xb, ob, rb, mb):
-        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, rb, mb, ignore, a.pos_weight)
+        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, rb, mb, ignore)
         upd, state = opt.update(g, state, params)
         return optax.apply_updates(params, upd), state, loss
 
@@ -313,7 +310,7 @@ def main():
     ckpt["act_max"] = act_max
     meta = {"command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
             "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn,
-            "ignore_neighbours": a.ignore_neighbours, "pos_weight": a.pos_weight, "train_seconds": round(train_s, 1),
+            "ignore_neighbours": a.ignore_neighbours, "train_seconds": round(train_s, 1),
             "steps": done, "scheduled_steps": total_steps,
             "jax": jax.__version__, "optax": optax.__version__}
     ckpt["meta"] = np.array(json.dumps(meta))
