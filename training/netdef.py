@@ -40,11 +40,10 @@ LAYERS = [
 HEAD_CHANNELS = 12
 
 # The head's int16 output units (in the float head's units): objectness in
-# 1/64 logit, offsets in 1/16 camera pixel (a cell is 64 px: 1/1024 cell),
-# distance in mm (1/8000 of 8 m).
-HEAD_UNITS = np.array(
-    [1 / 64, 1 / 1024, 1 / 1024, 1 / 8000] + [1 / 1024] * 8, dtype=np.float64
-)
+# 1/64 logit, offsets in 1/16 camera pixel (1/(16 CELL_PX) cell), distance
+# in mm (1/8000 of 8 m).
+_Q4 = 1 / (16 * CELL_PX)
+HEAD_UNITS = np.array([1 / 64, _Q4, _Q4, 1 / 8000] + [_Q4] * 8, dtype=np.float64)
 
 
 def geometry():

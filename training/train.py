@@ -3,7 +3,12 @@ CPU with JAX + optax, seeded; writes the float checkpoint (framework-neutral
 .npz) with the activation ranges for int8 quantization (docs/NN.md).
 
     python3 training/train.py --data DIR [DIR ...] --out training/checkpoint.npz \
-        [--epochs 12] [--seed 0] [--heldout DIR] [--bn]
+        [--epochs 12] [--seed 0] [--heldout DIR] [--bn] [--init NPZ] [--max-seconds S]
+
+--init starts from a checkpoint (or a --bn run's OUT-bn.npz), layer by layer
+where the shapes match, so a new shape can reuse an older network's first
+layers; --max-seconds ends the schedule early on a time budget (the
+checkpoint's meta records the steps done).
 
 With --bn every ReLU convolution is trained with batch normalisation (batch
 statistics); after training the statistics are re-estimated over 4096
@@ -154,6 +159,30 @@ def raw_path(out):
     return os.path.splitext(out)[0] + "-bn.npz"
 
 
+def load_init(path, params):
+    """params with every layer that `path` holds in the same shape replaced
+    by the stored one (a further cycle, or a new shape started from an older
+    network's matching layers); the others keep their fresh initialisation.
+    `path` is a checkpoint (OHWI weights) or a --bn run's unfolded network
+    (raw_path's file, HWIO and gamma)."""
+    out, loaded = {}, []
+    with np.load(path) as z:
+        raw = "conv1.gamma" in z.files
+        for name, layer in params.items():
+            if f"{name}.w" not in z.files:
+                out[name] = layer
+                continue
+            w = z[f"{name}.w"] if raw else np.transpose(z[f"{name}.w"], (1, 2, 3, 0))
+            if w.shape != layer["w"].shape:
+                out[name] = layer
+                continue
+            out[name] = {k: (jnp.asarray(w) if k == "w" else jnp.asarray(z[f"{name}.{k}"]))
+                         if f"{name}.{k}" in z.files else v for k, v in layer.items()}
+            loaded.append(name)
+    print(f"from {path}: {', '.join(loaded) or 'no layer'}", flush=True)
+    return out
+
+
 def load_inputs(directory):
     """A dataset's 80x80 inputs, cached beside it (inputs80.npy) after the
     first read: 100,000 PGMs take minutes to decode, the cache a second."""
@@ -198,6 +227,8 @@ def main():
     ap.add_argument("--bn", action="store_true", help="train with batch normalisation (folded at the end)")
     ap.add_argument("--gain", type=float, default=0.0, help="brightness gain augmentation, +-")
     ap.add_argument("--offset", type=float, default=0.0, help="brightness offset augmentation, +- levels")
+    ap.add_argument("--max-seconds", type=float,
+                    help="stop the schedule early after this much training time (a shared machine's budget)")
     ap.add_argument("--ignore-neighbours", action="store_true",
                     help="leave the centre cell's 8 neighbours out of the objectness loss")
     a = ap.parse_args()
@@ -216,14 +247,7 @@ def main():
     key = jax.random.PRNGKey(a.seed)
     params = init(key, a.bn)
     if a.init:
-        with np.load(a.init) as z:
-            if "conv1.gamma" in z.files:
-                # A batch-normalised network before folding (raw_path's file).
-                params = {name: {k: jnp.asarray(z[f"{name}.{k}"]) for k in ("w", "b", "gamma")
-                                 if f"{name}.{k}" in z.files} for name, *_ in netdef.LAYERS}
-            else:
-                params = {name: {"w": jnp.asarray(np.transpose(z[f"{name}.w"], (1, 2, 3, 0))),
-                                 "b": jnp.asarray(z[f"{name}.b"])} for name, *_ in netdef.LAYERS}
+        params = load_init(a.init, params)
     steps_per_epoch = 2 * n // a.batch
     total_steps = a.epochs * steps_per_epoch
     if a.warmup:
@@ -241,18 +265,25 @@ def main():
 
     rng = np.random.default_rng(a.seed)
     t1 = time.time()
+    done = 0
     for epoch in range(a.epochs):
         perm = rng.permutation(2 * n)
         total = 0.0
         for s in range(steps_per_epoch):
+            if a.max_seconds and time.time() - t1 > a.max_seconds:
+                break
             idx = np.sort(perm[s * a.batch:(s + 1) * a.batch])
             xb = batch_inputs(small, idx, n, rng, a.gain, a.offset)
             params, state, loss = step(params, state, xb, obj[idx], reg[idx], mask[idx])
             total += float(loss)
+            done += 1
             if s % 100 == 0:
                 print(f"  step {s}: {float(loss):.4f} ({time.time() - t1:.0f} s)", flush=True)
-        print(f"epoch {epoch + 1}/{a.epochs}: loss {total / steps_per_epoch:.4f} "
+        print(f"epoch {epoch + 1}/{a.epochs}: loss {total / max(done - epoch * steps_per_epoch, 1):.4f} "
               f"({time.time() - t1:.0f} s)", flush=True)
+        if done < (epoch + 1) * steps_per_epoch:
+            print(f"stopped at --max-seconds after {done} of {total_steps} steps", flush=True)
+            break
     train_s = time.time() - t1
 
     # Activation ranges for int8 (docs/NN.md): the 99.99th percentile of each
@@ -280,6 +311,7 @@ def main():
     meta = {"command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
             "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn,
             "ignore_neighbours": a.ignore_neighbours, "train_seconds": round(train_s, 1),
+            "steps": done, "scheduled_steps": total_steps,
             "jax": jax.__version__, "optax": optax.__version__}
     ckpt["meta"] = np.array(json.dumps(meta))
     np.savez(a.out, **ckpt)
