@@ -10,6 +10,8 @@
 //! - `r15`: instructions retired since the run began,
 //! - `rbp`: [`Ctx::extra`], the extra cycles of every fast-region access.
 
+use crate::cluster::tcdm::Tcdm;
+
 use std::mem::offset_of;
 
 /// A translated block as the dispatcher sees it (16 bytes, one per
@@ -23,7 +25,9 @@ pub(crate) struct Entry {
     /// instruction costs, a taken branch and the longest divisions, one
     /// split cycle per access.
     pub worst: u32,
-    /// Loads and stores in it, each of which may cost `Ctx::extra` more.
+    /// Loads and stores in it, each of which may cost [`Ctx::worst_extra`]
+    /// more (an L1 bank's stall aside: translated code checks the deadline
+    /// again after each L1 access).
     pub nmem: u32,
 }
 
@@ -56,6 +60,29 @@ pub(crate) struct Ctx {
     pub deadline: u64,
     /// Extra cycles of every fast-region access (a cluster core's L2).
     pub extra: u64,
+    /// The most extra cycles of an access apart from an L1 bank's stall:
+    /// the larger of [`Ctx::extra`] and [`Ctx::l1_extra`] (the worst-case
+    /// checks count it per load or store).
+    pub worst_extra: u64,
+    /// The L1 (`MemTiming::l1`, the cluster's TCDM) when it is not the
+    /// fast region: host address of its data, guest base and size (size
+    /// 0: none), the byte offsets `[l1_code_lo, l1_code_hi)` of cached
+    /// code in it, and the extra cycles of every access.
+    pub l1_ptr: *mut u8,
+    pub l1_base: u64,
+    pub l1_size: u64,
+    pub l1_code_lo: u64,
+    pub l1_code_hi: u64,
+    pub l1_extra: u64,
+    /// The bank arbiter and this core's port on it (null: no arbitration,
+    /// the FC's view of L1).
+    pub tcdm: *mut Tcdm,
+    pub l1_port: u64,
+    /// The idle detector wants to see short backward branches (a device
+    /// was read since the last one, `PollTracker::touched`): a taken one
+    /// leaves at its target with its pc in [`Ctx::poll_from`] (else 0).
+    pub poll_armed: u64,
+    pub poll_from: u64,
     /// Taken jumps so far (`Cpu::jumps`).
     pub jumps: u64,
     /// Where the run stopped: the pc of the next instruction.
@@ -84,6 +111,14 @@ pub(crate) const CODE_HI: i32 = offset_of!(Ctx, code_hi) as i32;
 pub(crate) const TOHOST: i32 = offset_of!(Ctx, tohost) as i32;
 pub(crate) const DEADLINE: i32 = offset_of!(Ctx, deadline) as i32;
 pub(crate) const EXTRA: i32 = offset_of!(Ctx, extra) as i32;
+pub(crate) const WORST_EXTRA: i32 = offset_of!(Ctx, worst_extra) as i32;
+pub(crate) const L1_PTR: i32 = offset_of!(Ctx, l1_ptr) as i32;
+pub(crate) const L1_BASE: i32 = offset_of!(Ctx, l1_base) as i32;
+pub(crate) const L1_SIZE: i32 = offset_of!(Ctx, l1_size) as i32;
+pub(crate) const L1_CODE_LO: i32 = offset_of!(Ctx, l1_code_lo) as i32;
+pub(crate) const L1_CODE_HI: i32 = offset_of!(Ctx, l1_code_hi) as i32;
+pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;
+pub(crate) const POLL_FROM: i32 = offset_of!(Ctx, poll_from) as i32;
 pub(crate) const JUMPS: i32 = offset_of!(Ctx, jumps) as i32;
 pub(crate) const EXIT_PC: i32 = offset_of!(Ctx, exit_pc) as i32;
 pub(crate) const LOAD_MASK: i32 = offset_of!(Ctx, load_mask) as i32;

@@ -19,11 +19,12 @@ use dynasmrt::x64::X64Relocation;
 use dynasmrt::{dynasm, DynasmApi, DynasmLabelApi, VecAssembler};
 
 use super::super::block::Inst;
+use super::super::cpu::MAX_POLL_LOOP_BYTES;
 use super::super::decode::op;
 use super::super::timing::BRANCH_TAKEN_EXTRA;
 use super::super::xcv::mem::{base_op, mode, Mode};
 use super::ctx::*;
-use super::helpers::{helper, is_div, MAX_DIV_EXTRA};
+use super::helpers::{helper, is_div, l1_access, MAX_DIV_EXTRA};
 
 type Asm = VecAssembler<X64Relocation>;
 
@@ -74,8 +75,9 @@ pub(crate) struct Translation {
 
 /// Translate the block `b` (its instructions up to and including its last),
 /// to be placed at host address `at`. `known` gives the translated block
-/// at a guest pc, for direct jumps. `None` when its first instruction is
-/// not covered.
+/// at a guest pc, for direct jumps; `l1`: the memory has a cluster L1,
+/// whose accesses get a path of their own (`l1_op`). `None` when its first
+/// instruction is not covered.
 ///
 /// The code starts with its checked entry: it goes on only if the block's
 /// worst case ends before the deadline, else it leaves at the block's pc.
@@ -84,6 +86,7 @@ pub(crate) fn translate(
     at: usize,
     stubs: Stubs,
     known: &dyn Fn(u32) -> Option<Entry>,
+    l1: bool,
 ) -> Option<Translation> {
     let n = b.iter().take_while(|i| covered(i.op)).count();
     if n == 0 {
@@ -92,19 +95,26 @@ pub(crate) fn translate(
     // Static bookkeeping: cycles and jumps before each instruction.
     let mut prefix = vec![0u64; n + 1];
     let mut jumps = vec![0u64; n + 1];
-    let (mut worst, mut nmem) = (0u64, 0u32);
     for (k, i) in b[..n].iter().enumerate() {
         prefix[k + 1] = prefix[k] + i.cost as u64;
         jumps[k + 1] = jumps[k] + (i.op == op::JUMP) as u64;
+    }
+    // The worst case of instructions k.. (from the block's entry cycle:
+    // all static costs, a taken branch, and the longest divisions and a
+    // split cycle from k on), and their loads and stores.
+    let mut rest = vec![(prefix[n] + BRANCH_TAKEN_EXTRA, 0u32); n + 1];
+    for (k, i) in b[..n].iter().enumerate().rev() {
+        let (mut w, mut m) = rest[k + 1];
         if is_div(i.op) {
-            worst += MAX_DIV_EXTRA as u64;
+            w += MAX_DIV_EXTRA as u64;
         }
         if is_mem(i.op) {
-            nmem += 1;
-            worst += 1; // a split access
+            m += 1;
+            w += 1; // a split access
         }
+        rest[k] = (w, m);
     }
-    worst += prefix[n] + BRANCH_TAKEN_EXTRA;
+    let (worst, nmem) = rest[0];
     let worst = u32::try_from(worst).ok()?;
 
     let mut a = Asm::new(at);
@@ -115,15 +125,14 @@ pub(crate) fn translate(
     let mut used = vec![false; n + 1];
     let mut taken: Vec<(usize, dynasmrt::DynamicLabel)> = Vec::new();
     let mut patches = Vec::new();
+    // The loads and stores' other-region paths, emitted after the block.
+    let mut l1_sites: Vec<(Inst, L1Site)> = Vec::new();
     // The checked entry: enter only if the worst case ends before the
     // deadline, else leave at the block's start (reached by a transfer:
     // nothing in the load shadow).
     let fail = a.new_dynamic_label();
     dynasm!(a ; .arch x64 ; =>start ; lea rcx, [r13 + worst as i32]);
-    if nmem != 0 {
-        dynasm!(a ; .arch x64 ; imul rdx, rbp, nmem as i32 ; add rcx, rdx);
-    }
-    dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE] ; jae =>fail);
+    fits(&mut a, nmem, fail);
 
     for (k, i) in b[..n].iter().enumerate() {
         let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
@@ -218,7 +227,21 @@ pub(crate) fn translate(
             }
             o if is_mem(o) => {
                 used[k] = true;
-                mem_op(&mut a, i, exits[k])
+                used[k + 1] |= l1;
+                let back = a.new_dynamic_label();
+                let site = L1Site {
+                    other: if l1 { a.new_dynamic_label() } else { exits[k] },
+                    back,
+                    issue: prefix[k + 1] - 1,
+                    rest: rest[k + 1],
+                    exit: exits[k],
+                    after: exits[k + 1],
+                };
+                mem_op(&mut a, i, &site, l1);
+                dynasm!(a ; .arch x64 ; =>back);
+                if l1 {
+                    l1_sites.push((*i, site));
+                }
             }
             op::BEQ | op::BNE | op::BLT | op::BGE | op::BLTU | op::BGEU => {
                 let l = a.new_dynamic_label();
@@ -301,6 +324,21 @@ pub(crate) fn translate(
             k as u64 + 1,
             jumps[k] + 1,
         );
+        // A short backward branch closes a loop the idle detector wants to
+        // see after a device read (`exec::transfer`, `Cpu::poll_slow`):
+        // leave at its target, telling the core where it came from.
+        let (from, to) = (b[k].pc, b[k].imm);
+        if to < from && from - to <= MAX_POLL_LOOP_BYTES {
+            let go = a.new_dynamic_label();
+            dynasm!(a ; .arch x64
+                ; cmp BYTE [rbx + POLL_ARMED], 0
+                ; je =>go
+                ; mov DWORD [rbx + POLL_FROM], from as i32
+                ; mov eax, to as i32
+            );
+            jmp_abs(&mut a, at, stubs.leave);
+            dynasm!(a ; .arch x64 ; =>go);
+        }
         chain(
             &mut a,
             at,
@@ -310,6 +348,9 @@ pub(crate) fn translate(
             (b[0].pc, start),
             &mut patches,
         );
+    }
+    for (i, site) in &l1_sites {
+        l1_op(&mut a, i, site);
     }
     dynasm!(a ; .arch x64 ; =>fail ; mov eax, b[0].pc as i32);
     jmp_abs(&mut a, at, stubs.leave);
@@ -392,21 +433,62 @@ fn chain(
     }
 }
 
-/// A load or store (RV32I or XCV addressing) on the fast region; anything
-/// else leaves at `exit` (just before it).
-fn mem_op(a: &mut Asm, i: &Inst, exit: dynasmrt::DynamicLabel) {
+/// Go on only if the worst case from here, `rcx` = the cycles before the
+/// access extras, plus `nmem` accesses at [`Ctx::worst_extra`] each, ends
+/// before the deadline; else jump to `fail`.
+fn fits(a: &mut Asm, nmem: u32, fail: dynasmrt::DynamicLabel) {
+    if nmem != 0 {
+        dynasm!(a ; .arch x64 ; imul rdx, [rbx + WORST_EXTRA], nmem as i32 ; add rcx, rdx);
+    }
+    dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE] ; jae =>fail);
+}
+
+/// Where a load or store continues when its address is outside the fast
+/// region (the L1 of a cluster core, out of line after the block).
+struct L1Site {
+    /// The out-of-line path, and where it rejoins the block.
+    other: dynasmrt::DynamicLabel,
+    back: dynasmrt::DynamicLabel,
+    /// The access's issue cycle, relative to `r13` before it: the last
+    /// cycle of its cost, as the interpreter's `Run::extra` and the
+    /// general path's `Cpu::issue_cycle` have it.
+    issue: u64,
+    /// The worst case of the instructions after it (`translate`'s `rest`).
+    rest: (u64, u32),
+    /// Exits just before it and just after it.
+    exit: dynasmrt::DynamicLabel,
+    after: dynasmrt::DynamicLabel,
+}
+
+/// What a load or store does: its base op, size in bytes, whether a store,
+/// its addressing mode and the field of its register operand (rs2 for
+/// loads, rs3 = the rd field for stores).
+fn shape(i: &Inst) -> (u8, i32, bool, Mode, i32) {
     let o = base_op(i.op).unwrap_or(i.op);
-    let m = mode(i.op);
     let store = (op::SB..=op::SW).contains(&o);
     let n: i32 = match o {
         op::LB | op::LBU | op::SB => 1,
         op::LH | op::LHU | op::SH => 2,
         _ => 4,
     };
-    let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
-    // The mode's register operand: rs2 for loads, rs3 (the rd field) for
-    // stores.
-    let opnd = if store { rd } else { rs2 };
+    let opnd = if store { reg(i.rd) } else { reg(i.rs2) };
+    (o, n, store, mode(i.op), opnd)
+}
+
+/// A load or store (RV32I or XCV addressing) on the fast region; outside
+/// it, on to `site.other` (the L1 path, `l1_op`), which rejoins at
+/// `site.back` or leaves; near code or `tohost`, leave at `site.exit`
+/// (just before it).
+///
+/// With an L1 (`l1`) the checked entry counts each access at the cheaper of
+/// the two regions' extras ([`Ctx::worst_extra`]): a cluster core's L2
+/// accesses cost 10 cycles more than its L1 ones, and counting every
+/// access of an unrolled kernel at 10 left most of a 1024-cycle quantum
+/// to the interpreter. So the deadline is checked again after every access
+/// on either path, for the rest of the block (`recheck`).
+fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
+    let (_, n, store, m, opnd) = shape(i);
+    let rs1 = reg(i.rs1);
     let imm = i.imm as i32;
     // eax = address.
     dynasm!(a ; .arch x64 ; mov eax, [r12 + rs1]);
@@ -415,42 +497,112 @@ fn mem_op(a: &mut Asm, i: &Inst, exit: dynasmrt::DynamicLabel) {
         Mode::RegReg => dynasm!(a ; .arch x64 ; add eax, [r12 + opnd]),
         _ => {}
     }
-    // rcx = offset in the fast region, rdx = its end; inside or leave.
+    // rcx = offset in the fast region, rdx = its end; inside or elsewhere.
     dynasm!(a ; .arch x64
         ; mov ecx, eax
         ; sub rcx, [rbx + FAST_BASE]
         ; lea rdx, [rcx + n]
         ; cmp rdx, [rbx + FAST_SIZE]
-        ; ja =>exit
+        ; ja =>site.other
     );
     if store {
-        // Not near cached code (off >= code_hi or end <= code_lo) and not
-        // on `tohost`: the interpreter's fast-path conditions.
-        let ok = a.new_dynamic_label();
-        dynasm!(a ; .arch x64
-            ; cmp rcx, [rbx + CODE_HI]
-            ; jae =>ok
-            ; cmp rdx, [rbx + CODE_LO]
-            ; ja =>exit
-            ; =>ok
-            ; mov esi, eax
-            ; sub rsi, [rbx + TOHOST]
-            ; cmp rsi, 8
-            ; jb =>exit
-            ; mov esi, [r12 + rs2]
-        );
+        watched(a, CODE_LO, CODE_HI, site.exit);
+    }
+    access(a, i, 14);
+    dynasm!(a ; .arch x64 ; add r13, rbp);
+    if l1 {
+        recheck(a, site);
+    }
+}
+
+/// After an access that may have cost more than [`Ctx::worst_extra`]: go
+/// on only if the rest of the block still fits before the deadline, else
+/// leave just after the access (the core goes on from there: only a pause
+/// at an instruction boundary, which changes nothing).
+fn recheck(a: &mut Asm, site: &L1Site) {
+    let (w, nmem) = site.rest;
+    dynasm!(a ; .arch x64 ; lea rcx, [r13 + w as i32]);
+    fits(a, nmem, site.after);
+}
+
+/// The out-of-line rest of a load or store outside the fast region
+/// (`eax` = address): in the L1, the access with its extra cycles from
+/// [`l1_access`] (the bank arbiter at the interpreter's issue cycle), and,
+/// since a bank's stall has no bound, the deadline check again for the
+/// rest of the block (`recheck`); anywhere else, leave just before it.
+fn l1_op(a: &mut Asm, i: &Inst, site: &L1Site) {
+    let (_, n, store, _, _) = shape(i);
+    dynasm!(a ; .arch x64
+        ; =>site.other
+        ; mov ecx, eax
+        ; sub rcx, [rbx + L1_BASE]
+        ; lea rdx, [rcx + n]
+        ; cmp rdx, [rbx + L1_SIZE]
+        ; ja =>site.exit
+    );
+    if store {
+        watched(a, L1_CODE_LO, L1_CODE_HI, site.exit);
+    }
+    let f = l1_access as extern "sysv64" fn(*mut Ctx, u32, u64) -> u64 as usize as i64;
+    // Two pushes keep `rsp` 16-aligned for the call.
+    dynasm!(a ; .arch x64
+        ; push rax
+        ; push rcx
+        ; mov rdi, rbx
+        ; mov esi, eax
+        ; lea rdx, [r13 + site.issue as i32]
+        ; mov rax, QWORD f
+        ; call rax
+        ; add r13, rax
+        ; pop rcx
+        ; pop rax
+        ; mov r8, [rbx + L1_PTR]
+    );
+    access(a, i, 8);
+    recheck(a, site);
+    dynasm!(a ; .arch x64 ; jmp =>site.back);
+}
+
+/// A store's checks besides the bounds (`rcx` = offset in the region, `rdx`
+/// = its end): not near the region's cached code (off >= code_hi or end <=
+/// code_lo) and not on `tohost`, the interpreter's fast-path conditions;
+/// else leave at `exit`.
+fn watched(a: &mut Asm, lo: i32, hi: i32, exit: dynasmrt::DynamicLabel) {
+    let ok = a.new_dynamic_label();
+    dynasm!(a ; .arch x64
+        ; cmp rcx, [rbx + hi]
+        ; jae =>ok
+        ; cmp rdx, [rbx + lo]
+        ; ja =>exit
+        ; =>ok
+        ; mov esi, eax
+        ; sub rsi, [rbx + TOHOST]
+        ; cmp rsi, 8
+        ; jb =>exit
+    );
+}
+
+/// The access itself at host address `base + rcx` (`eax` = the guest
+/// address), the base register's write-back, the loaded value and the
+/// split cycle.
+fn access(a: &mut Asm, i: &Inst, base: u8) {
+    let (o, n, store, m, opnd) = shape(i);
+    let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
+    let imm = i.imm as i32;
+    if store {
+        dynasm!(a ; .arch x64 ; mov esi, [r12 + rs2]);
         match n {
-            1 => dynasm!(a ; .arch x64 ; mov [r14 + rcx], sil),
-            2 => dynasm!(a ; .arch x64 ; mov [r14 + rcx], si),
-            _ => dynasm!(a ; .arch x64 ; mov [r14 + rcx], esi),
+            1 => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], sil),
+            2 => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], si),
+            _ => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], esi),
         }
     } else {
         match o {
-            op::LB => dynasm!(a ; .arch x64 ; movsx edx, BYTE [r14 + rcx]),
-            op::LBU => dynasm!(a ; .arch x64 ; movzx edx, BYTE [r14 + rcx]),
-            op::LH => dynasm!(a ; .arch x64 ; movsx edx, WORD [r14 + rcx]),
-            op::LHU => dynasm!(a ; .arch x64 ; movzx edx, WORD [r14 + rcx]),
-            _ => dynasm!(a ; .arch x64 ; mov edx, [r14 + rcx]),
+            op::LB => dynasm!(a ; .arch x64 ; movsx edx, BYTE [Rq(base) + rcx]),
+            op::LBU => dynasm!(a ; .arch x64 ; movzx edx, BYTE [Rq(base) + rcx]),
+            op::LH => dynasm!(a ; .arch x64 ; movsx edx, WORD [Rq(base) + rcx]),
+            op::LHU => dynasm!(a ; .arch x64 ; movzx edx, WORD [Rq(base) + rcx]),
+            _ => dynasm!(a ; .arch x64 ; mov edx, [Rq(base) + rcx]),
         }
     }
     // Base write-back (the loaded value wins if rd == rs1: written after).
@@ -476,5 +628,4 @@ fn mem_op(a: &mut Asm, i: &Inst, exit: dynasmrt::DynamicLabel) {
             ; add r13, rax
         );
     }
-    dynasm!(a ; .arch x64 ; add r13, rbp);
 }

@@ -208,7 +208,8 @@ impl JitCache {
 
     /// The translation of the block starting at byte `off` of region
     /// `region`, whose first instruction is `insts[first]`, translating it
-    /// if needed; `None` if the translator does not cover its first
+    /// if needed (`l1`: with a path for L1 accesses, see `emit::translate`);
+    /// `None` if the translator does not cover its first
     /// instruction.
     pub fn entry(
         &mut self,
@@ -217,6 +218,7 @@ impl JitCache {
         region: usize,
         off: usize,
         first: usize,
+        l1: bool,
     ) -> Option<Entry> {
         if self.tables.len() <= region {
             self.tables
@@ -237,7 +239,7 @@ impl JitCache {
         // Room for the worst block (~100 host bytes per instruction).
         if !self.buf.fits(64 * 1024) {
             self.flush();
-            return self.entry(regions, insts, region, off, first);
+            return self.entry(regions, insts, region, off, first, l1);
         }
         let tables = &self.tables;
         let known = |pc: u32| {
@@ -246,7 +248,7 @@ impl JitCache {
             let e = unpack(*tables.get(r)?.get(o >> 1)?);
             (e.code != 0).then_some(e)
         };
-        let Some(t) = translate(b, self.buf.next_addr(), self.stubs, &known) else {
+        let Some(t) = translate(b, self.buf.next_addr(), self.stubs, &known, l1) else {
             self.tables[region][off >> 1] = pack(UNCOVERED);
             return None;
         };
