@@ -70,9 +70,12 @@ impl Cpu {
             Some(r) => (r.data.as_mut_ptr(), r.size as u64, (r.code_lo, r.code_hi)),
             None => (std::ptr::null_mut(), 0, (0, 0)),
         };
-        let tcdm = match (t.l1_port, mem.tcdm.as_mut()) {
-            (Some(_), Some(a)) => a as *mut Tcdm,
-            _ => std::ptr::null_mut(),
+        let (tcdm, l1_granted, l1_accesses) = match (t.l1_port, mem.tcdm.as_mut()) {
+            (Some(port), Some(a)) => {
+                let (g, n) = a.raw_parts(port);
+                (a as *mut Tcdm, g, n)
+            }
+            _ => (std::ptr::null_mut(), std::ptr::null_mut(), std::ptr::null_mut()),
         };
         let r = &mut mem.regions[region];
         // The fast region is the code's, as in `exec::Run::set_code_region`
@@ -108,6 +111,8 @@ impl Cpu {
             l1_extra: t.l1_extra,
             tcdm,
             l1_port: t.l1_port.unwrap_or(0) as u64,
+            l1_granted,
+            l1_accesses,
             poll_armed: self.poll.touched as u64,
             poll_from: 0,
             jumps: 0,

@@ -78,6 +78,10 @@ pub(crate) struct Ctx {
     /// the FC's view of L1).
     pub tcdm: *mut Tcdm,
     pub l1_port: u64,
+    /// The arbiter's slices and this port's access counter
+    /// ([`Tcdm::raw_parts`]), for the inline grant (null: no arbitration).
+    pub l1_granted: *mut u64,
+    pub l1_accesses: *mut u64,
     /// The idle detector wants to see short backward branches (a device
     /// was read since the last one, `PollTracker::touched`): a taken one
     /// leaves at its target with its pc in [`Ctx::poll_from`] (else 0).
@@ -119,6 +123,9 @@ pub(crate) const L1_CODE_LO: i32 = offset_of!(Ctx, l1_code_lo) as i32;
 pub(crate) const L1_CODE_HI: i32 = offset_of!(Ctx, l1_code_hi) as i32;
 pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;
 pub(crate) const POLL_FROM: i32 = offset_of!(Ctx, poll_from) as i32;
+pub(crate) const L1_EXTRA: i32 = offset_of!(Ctx, l1_extra) as i32;
+pub(crate) const L1_GRANTED: i32 = offset_of!(Ctx, l1_granted) as i32;
+pub(crate) const L1_ACCESSES: i32 = offset_of!(Ctx, l1_accesses) as i32;
 pub(crate) const JUMPS: i32 = offset_of!(Ctx, jumps) as i32;
 pub(crate) const EXIT_PC: i32 = offset_of!(Ctx, exit_pc) as i32;
 pub(crate) const LOAD_MASK: i32 = offset_of!(Ctx, load_mask) as i32;

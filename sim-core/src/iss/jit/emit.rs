@@ -19,6 +19,7 @@ use dynasmrt::x64::X64Relocation;
 use dynasmrt::{dynasm, DynasmApi, DynasmLabelApi, VecAssembler};
 
 use super::super::block::Inst;
+use crate::cluster::tcdm::{BANKS, WORDS};
 use super::super::cpu::MAX_POLL_LOOP_BYTES;
 use super::super::decode::op;
 use super::super::timing::BRANCH_TAKEN_EXTRA;
@@ -543,24 +544,79 @@ fn l1_op(a: &mut Asm, i: &Inst, site: &L1Site) {
     if store {
         watched(a, L1_CODE_LO, L1_CODE_HI, site.exit);
     }
+    grant(a, site.issue);
+    dynasm!(a ; .arch x64 ; mov r8, [rbx + L1_PTR]);
+    access(a, i, 8);
+    recheck(a, site);
+    dynasm!(a ; .arch x64 ; jmp =>site.back);
+}
+
+/// The L1's extra cycles of an access at `eax` issued at `r13 + issue`
+/// (keeps `rax`, `rcx`): inline, what `Tcdm::access` does when the cycle
+/// is free in the bank (the common case: the slice of the cycle's 64 is
+/// set, or a stale one restarted, and the port's count goes up); when it
+/// is taken, the arbiter itself through [`l1_access`], which finds the
+/// stall; without arbitration (the FC), the L1's latency alone.
+fn grant(a: &mut Asm, issue: u64) {
+    const SLOT_MASK: i32 = WORDS as i32 - 1;
+    const BANK_MASK: i32 = BANKS as i32 - 1;
+    const SLOT_SHIFT: i8 = WORDS.trailing_zeros() as i8;
+    let (no_arb, fresh, done, busy, join) = (
+        a.new_dynamic_label(),
+        a.new_dynamic_label(),
+        a.new_dynamic_label(),
+        a.new_dynamic_label(),
+        a.new_dynamic_label(),
+    );
     let f = l1_access as extern "sysv64" fn(*mut Ctx, u32, u64) -> u64 as usize as i64;
-    // Two pushes keep `rsp` 16-aligned for the call.
     dynasm!(a ; .arch x64
+        ; mov r9, [rbx + L1_GRANTED]
+        ; test r9, r9
+        ; jz =>no_arb
+        // rdx = cycle, r10 = its slice's tag, r11 = its bit.
+        ; lea rdx, [r13 + issue as i32]
+        ; mov r10, rdx
+        ; shr r10, 6
+        ; xor r11d, r11d
+        ; bts r11, rdx
+        // r9 += 16 · (bank · WORDS + tag % WORDS): the slice's slot.
+        ; mov esi, eax
+        ; shr esi, 2
+        ; and esi, BANK_MASK
+        ; shl esi, SLOT_SHIFT
+        ; mov edi, r10d
+        ; and edi, SLOT_MASK
+        ; add esi, edi
+        ; shl rsi, 4
+        ; add r9, rsi
+        ; cmp [r9], r10
+        ; jne =>fresh
+        ; test [r9 + 8], r11
+        ; jnz =>busy
+        ; or [r9 + 8], r11
+        ; jmp =>done
+        ; =>fresh
+        ; mov [r9], r10
+        ; mov [r9 + 8], r11
+        ; =>done
+        ; mov r9, [rbx + L1_ACCESSES]
+        ; add QWORD [r9], 1
+        ; =>no_arb
+        ; add r13, [rbx + L1_EXTRA]
+        ; jmp =>join
+        // Two pushes keep `rsp` 16-aligned for the call.
+        ; =>busy
         ; push rax
         ; push rcx
         ; mov rdi, rbx
         ; mov esi, eax
-        ; lea rdx, [r13 + site.issue as i32]
         ; mov rax, QWORD f
         ; call rax
         ; add r13, rax
         ; pop rcx
         ; pop rax
-        ; mov r8, [rbx + L1_PTR]
+        ; =>join
     );
-    access(a, i, 8);
-    recheck(a, site);
-    dynasm!(a ; .arch x64 ; jmp =>site.back);
 }
 
 /// A store's checks besides the bounds (`rcx` = offset in the region, `rdx`
