@@ -76,7 +76,8 @@ pub(crate) struct Translation {
 
 /// Translate the block `b` (its instructions up to and including its last),
 /// to be placed at host address `at`. `known` gives the translated block
-/// at a guest pc, for direct jumps; `l1`: the memory has a cluster L1,
+/// at a guest pc, for direct jumps, and `first_reads` the registers the
+/// first instruction of the cached block at a pc reads; `l1`: the memory has a cluster L1,
 /// whose accesses get a path of their own (`l1_op`). `None` when its first
 /// instruction is not covered.
 ///
@@ -87,6 +88,7 @@ pub(crate) fn translate(
     at: usize,
     stubs: Stubs,
     known: &dyn Fn(u32) -> Option<Entry>,
+    first_reads: &dyn Fn(u32) -> Option<u32>,
     l1: bool,
 ) -> Option<Translation> {
     let n = b.iter().take_while(|i| covered(i.op)).count();
@@ -118,6 +120,9 @@ pub(crate) fn translate(
     let (worst, nmem) = rest[0];
     let worst = u32::try_from(worst).ok()?;
 
+    // The byte dot products inline need SSE4.1 (`pmovsxbd`, `pmulld`);
+    // without, the helpers do them.
+    let sse41 = std::arch::is_x86_feature_detected!("sse4.1");
     let mut a = Asm::new(at);
     let start = a.new_dynamic_label();
     let exits: Vec<_> = (0..=n).map(|_| a.new_dynamic_label()).collect();
@@ -208,6 +213,9 @@ pub(crate) fn translate(
                     _ => dynasm!(a ; mov eax, [r12 + rs1] ; mov ecx, [r12 + rs2]),
                 }
                 dynasm!(a ; imul rax, rcx ; shr rax, 32 ; mov [r12 + rd], eax);
+            }
+            op::CV_SDOTSP_B | op::CV_SDOTUSP_B | op::CV_SDOTUP_B | op::CV_DOTSP_B if sse41 => {
+                dot_b(&mut a, i)
             }
             o if helper(o).is_some() => {
                 let f = helper(o).expect("helper") as usize as i64;
@@ -303,8 +311,28 @@ pub(crate) fn translate(
                 break;
             }
             op::END => {
-                used[k] = true;
-                dynasm!(a ; jmp =>exits[k]);
+                // The block ran out (`imm` = the next pc): go on into the
+                // next block as the core would, when the next block's
+                // first instruction is known not to stall on the last
+                // one's load (the entry stall the core would add), else
+                // leave and let the core do it. Not a transfer: no jump.
+                let stall = k == 0
+                    || first_reads(i.imm).is_none_or(|r| r & b[k - 1].load_mask() != 0);
+                if stall {
+                    used[k] = true;
+                    dynasm!(a ; jmp =>exits[k]);
+                } else {
+                    account(&mut a, prefix[k], k as u64, jumps[k]);
+                    chain(
+                        &mut a,
+                        at,
+                        i.imm,
+                        stubs,
+                        known,
+                        (b[0].pc, start),
+                        &mut patches,
+                    );
+                }
                 break;
             }
             _ => unreachable!("covered op without a template"),
@@ -378,6 +406,42 @@ pub(crate) fn translate(
         nmem,
         patches,
     })
+}
+
+/// The byte dot products (`cv.sdotsp.b`, `cv.sdotusp.b`, `cv.sdotup.b`,
+/// `cv.dotsp.b`) inline: the four bytes of each operand widened to 32 bits
+/// (signed or not, as `xcv::simd` has them), multiplied lane by lane, the
+/// lanes summed, added to rd (modulo 2^32) for the `sdot` forms. Each
+/// product fits in 17 bits, so the 32-bit lanes are exact, as the
+/// interpreter's `i32` sums are.
+fn dot_b(a: &mut Asm, i: &Inst) {
+    let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
+    match i.op {
+        op::CV_SDOTUP_B => dynasm!(a ; .arch x64
+            ; pmovzxbd xmm0, DWORD [r12 + rs1]
+            ; pmovzxbd xmm1, DWORD [r12 + rs2]
+        ),
+        op::CV_SDOTUSP_B => dynasm!(a ; .arch x64
+            ; pmovzxbd xmm0, DWORD [r12 + rs1]
+            ; pmovsxbd xmm1, DWORD [r12 + rs2]
+        ),
+        _ => dynasm!(a ; .arch x64
+            ; pmovsxbd xmm0, DWORD [r12 + rs1]
+            ; pmovsxbd xmm1, DWORD [r12 + rs2]
+        ),
+    }
+    dynasm!(a ; .arch x64
+        ; pmulld xmm0, xmm1
+        ; phaddd xmm0, xmm0
+        ; phaddd xmm0, xmm0
+        ; movd eax, xmm0
+    );
+    if i.op != op::CV_DOTSP_B {
+        dynasm!(a ; .arch x64 ; add eax, [r12 + rd]);
+    }
+    if i.rd != 0 {
+        dynasm!(a ; .arch x64 ; mov [r12 + rd], eax);
+    }
 }
 
 /// `jmp rel32` to a host address (dynasm-rs has no absolute targets on

@@ -248,7 +248,13 @@ impl JitCache {
             let e = unpack(*tables.get(r)?.get(o >> 1)?);
             (e.code != 0).then_some(e)
         };
-        let Some(t) = translate(b, self.buf.next_addr(), self.stubs, &known, l1) else {
+        let first_reads = |pc: u32| {
+            let r = regions.iter().find(|r| r.offset_of(pc, 2).is_some())?;
+            let id = *r.block_at.get((pc.wrapping_sub(r.base) >> 1) as usize)?;
+            (id != 0).then(|| insts[id as usize - 1].reads())
+        };
+        let Some(t) = translate(b, self.buf.next_addr(), self.stubs, &known, &first_reads, l1)
+        else {
             self.tables[region][off >> 1] = pack(UNCOVERED);
             return None;
         };
