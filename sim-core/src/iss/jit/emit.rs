@@ -316,8 +316,10 @@ pub(crate) fn translate(
                 // first instruction is known not to stall on the last
                 // one's load (the entry stall the core would add), else
                 // leave and let the core do it. Not a transfer: no jump.
-                let stall = k == 0
-                    || first_reads(i.imm).is_none_or(|r| r & b[k - 1].load_mask() != 0);
+                let stall = k == 0 || {
+                    let m = b[k - 1].load_mask();
+                    m != 0 && first_reads(i.imm).is_none_or(|r| r & m != 0)
+                };
                 if stall {
                     used[k] = true;
                     dynasm!(a ; jmp =>exits[k]);
