@@ -134,7 +134,10 @@ fn every_committed_firmware_runs_identically() {
 /// whole and cut into slices (a quantum's end inside a translated run).
 #[test]
 fn l1_bank_conflicts_match_the_interpreter() {
-    for (name, slice) in [("cluster_matmul_bench", 1_111_111), ("cluster_bench", 2_345_679)] {
+    for (name, slice) in [
+        ("cluster_matmul_bench", 1_111_111),
+        ("cluster_bench", 2_345_679),
+    ] {
         let interp = run_firmware(name, Backend::Interp, 1_500_000, None);
         let jit = run_firmware(name, Backend::Jit, 1_500_000, None);
         assert_eq!(interp, jit, "{name}");

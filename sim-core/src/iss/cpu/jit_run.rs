@@ -75,7 +75,11 @@ impl Cpu {
                 let (g, n) = a.raw_parts(port);
                 (a as *mut Tcdm, g, n)
             }
-            _ => (std::ptr::null_mut(), std::ptr::null_mut(), std::ptr::null_mut()),
+            _ => (
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
+            ),
         };
         let r = &mut mem.regions[region];
         // The fast region is the code's, as in `exec::Run::set_code_region`

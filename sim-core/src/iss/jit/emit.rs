@@ -13,19 +13,21 @@
 //! What it does not cover ends it: the core leaves, just before that
 //! instruction, with the state the interpreter's `leave` gives, and the
 //! interpreter does that instruction (system instructions, accesses
-//! outside the fast RAM region or near code or `tohost`).
+//! outside the fast RAM region and the cluster's L1, or near code or
+//! `tohost`). L1 accesses grant their bank as `cluster::tcdm` does, at the
+//! interpreter's issue cycle (`grant`).
 
 use dynasmrt::x64::X64Relocation;
 use dynasmrt::{dynasm, DynasmApi, DynasmLabelApi, VecAssembler};
 
 use super::super::block::Inst;
-use crate::cluster::tcdm::{BANKS, WORDS};
 use super::super::cpu::MAX_POLL_LOOP_BYTES;
 use super::super::decode::op;
 use super::super::timing::BRANCH_TAKEN_EXTRA;
 use super::super::xcv::mem::{base_op, mode, Mode};
 use super::ctx::*;
 use super::helpers::{helper, is_div, l1_access, MAX_DIV_EXTRA};
+use crate::cluster::tcdm::{BANKS, WORDS};
 
 type Asm = VecAssembler<X64Relocation>;
 

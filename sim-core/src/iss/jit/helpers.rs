@@ -8,8 +8,8 @@
 //! 32 bits of `rax` and extra cycles in the high 32.
 
 use super::super::decode::op;
-use super::ctx::Ctx;
 use super::super::xcv::{alu, mac, simd};
+use super::ctx::Ctx;
 
 /// A helper's signature.
 pub(crate) type Helper = extern "sysv64" fn(u32, u32, u32, u32) -> u64;

@@ -19,7 +19,10 @@
 //! dispatcher stub, which looks it up in the region's table). So the
 //! interpreter's per-instruction deadline check could never have fired
 //! inside a translated block, and every run stops on the instruction
-//! boundary the interpreter would stop on. Everything else (a block that
+//! boundary the interpreter would stop on. On a memory with a cluster the
+//! access extra counted is the cheaper region's, and the code checks again
+//! after every access (an L1 bank's stall has no bound), leaving just
+//! after it when the rest might not fit (`emit::mem_op`). Everything else (a block that
 //! does not fit, polling loops the idle detector watches, what the
 //! templates do not cover) runs on the interpreter.
 //!
@@ -253,8 +256,14 @@ impl JitCache {
             let id = *r.block_at.get((pc.wrapping_sub(r.base) >> 1) as usize)?;
             (id != 0).then(|| insts[id as usize - 1].reads())
         };
-        let Some(t) = translate(b, self.buf.next_addr(), self.stubs, &known, &first_reads, l1)
-        else {
+        let Some(t) = translate(
+            b,
+            self.buf.next_addr(),
+            self.stubs,
+            &known,
+            &first_reads,
+            l1,
+        ) else {
             self.tables[region][off >> 1] = pack(UNCOVERED);
             return None;
         };
