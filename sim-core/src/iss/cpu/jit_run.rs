@@ -51,12 +51,13 @@ impl Cpu {
             }
         }
         let t = self.mem_timing;
-        // Translations on a memory with a cluster L1 have an L1 path and
-        // check the deadline after every access (`emit::mem_op`); the code
-        // is shared by all cores, so this is the memory's, not the core's.
+        // A cluster core's translations have an L1 path and check the
+        // deadline after every access (`emit::mem_op`); the FC's do not.
+        // The code is shared, and each block's checked entry counts its
+        // accesses its own way (`ctx::L1_PATH`), so it is right for either.
         let has_l1 = mem.tcdm.is_some() && t.l1.1 != 0;
         let jit = mem.jit.as_mut().expect("made above");
-        let l1 = mem.tcdm.is_some();
+        let l1 = t.l1_port.is_some() && mem.tcdm.is_some();
         let Some(e) = jit.entry(&mem.regions, &mem.insts, region, off as usize, first, l1) else {
             return Translated::Uncovered;
         };
@@ -86,14 +87,18 @@ impl Cpu {
         // (L1 code under the bank arbiter has none).
         let banked = t.l1_port.is_some() && r.base == t.l1.0;
         let extra = t.extra(None, r.base, 0);
-        // What the worst-case checks count per access: with the L1 path,
-        // the cheaper region (every access re-checks after itself);
-        // without, L1 accesses leave, so the fast region's.
-        let worst_extra = if l1 { extra.min(t.l1_extra) } else { extra };
+        // What the checked entries of translations with the L1 path count
+        // per access (`ctx::L1_PATH`): the cheaper region's (every access
+        // re-checks after itself).
+        let worst_extra = if mem.tcdm.is_some() {
+            extra.min(t.l1_extra)
+        } else {
+            extra
+        };
         let stall = (mem.insts[first].reads() & self.load_mask != 0) as u64;
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
-        if cycles.saturating_add(e.worst_case(worst_extra)) >= self.deadline {
+        if cycles.saturating_add(e.worst_case(extra, worst_extra)) >= self.deadline {
             return Translated::TooLong;
         }
         let mut ctx = Ctx {

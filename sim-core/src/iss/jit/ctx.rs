@@ -31,11 +31,24 @@ pub(crate) struct Entry {
     pub nmem: u32,
 }
 
+/// Set in [`Entry::nmem`] for a translation with the L1 path (made for a
+/// cluster core, `emit::translate`'s `l1`): its checked entry counts each
+/// access at [`Ctx::worst_extra`] and re-checks after each; the others
+/// count [`Ctx::extra`] (their L1 accesses leave). The FC's code has no
+/// L1 path, so it stays as compact as without a cluster.
+pub(crate) const L1_PATH: u32 = 1 << 31;
+
 impl Entry {
-    /// The most cycles the block can take for a core whose accesses cost
-    /// `extra` more each.
-    pub fn worst_case(&self, extra: u64) -> u64 {
-        self.worst as u64 + self.nmem as u64 * extra
+    /// The most cycles the block can take (apart from an L1 bank's stall,
+    /// see [`L1_PATH`]) for a core whose fast-region accesses cost `extra`
+    /// more each and whose cheapest access costs `worst_extra` more.
+    pub fn worst_case(&self, extra: u64, worst_extra: u64) -> u64 {
+        let per = if self.nmem & L1_PATH != 0 {
+            worst_extra
+        } else {
+            extra
+        };
+        self.worst as u64 + (self.nmem & !L1_PATH) as u64 * per
     }
 }
 

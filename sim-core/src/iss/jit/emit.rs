@@ -80,7 +80,8 @@ pub(crate) struct Translation {
 /// to be placed at host address `at`. `known` gives the translated block
 /// at a guest pc, for direct jumps, and `first_reads` the registers the
 /// first instruction of the cached block at a pc reads; `l1`: the memory has a cluster L1,
-/// whose accesses get a path of their own (`l1_op`). `None` when its first
+/// whose accesses get a path of their own (`l1_op`; the cluster cores'
+/// translations, marked [`L1_PATH`] in `nmem`). `None` when its first
 /// instruction is not covered.
 ///
 /// The code starts with its checked entry: it goes on only if the block's
@@ -140,7 +141,15 @@ pub(crate) fn translate(
     // nothing in the load shadow).
     let fail = a.new_dynamic_label();
     dynasm!(a ; .arch x64 ; =>start ; lea rcx, [r13 + worst as i32]);
-    fits(&mut a, nmem, fail);
+    if l1 {
+        fits(&mut a, nmem, fail);
+    } else if nmem != 0 {
+        // Without the L1 path only fast-region accesses stay (`rbp` each).
+        dynasm!(a ; .arch x64 ; imul rdx, rbp, nmem as i32 ; add rcx, rdx);
+        dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE] ; jae =>fail);
+    } else {
+        dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE] ; jae =>fail);
+    }
 
     for (k, i) in b[..n].iter().enumerate() {
         let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
@@ -407,7 +416,7 @@ pub(crate) fn translate(
     Some(Translation {
         code,
         worst,
-        nmem,
+        nmem: nmem | if l1 { L1_PATH } else { 0 },
         patches,
     })
 }
@@ -580,7 +589,12 @@ fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
     access(a, i, 14);
     dynasm!(a ; .arch x64 ; add r13, rbp);
     if l1 {
+        // Only a core whose fast-region accesses cost extra (a cluster
+        // core's L2) can exceed the count: the FC's cost nothing more.
+        let skip = a.new_dynamic_label();
+        dynasm!(a ; .arch x64 ; test rbp, rbp ; jz =>skip);
         recheck(a, site);
+        dynasm!(a ; .arch x64 ; =>skip);
     }
 }
 
