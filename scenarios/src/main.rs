@@ -370,6 +370,10 @@ enum NnCmd {
         /// sim-core/platforms/crazyflie-aideck.json).
         #[arg(long, value_name = "FILE")]
         platform: Option<PathBuf>,
+        /// The ISS back end: `jit` (the translator, the default on x86-64)
+        /// or `interp` (the reference); the results are identical.
+        #[arg(long, value_name = "interp|jit", default_value_t = sim_core::iss::Backend::DEFAULT)]
+        iss: sim_core::iss::Backend,
     },
 }
 
@@ -512,6 +516,7 @@ fn main() -> ExitCode {
                     heads,
                     elf,
                     platform,
+                    iss,
                 },
         } => cmd_nn_eval(
             scenarios::nn::eval::EvalArgs {
@@ -522,6 +527,7 @@ fn main() -> ExitCode {
                 limit,
                 elf: elf.unwrap_or_else(scenarios::nn::machine::default_elf),
                 platform: platform.unwrap_or_else(scenarios::nn::machine::default_platform),
+                iss,
             },
             heads,
         ),

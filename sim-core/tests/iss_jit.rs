@@ -26,6 +26,8 @@ struct Outcome {
     csrs: [Option<u32>; 6],
     console: String,
     cluster: String,
+    /// The cluster cores' L1 accesses and bank-conflict stall cycles.
+    l1: (u64, u64),
     ram_hash: u64,
 }
 
@@ -95,6 +97,9 @@ fn run_firmware(name: &str, iss: Backend, limit: u64, slice: Option<Picos>) -> O
         csrs: [0x300u16, 0x341, 0x342, 0x343, 0xb00, 0xb02].map(|c| cpu.csr(c)),
         console: console.text(),
         cluster: format!("{:?} {:?}", cluster.report(&mem), cluster.dma_totals()),
+        l1: cluster.report(&mem).iter().fold((0, 0), |(a, s), r| {
+            (a + r.l1_accesses, s + r.l1_stall_cycles)
+        }),
         ram_hash: ram_hash(&mem),
     }
 }
@@ -121,6 +126,30 @@ fn every_committed_firmware_runs_identically() {
     }
     // Not a vacuous comparison: most programs run to their end.
     assert!(ended * 2 > names.len(), "{ended} of {} ended", names.len());
+}
+
+/// The cluster cores' L1 accesses on the translator's own path (inline
+/// bank grant, the arbiter on a conflict): the programs whose cores
+/// contend for banks give the interpreter's cycles, stalls and memory,
+/// whole and cut into slices (a quantum's end inside a translated run).
+#[test]
+fn l1_bank_conflicts_match_the_interpreter() {
+    for (name, slice) in [
+        ("cluster_matmul_bench", 1_111_111),
+        ("cluster_bench", 2_345_679),
+    ] {
+        let interp = run_firmware(name, Backend::Interp, 1_500_000, None);
+        let jit = run_firmware(name, Backend::Jit, 1_500_000, None);
+        assert_eq!(interp, jit, "{name}");
+        let (accesses, stalls) = jit.l1;
+        assert!(accesses > 100_000 && stalls > 0, "{name}: {:?}", jit.l1);
+        // (Slices move the quanta, hence which core wins a bank: compare
+        // sliced with sliced.)
+        let dt = Some(Picos(slice));
+        let interp = run_firmware(name, Backend::Interp, 1_500_000, dt);
+        let jit = run_firmware(name, Backend::Jit, 1_500_000, dt);
+        assert_eq!(interp, jit, "{name} in slices");
+    }
 }
 
 /// The same runs cut into slices of odd lengths: a translated block never

@@ -196,6 +196,9 @@ pub struct EvalArgs {
     pub platform: PathBuf,
     /// Where eval.json goes (the caller writes it).
     pub out_json: PathBuf,
+    /// The ISS back end of the FC and the cluster (results are identical;
+    /// only the host time differs, docs/ISS.md).
+    pub iss: sim_core::iss::Backend,
 }
 
 /// One image's raw results, as training/golden/golden.json holds them.
@@ -230,7 +233,7 @@ pub fn evaluate(
             args.elf.display()
         );
     }
-    let mut m = NnMachine::new(&args.elf, &args.platform, args.cores, args.mhz)?;
+    let mut m = NnMachine::new(&args.elf, &args.platform, args.cores, args.mhz, args.iss)?;
     let side = m.shape.camera;
     let mut runs: Vec<Inference> = Vec::with_capacity(labels.len());
     for (i, l) in labels.iter().enumerate() {

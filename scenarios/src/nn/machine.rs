@@ -18,7 +18,7 @@ use sim_core::cluster::power::{Meter, Totals};
 use sim_core::cluster::{Cluster, ClusterConfig};
 use sim_core::config::PlatformConfig;
 use sim_core::iss::run_elf::build_memory;
-use sim_core::iss::{load_elf, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason};
+use sim_core::iss::{load_elf, Backend, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason};
 use sim_core::units::{Hertz, Picos};
 
 /// `nn_command` values (nn_eval.c).
@@ -121,9 +121,16 @@ fn symbol(elf: &LoadedElf, name: &str) -> anyhow::Result<u32> {
 }
 
 impl NnMachine {
-    /// Loads the ELF on a GAP8 with `cores` cluster cores at `mhz`, runs it
-    /// to its first request for a frame.
-    pub fn new(elf_path: &Path, platform: &Path, cores: usize, mhz: u64) -> anyhow::Result<Self> {
+    /// Loads the ELF on a GAP8 with `cores` cluster cores at `mhz`, the FC
+    /// and the cores on the ISS back end `iss`, runs it to its first
+    /// request for a frame.
+    pub fn new(
+        elf_path: &Path,
+        platform: &Path,
+        cores: usize,
+        mhz: u64,
+        iss: Backend,
+    ) -> anyhow::Result<Self> {
         let bytes =
             std::fs::read(elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
         let elf = load_elf(&bytes).with_context(|| format!("loading {}", elf_path.display()))?;
@@ -151,12 +158,13 @@ impl NnMachine {
             clock: Hertz(mhz.saturating_mul(1_000_000)),
             vref,
             idle_skip: true,
-            iss: sim_core::iss::Backend::DEFAULT,
+            iss,
         };
         let mut cluster = Cluster::new(cfg, &mut mem).context("the cluster")?;
         let mut fc = Cpu::new(Cluster::fc_config(CpuConfig {
             clock: Hertz(plat.core.frequency),
             ebreak_stops: true,
+            iss,
             ..CpuConfig::default()
         }));
         Cluster::attach_fc(&mut fc);

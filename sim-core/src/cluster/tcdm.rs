@@ -31,13 +31,18 @@ pub const L1_SIZE: u32 = 64 * 1024;
 /// fastest and the slowest runnable core (quantum plus one instruction's
 /// overshoot), see `mod.rs`.
 pub const WINDOW: u64 = 4096;
-const WORDS: usize = (WINDOW / 64) as usize;
+/// Slices per bank.
+pub(crate) const WORDS: usize = (WINDOW / 64) as usize;
+const _: () = assert!(WORDS.is_power_of_two() && BANKS.is_power_of_two());
 
 /// Ports of the arbiter: cluster cores 0..8 (statistics are per port).
 pub const PORTS: usize = 8;
 
 /// Per-port counts of the L1 (for `--stats` and the power model).
+/// `repr(C)`: the block translator counts grants in place
+/// ([`Tcdm::raw_parts`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[repr(C)]
 pub struct PortStats {
     pub accesses: u64,
     pub stall_cycles: u64,
@@ -46,7 +51,10 @@ pub struct PortStats {
 /// One 64-cycle slice of a bank's grants: which cycles of slice `tag`
 /// (cycle / 64) are taken. A slot holding another slice is stale (older
 /// than the window) and reads as free, so nothing ever has to be cleared.
+/// `repr(C)`: the block translator reads and sets it in place
+/// ([`Tcdm::raw_parts`]).
 #[derive(Debug, Clone, Copy, Default)]
+#[repr(C)]
 struct Slice {
     tag: u64,
     bits: u64,
@@ -75,6 +83,18 @@ impl Tcdm {
     #[inline(always)]
     pub fn bank(addr: u32) -> usize {
         ((addr >> 2) as usize) & (BANKS - 1)
+    }
+
+    /// For the block translator's inline grant (`iss/jit/emit.rs`): the
+    /// slices, `BANKS × WINDOW/64` [`Slice`]s of `{tag: u64, bits: u64}`,
+    /// bank-major, and `port`'s `accesses` counter. Translated code does
+    /// there exactly what [`Tcdm::access`] does when the cycle is free in
+    /// its bank (and calls `access` when it is not).
+    pub(crate) fn raw_parts(&mut self, port: u8) -> (*mut u64, *mut u64) {
+        (
+            self.granted.as_mut_ptr() as *mut u64,
+            &mut self.stats[port as usize % PORTS].accesses,
+        )
     }
 
     /// An access by `port` to `addr` issued at cluster cycle `cycle`: the

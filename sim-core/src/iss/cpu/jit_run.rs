@@ -4,6 +4,7 @@
 //! would have left it.
 
 use super::*;
+use crate::cluster::tcdm::Tcdm;
 use crate::iss::jit::ctx::{Ctx, NO_TOHOST};
 use crate::iss::jit::JitCache;
 
@@ -18,6 +19,9 @@ pub(super) const RETURN_BUDGET: u64 = 2048;
 pub(super) enum Translated {
     /// Translated code ran; the core is on an instruction boundary.
     Ran,
+    /// It ran and ended with a short backward branch from `from` to `to`
+    /// that the idle detector wants to see (`Cpu::poll_slow`).
+    Poll { from: u32, to: u32 },
     /// The block's first instruction is not translated: the interpreter
     /// does this block (and only this one).
     Uncovered,
@@ -46,19 +50,55 @@ impl Cpu {
                 }
             }
         }
+        let t = self.mem_timing;
+        // A cluster core's translations have an L1 path and check the
+        // deadline after every access (`emit::mem_op`); the FC's do not.
+        // The code is shared, and each block's checked entry counts its
+        // accesses its own way (`ctx::L1_PATH`), so it is right for either.
+        let has_l1 = mem.tcdm.is_some() && t.l1.1 != 0;
         let jit = mem.jit.as_mut().expect("made above");
-        let Some(e) = jit.entry(&mem.regions, &mem.insts, region, off as usize, first) else {
+        let l1 = t.l1_port.is_some() && mem.tcdm.is_some();
+        let Some(e) = jit.entry(&mem.regions, &mem.insts, region, off as usize, first, l1) else {
             return Translated::Uncovered;
+        };
+        // The L1 (the cluster's TCDM): its data, bounds and cached code,
+        // and the bank arbiter if this core has a port on it.
+        let (l1_ptr, l1_size, l1_code) = match mem
+            .regions
+            .iter_mut()
+            .find(|r| has_l1 && r.base == t.l1.0 && r.size == t.l1.1)
+        {
+            Some(r) => (r.data.as_mut_ptr(), r.size as u64, (r.code_lo, r.code_hi)),
+            None => (std::ptr::null_mut(), 0, (0, 0)),
+        };
+        let (tcdm, l1_granted, l1_accesses) = match (t.l1_port, mem.tcdm.as_mut()) {
+            (Some(port), Some(a)) => {
+                let (g, n) = a.raw_parts(port);
+                (a as *mut Tcdm, g, n)
+            }
+            _ => (
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
+            ),
         };
         let r = &mut mem.regions[region];
         // The fast region is the code's, as in `exec::Run::set_code_region`
         // (L1 code under the bank arbiter has none).
-        let banked = self.mem_timing.l1_port.is_some() && r.base == self.mem_timing.l1.0;
-        let extra = self.mem_timing.extra(None, r.base, 0);
+        let banked = t.l1_port.is_some() && r.base == t.l1.0;
+        let extra = t.extra(None, r.base, 0);
+        // What the checked entries of translations with the L1 path count
+        // per access (`ctx::L1_PATH`): the cheaper region's (every access
+        // re-checks after itself).
+        let worst_extra = if mem.tcdm.is_some() {
+            extra.min(t.l1_extra)
+        } else {
+            extra
+        };
         let stall = (mem.insts[first].reads() & self.load_mask != 0) as u64;
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
-        if cycles.saturating_add(e.worst_case(extra)) >= self.deadline {
+        if cycles.saturating_add(e.worst_case(extra, worst_extra)) >= self.deadline {
             return Translated::TooLong;
         }
         let mut ctx = Ctx {
@@ -71,6 +111,19 @@ impl Cpu {
             tohost: self.tohost.map_or(NO_TOHOST, |t| t as u64),
             deadline: self.deadline,
             extra,
+            worst_extra,
+            l1_ptr,
+            l1_base: t.l1.0 as u64,
+            l1_size,
+            l1_code_lo: l1_code.0 as u64,
+            l1_code_hi: l1_code.1 as u64,
+            l1_extra: t.l1_extra,
+            tcdm,
+            l1_port: t.l1_port.unwrap_or(0) as u64,
+            l1_granted,
+            l1_accesses,
+            poll_armed: self.poll.touched as u64,
+            poll_from: 0,
             jumps: 0,
             exit_pc: 0,
             load_mask: 0,
@@ -80,9 +133,9 @@ impl Cpu {
             cycles: 0,
             retired: 0,
         };
-        // SAFETY: the register file and the region's buffer outlive the
-        // call and nothing else touches them meanwhile (`&mut self`, `&mut
-        // mem`); the table is the cache's own, not resized during a run;
+        // SAFETY: the register file, the region's and the L1's buffers and
+        // the arbiter outlive the call and nothing else touches them
+        // meanwhile (`&mut self`, `&mut mem`); the table is the cache's own, not resized during a run;
         // `e.code` was just returned by this cache.
         unsafe { jit.run(&mut ctx, e.code, cycles) };
         self.cycles = ctx.cycles;
@@ -98,6 +151,12 @@ impl Cpu {
             return Translated::Uncovered;
         }
         self.load_mask = ctx.load_mask as u32;
+        if ctx.poll_from != 0 {
+            return Translated::Poll {
+                from: ctx.poll_from as u32,
+                to: self.pc,
+            };
+        }
         Translated::Ran
     }
 }

@@ -657,12 +657,14 @@ impl Cpu {
     /// or to `tohost`, a system instruction. That one is handed back
     /// unexecuted, with the core's state as it was just before it.
     fn exec_block(&mut self, mem: &mut Memory, first: usize) -> Exit {
-        // The translator first (`jit_run.rs`), except in loops the idle
-        // detector is watching.
+        // The translator first (`jit_run.rs`), except in a loop the idle
+        // detector is measuring (after a device read it runs too, and
+        // reports short backward branches as the interpreter does).
         #[cfg(target_arch = "x86_64")]
-        let deadline = if self.cfg.iss == Backend::Jit && !(self.poll.touched || self.poll.active) {
+        let deadline = if self.cfg.iss == Backend::Jit && !self.poll.active {
             match self.run_translated(mem, first) {
                 jit_run::Translated::Ran => return Exit::Paused,
+                jit_run::Translated::Poll { from, to } => return Exit::Poll { from, to },
                 // The interpreter does what the translator does not take,
                 // and a little more before handing back (a pause at an
                 // instruction boundary, like the end of a run slice: it

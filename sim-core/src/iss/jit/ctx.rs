@@ -10,6 +10,8 @@
 //! - `r15`: instructions retired since the run began,
 //! - `rbp`: [`Ctx::extra`], the extra cycles of every fast-region access.
 
+use crate::cluster::tcdm::Tcdm;
+
 use std::mem::offset_of;
 
 /// A translated block as the dispatcher sees it (16 bytes, one per
@@ -23,15 +25,30 @@ pub(crate) struct Entry {
     /// instruction costs, a taken branch and the longest divisions, one
     /// split cycle per access.
     pub worst: u32,
-    /// Loads and stores in it, each of which may cost `Ctx::extra` more.
+    /// Loads and stores in it, each of which may cost [`Ctx::worst_extra`]
+    /// more (an L1 bank's stall aside: translated code checks the deadline
+    /// again after each L1 access).
     pub nmem: u32,
 }
 
+/// Set in [`Entry::nmem`] for a translation with the L1 path (made for a
+/// cluster core, `emit::translate`'s `l1`): its checked entry counts each
+/// access at [`Ctx::worst_extra`] and re-checks after each; the others
+/// count [`Ctx::extra`] (their L1 accesses leave). The FC's code has no
+/// L1 path, so it stays as compact as without a cluster.
+pub(crate) const L1_PATH: u32 = 1 << 31;
+
 impl Entry {
-    /// The most cycles the block can take for a core whose accesses cost
-    /// `extra` more each.
-    pub fn worst_case(&self, extra: u64) -> u64 {
-        self.worst as u64 + self.nmem as u64 * extra
+    /// The most cycles the block can take (apart from an L1 bank's stall,
+    /// see [`L1_PATH`]) for a core whose fast-region accesses cost `extra`
+    /// more each and whose cheapest access costs `worst_extra` more.
+    pub fn worst_case(&self, extra: u64, worst_extra: u64) -> u64 {
+        let per = if self.nmem & L1_PATH != 0 {
+            worst_extra
+        } else {
+            extra
+        };
+        self.worst as u64 + (self.nmem & !L1_PATH) as u64 * per
     }
 }
 
@@ -56,6 +73,33 @@ pub(crate) struct Ctx {
     pub deadline: u64,
     /// Extra cycles of every fast-region access (a cluster core's L2).
     pub extra: u64,
+    /// The most extra cycles of an access apart from an L1 bank's stall:
+    /// the larger of [`Ctx::extra`] and [`Ctx::l1_extra`] (the worst-case
+    /// checks count it per load or store).
+    pub worst_extra: u64,
+    /// The L1 (`MemTiming::l1`, the cluster's TCDM) when it is not the
+    /// fast region: host address of its data, guest base and size (size
+    /// 0: none), the byte offsets `[l1_code_lo, l1_code_hi)` of cached
+    /// code in it, and the extra cycles of every access.
+    pub l1_ptr: *mut u8,
+    pub l1_base: u64,
+    pub l1_size: u64,
+    pub l1_code_lo: u64,
+    pub l1_code_hi: u64,
+    pub l1_extra: u64,
+    /// The bank arbiter and this core's port on it (null: no arbitration,
+    /// the FC's view of L1).
+    pub tcdm: *mut Tcdm,
+    pub l1_port: u64,
+    /// The arbiter's slices and this port's access counter
+    /// ([`Tcdm::raw_parts`]), for the inline grant (null: no arbitration).
+    pub l1_granted: *mut u64,
+    pub l1_accesses: *mut u64,
+    /// The idle detector wants to see short backward branches (a device
+    /// was read since the last one, `PollTracker::touched`): a taken one
+    /// leaves at its target with its pc in [`Ctx::poll_from`] (else 0).
+    pub poll_armed: u64,
+    pub poll_from: u64,
     /// Taken jumps so far (`Cpu::jumps`).
     pub jumps: u64,
     /// Where the run stopped: the pc of the next instruction.
@@ -84,6 +128,17 @@ pub(crate) const CODE_HI: i32 = offset_of!(Ctx, code_hi) as i32;
 pub(crate) const TOHOST: i32 = offset_of!(Ctx, tohost) as i32;
 pub(crate) const DEADLINE: i32 = offset_of!(Ctx, deadline) as i32;
 pub(crate) const EXTRA: i32 = offset_of!(Ctx, extra) as i32;
+pub(crate) const WORST_EXTRA: i32 = offset_of!(Ctx, worst_extra) as i32;
+pub(crate) const L1_PTR: i32 = offset_of!(Ctx, l1_ptr) as i32;
+pub(crate) const L1_BASE: i32 = offset_of!(Ctx, l1_base) as i32;
+pub(crate) const L1_SIZE: i32 = offset_of!(Ctx, l1_size) as i32;
+pub(crate) const L1_CODE_LO: i32 = offset_of!(Ctx, l1_code_lo) as i32;
+pub(crate) const L1_CODE_HI: i32 = offset_of!(Ctx, l1_code_hi) as i32;
+pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;
+pub(crate) const POLL_FROM: i32 = offset_of!(Ctx, poll_from) as i32;
+pub(crate) const L1_EXTRA: i32 = offset_of!(Ctx, l1_extra) as i32;
+pub(crate) const L1_GRANTED: i32 = offset_of!(Ctx, l1_granted) as i32;
+pub(crate) const L1_ACCESSES: i32 = offset_of!(Ctx, l1_accesses) as i32;
 pub(crate) const JUMPS: i32 = offset_of!(Ctx, jumps) as i32;
 pub(crate) const EXIT_PC: i32 = offset_of!(Ctx, exit_pc) as i32;
 pub(crate) const LOAD_MASK: i32 = offset_of!(Ctx, load_mask) as i32;

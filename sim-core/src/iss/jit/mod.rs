@@ -19,7 +19,10 @@
 //! dispatcher stub, which looks it up in the region's table). So the
 //! interpreter's per-instruction deadline check could never have fired
 //! inside a translated block, and every run stops on the instruction
-//! boundary the interpreter would stop on. Everything else (a block that
+//! boundary the interpreter would stop on. On a memory with a cluster the
+//! access extra counted is the cheaper region's, and the code checks again
+//! after every access (an L1 bank's stall has no bound), leaving just
+//! after it when the rest might not fit (`emit::mem_op`). Everything else (a block that
 //! does not fit, polling loops the idle detector watches, what the
 //! templates do not cover) runs on the interpreter.
 //!
@@ -208,7 +211,8 @@ impl JitCache {
 
     /// The translation of the block starting at byte `off` of region
     /// `region`, whose first instruction is `insts[first]`, translating it
-    /// if needed; `None` if the translator does not cover its first
+    /// if needed (`l1`: with a path for L1 accesses, see `emit::translate`);
+    /// `None` if the translator does not cover its first
     /// instruction.
     pub fn entry(
         &mut self,
@@ -217,6 +221,7 @@ impl JitCache {
         region: usize,
         off: usize,
         first: usize,
+        l1: bool,
     ) -> Option<Entry> {
         if self.tables.len() <= region {
             self.tables
@@ -237,7 +242,7 @@ impl JitCache {
         // Room for the worst block (~100 host bytes per instruction).
         if !self.buf.fits(64 * 1024) {
             self.flush();
-            return self.entry(regions, insts, region, off, first);
+            return self.entry(regions, insts, region, off, first, l1);
         }
         let tables = &self.tables;
         let known = |pc: u32| {
@@ -246,7 +251,19 @@ impl JitCache {
             let e = unpack(*tables.get(r)?.get(o >> 1)?);
             (e.code != 0).then_some(e)
         };
-        let Some(t) = translate(b, self.buf.next_addr(), self.stubs, &known) else {
+        let first_reads = |pc: u32| {
+            let r = regions.iter().find(|r| r.offset_of(pc, 2).is_some())?;
+            let id = *r.block_at.get((pc.wrapping_sub(r.base) >> 1) as usize)?;
+            (id != 0).then(|| insts[id as usize - 1].reads())
+        };
+        let Some(t) = translate(
+            b,
+            self.buf.next_addr(),
+            self.stubs,
+            &known,
+            &first_reads,
+            l1,
+        ) else {
             self.tables[region][off >> 1] = pack(UNCOVERED);
             return None;
         };
