@@ -42,7 +42,7 @@
 
 use protocol::{Reply, Request, Sensors};
 
-use super::estimator::{Attitude, Drift, FlowFilter, FlowFilterParams, Seconds};
+use super::estimator::{Attitude, Drift, FlowFilter, FlowFilterParams, Metres, Seconds};
 use super::pid::{to_body, DesiredState, MotorCommands};
 use super::{invalid, world_err, Outcome, Process, Stm32};
 use crate::peripherals::{DeviceCtx, DeviceError, LinkError, TimedReg};
@@ -349,6 +349,30 @@ impl Motion {
             fvy,
         ];
         Ok(())
+    }
+
+    /// An external position (x, y, z; m) with standard deviation `std`:
+    /// in flow mode the dead-reckoned x, y are corrected
+    /// ([`FlowFilter::fuse_position`]) and the corrected x, y returned; the
+    /// GPS (already absolute) and the height (the world's) take nothing.
+    pub(super) fn fuse_external(&mut self, m: [f64; 3], std: Metres) -> Option<[f64; 2]> {
+        if self.source != PositionSource::Flow {
+            return None;
+        }
+        let p = self.dead.fuse_position([m[0], m[1]], std);
+        self.est[0..2].copy_from_slice(&p);
+        // The next step's velocity is the position's difference from here:
+        // from the corrected position, so a correction is not a velocity.
+        if let Some((_, last)) = &mut self.last {
+            last[0..2].copy_from_slice(&p);
+        }
+        Some(p)
+    }
+
+    /// The dead-reckoned position's error variance per axis (m²), in flow
+    /// mode.
+    pub(super) fn position_variance(&self) -> Option<f64> {
+        (self.source == PositionSource::Flow).then(|| self.dead.position_variance())
     }
 
     /// The estimate's position.

@@ -68,8 +68,8 @@ pub struct Log {
 }
 
 impl Log {
-    pub fn new(with_cluster: bool) -> Self {
-        let vars = log_toc(with_cluster);
+    pub fn new(with_cluster: bool, with_variance: bool) -> Self {
+        let vars = log_toc(with_cluster, with_variance);
         let entries = vars.iter().map(|v| v.entry.clone()).collect();
         Log {
             vars,
@@ -214,7 +214,7 @@ mod tests {
 
     #[test]
     fn blocks_are_created_started_sent_and_refused_as_the_firmware() {
-        let mut log = Log::new(false);
+        let mut log = Log::new(false, false);
         let x = toc::find(log.entries(), "stateEstimate.x").unwrap();
         let v = toc::find(log.entries(), "pm.vbat").unwrap();
         let [xl, xh] = x.to_le_bytes();

@@ -14,20 +14,22 @@
 //!
 //! | port | file | served |
 //! |---|---|---|
-//! | 0 console | — | nothing is printed to the client |
+//! | 0 console | [`console`] | the console's lines |
 //! | 2 param | [`param`] | TOC v2, read, write |
 //! | 3 commander | [`commander`] | roll/pitch/yaw-rate/thrust |
 //! | 4 mem | here | `GET_NUMBER_OF_MEMORIES` → 0 |
 //! | 5 log | [`log`] | TOC v2, blocks, periodic data |
-//! | 6 localization | here | external position / pose: counted, not fused |
+//! | 6 localization | [`localization`] | external position / pose (and packed), fused into the flow estimate |
 //! | 7 generic set-points | [`commander`] | stop, velocity world, z distance, hover, position, notify stop |
 //! | 8 high-level commander | [`high_level`] | take-off, land, go-to, stop, group mask |
 //! | 13 platform | here | protocol version, firmware version, device type |
 //! | 15 link | here | echo, source (the "Bitcraze Crazyflie" magic), sink, null |
 
 pub mod commander;
+pub mod console;
 pub mod high_level;
 pub mod link;
+pub mod localization;
 pub mod log;
 pub mod packet;
 pub mod param;
@@ -40,6 +42,7 @@ use std::path::PathBuf;
 use protocol::Sensors;
 
 use self::commander::{Commander, Setpoint, Watched};
+use self::console::ConsoleTap;
 use self::high_level::{HighLevel, Reference};
 pub use self::link::CrtpSpec;
 use self::link::{Pacer, Recorder, Source};
@@ -47,6 +50,7 @@ use self::packet::*;
 use self::param::{Decks, Known, Params};
 pub use self::telemetry::PowerTelemetry;
 use self::telemetry::{Telemetry, PWM_FULL};
+use super::estimator::Metres;
 use super::flight::Outcome;
 use super::motion::{wrap_angle, K_HEADING, MAX_YAW_RATE};
 use super::pid::{to_body, DesiredState, MotorCommands};
@@ -85,6 +89,9 @@ pub struct CrtpConfig {
     pub ai_deck: bool,
     /// The platform has the GAP8 cluster (`gap8.*` log variables).
     pub cluster: bool,
+    /// The estimate is the flow filter's, which keeps a position variance
+    /// (`kalman.varPX`, `varPY` log variables).
+    pub position_variance: bool,
 }
 
 /// Counters printed when the link closes.
@@ -94,7 +101,9 @@ pub struct CrtpStats {
     pub packets_out: u64,
     pub malformed: u64,
     pub ignored: u64,
+    /// External positions received (port 6) and fused into the estimate.
     pub external_positions: u64,
+    pub fused: u64,
 }
 
 /// What the controller flies in one iteration.
@@ -132,6 +141,10 @@ pub struct CrtpServer {
     last_packet: Option<Picos>,
     /// The height a velocity-world set-point integrates (its vz).
     z_hold: Option<f64>,
+    /// External positions of this step, for the estimator.
+    external: Vec<[f64; 3]>,
+    /// The console's unsent text (port 0).
+    console: ConsoleTap,
     pub stats: CrtpStats,
 }
 
@@ -141,7 +154,7 @@ fn io_device(e: io::Error) -> DeviceError {
 
 impl CrtpServer {
     /// Binds the link (or reads the recording) and creates the recording.
-    pub fn open(cfg: CrtpConfig) -> io::Result<CrtpServer> {
+    pub fn open(cfg: CrtpConfig, console: ConsoleTap) -> io::Result<CrtpServer> {
         let source = Source::open(&cfg.spec)?;
         let recorder = match &cfg.record {
             Some(p) if source.is_live() => Some(Recorder::create(p)?),
@@ -149,7 +162,7 @@ impl CrtpServer {
         };
         let pace = if source.is_live() { cfg.pace } else { 0.0 };
         Ok(CrtpServer {
-            log: log::Log::new(cfg.cluster),
+            log: log::Log::new(cfg.cluster, cfg.position_variance),
             cfg,
             source,
             recorder,
@@ -160,6 +173,8 @@ impl CrtpServer {
             telemetry: Telemetry::default(),
             last_packet: None,
             z_hold: None,
+            external: Vec::new(),
+            console,
             stats: CrtpStats::default(),
         })
     }
@@ -293,8 +308,14 @@ impl CrtpServer {
                 }
                 None
             }
-            (PORT_LOCALIZATION, _) => {
-                self.stats.external_positions += 1;
+            (PORT_LOCALIZATION, ch) => {
+                match localization::positions(ch, d) {
+                    Some(ps) => {
+                        self.stats.external_positions += ps.len() as u64;
+                        self.external.extend(ps);
+                    }
+                    None => self.stats.ignored += 1,
+                }
                 None
             }
             _ => {
@@ -422,6 +443,20 @@ impl CrtpServer {
         }
     }
 
+    /// The console's complete lines, once the client has spoken (see
+    /// [`console`]).
+    fn send_console(&mut self) -> io::Result<()> {
+        if self.last_packet.is_none() {
+            return Ok(());
+        }
+        for d in console::take_packets(&self.console) {
+            self.stats.packets_out += 1;
+            self.source
+                .send(&Packet::new(PORT_CONSOLE, 0, d).encode())?;
+        }
+        Ok(())
+    }
+
     /// The log blocks due at `now`.
     fn send_logs(&mut self, now: Picos) -> io::Result<()> {
         for d in self.log.due(now, &self.telemetry) {
@@ -452,6 +487,26 @@ impl CrtpServer {
 }
 
 impl Stm32 {
+    /// The step's external positions into the estimate (flow mode; the
+    /// GPS takes nothing), with `locSrv.extPosStdDev`: `s` and the
+    /// telemetry get the corrected x, y before the controller flies on them.
+    fn fuse_external(&mut self, server: &mut CrtpServer, s: &mut Sensors) {
+        let std = server
+            .params
+            .as_ref()
+            .map_or(localization::DEFAULT_EXT_POS_STD, |p| {
+                p.get(Known::ExtPosStdDev)
+            });
+        for m in std::mem::take(&mut server.external) {
+            if let Some(p) = self.motion.fuse_external(m, Metres(std)) {
+                [s.x, s.y] = p;
+                server.telemetry.pos[0..2].copy_from_slice(&p);
+                server.stats.fused += 1;
+            }
+        }
+        server.telemetry.position_variance = self.motion.position_variance();
+    }
+
     /// Gives the STM32 its CRTP link (`--crtp`).
     pub fn attach_crtp(&mut self, server: CrtpServer) {
         self.crtp = Some(Box::new(server));
@@ -476,13 +531,15 @@ impl Stm32 {
         now: Picos,
         ctx: &mut DeviceCtx<'_>,
     ) -> Result<(Outcome, MotorCommands), DeviceError> {
-        let s = self.read_sensors(now, ctx)?;
+        let mut s = self.read_sensors(now, ctx)?;
         self.stats.pid_iterations += 1;
         let (dt, actual) = self.measured(&s);
         let mut server = self.crtp.take().expect("the CRTP process has a link");
         server.observe(&s, &self.motion.est, &self.flight.pid.gains);
         let result = (|| {
             server.serve(now).map_err(io_device)?;
+            server.send_console().map_err(io_device)?;
+            self.fuse_external(&mut server, &mut s);
             if let Some(p) = &server.params {
                 p.apply_gains(&mut self.flight.pid.gains);
             }
@@ -553,8 +610,8 @@ impl Stm32 {
                 server.flush().map_err(io_device)?;
                 let st = server.stats;
                 let msg = format!(
-                    "[CRTP] link closed: {} packets in ({} malformed, {} ignored, {} external positions), {} out\n",
-                    st.packets_in, st.malformed, st.ignored, st.external_positions, st.packets_out
+                    "[CRTP] link closed: {} packets in ({} malformed, {} ignored, {} external positions, {} fused), {} out\n",
+                    st.packets_in, st.malformed, st.ignored, st.external_positions, st.fused, st.packets_out
                 );
                 (ctx.console)(&msg);
                 Outcome::Reached

@@ -9,6 +9,7 @@
 //! Type bytes as `param.h`: bit 3 unsigned, bits 0..1 the size (0 = 1 byte,
 //! 2 = 4 bytes), 0x06 float, bit 6 read-only.
 
+use super::localization::DEFAULT_EXT_POS_STD;
 use super::packet::u16_at;
 use super::toc::{self, TocEntry};
 use crate::peripherals::stm32::pid::PidGains;
@@ -40,6 +41,14 @@ pub enum Known {
     FlowDeck,
     MultirangerDeck,
     AiDeck,
+    /// A deck the firmware has a driver for but this drone does not carry
+    /// (cfclient's flight tab reads `deck.bcFlow`, `bcLighthouse4`,
+    /// `bcLoco`, `bcDWM1000` to know whether it may offer command-based
+    /// flight; the firmware registers one `deck.bc…` per driver).
+    AbsentDeck,
+    /// `locSrv.extPosStdDev` (m): the standard deviation external positions
+    /// are fused with.
+    ExtPosStdDev,
     EnHighLevel,
     ResetEstimation,
     Controller,
@@ -165,6 +174,16 @@ impl Params {
         for (group, name, g) in GAINS {
             params.push(p(PARAM_FLOAT, group, name, Known::Gain(g), g.of(gains)));
         }
+        for name in ["bcFlow", "bcLighthouse4", "bcLoco", "bcDWM1000"] {
+            params.push(p(ro, "deck", name, Known::AbsentDeck, 0.0));
+        }
+        params.push(p(
+            PARAM_FLOAT,
+            "locSrv",
+            "extPosStdDev",
+            Known::ExtPosStdDev,
+            DEFAULT_EXT_POS_STD,
+        ));
         let entries = params.iter().map(|p| p.entry.clone()).collect();
         Params {
             params,
@@ -237,6 +256,9 @@ impl Params {
             Known::Controller => CONTROLLER_PID,
             // A gain must be a finite number (the PID would fly NaN).
             Known::Gain(_) if !v.is_finite() => p.value,
+            // A standard deviation is finite and not negative (the update
+            // would not be a Kalman update).
+            Known::ExtPosStdDev if !(v.is_finite() && v >= 0.0) => p.value,
             _ => v,
         };
         let (known, value) = (p.known, p.value);

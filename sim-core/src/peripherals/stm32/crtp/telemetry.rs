@@ -59,6 +59,8 @@ pub struct Telemetry {
     pub sp_yaw: f64,
     pub collective: f64,
     pub power: PowerTelemetry,
+    /// The dead-reckoned position's error variance per axis (m², flow mode).
+    pub position_variance: Option<f64>,
 }
 
 fn mm(m: f64) -> f64 {
@@ -100,9 +102,36 @@ macro_rules! var {
     };
 }
 
+/// The firmware's `supervisor.info` bits (`supervisor.h`, as cfclient's
+/// flight tab reads them): can be armed, is armed, auto-arm (the Crazyflie
+/// 2.1 arms itself), can fly, is flying, is tumbled.
+const SUPERVISOR_CAN_ARM: u16 = 1 << 0;
+const SUPERVISOR_ARMED: u16 = 1 << 1;
+const SUPERVISOR_AUTO_ARM: u16 = 1 << 2;
+const SUPERVISOR_CAN_FLY: u16 = 1 << 3;
+const SUPERVISOR_FLYING: u16 = 1 << 4;
+const SUPERVISOR_TUMBLED: u16 = 1 << 5;
+
+/// `supervisor.info`: always armed and able to fly (auto-arming, no
+/// supervisor lock modelled); flying while the motors turn; tumbled when
+/// the body's z axis is more than 60° from the vertical (the firmware's
+/// `supervisorIsTumbled`: the accelerometer's z below 0.5 g).
+fn supervisor_info(t: &Telemetry) -> f64 {
+    let mut bits = SUPERVISOR_CAN_ARM | SUPERVISOR_ARMED | SUPERVISOR_AUTO_ARM | SUPERVISOR_CAN_FLY;
+    if t.collective > 0.0 {
+        bits |= SUPERVISOR_FLYING;
+    }
+    if t.roll.cos() * t.pitch.cos() < 0.5 {
+        bits |= SUPERVISOR_TUMBLED;
+    }
+    f64::from(bits)
+}
+
 /// The log TOC; `gap8.*` only on a platform with a cluster (the AI deck's
-/// GAP8). Angles in degrees as the firmware logs them.
-pub fn log_toc(with_cluster: bool) -> Vec<LogVar> {
+/// GAP8), `kalman.varPX`, `varPY` only when the estimate is the flow
+/// filter's (which keeps a position variance for external positions).
+/// Angles in degrees as the firmware logs them.
+pub fn log_toc(with_cluster: bool, with_variance: bool) -> Vec<LogVar> {
     let mut v = vec![
         var!(LOG_FLOAT, "stateEstimate", "x", |t| t.pos[0]),
         var!(LOG_FLOAT, "stateEstimate", "y", |t| t.pos[1]),
@@ -141,7 +170,18 @@ pub fn log_toc(with_cluster: bool) -> Vec<LogVar> {
         var!(LOG_FLOAT, "power", "iBattery", |t| t.power.i_battery),
         var!(LOG_FLOAT, "power", "iVcc", |t| t.power.i_vcc),
         var!(LOG_FLOAT, "power", "pMotor", |t| t.power.p_motor),
+        // cfclient's flight tab logs these to enable its flight controls.
+        var!(LOG_UINT8, "sys", "canfly", |_| 1.0),
+        var!(LOG_UINT16, "supervisor", "info", supervisor_info),
     ];
+    if with_variance {
+        v.push(var!(LOG_FLOAT, "kalman", "varPX", |t| t
+            .position_variance
+            .unwrap_or(0.0)));
+        v.push(var!(LOG_FLOAT, "kalman", "varPY", |t| t
+            .position_variance
+            .unwrap_or(0.0)));
+    }
     if with_cluster {
         v.push(var!(LOG_FLOAT, "gap8", "pCluster", |t| t
             .power
