@@ -182,6 +182,9 @@ pub(super) struct Motion {
     last: Option<(f64, [f64; 3])>,
     /// Iterations on the ground while landing.
     pub(super) landed_for: u32,
+    /// The world's position of the last sensor read (its GPS), before the
+    /// flow mode replaces x, y with the estimate.
+    pub(super) world: [f64; 3],
 }
 
 impl Motion {
@@ -207,6 +210,7 @@ impl Motion {
             drift: None,
             last: None,
             landed_for: 0,
+            world: [0.0; 3],
         }
     }
 
@@ -290,6 +294,7 @@ impl Motion {
             (Some(vx), Some(vy)) => Some((vx, vy)),
             _ => None,
         };
+        self.world = [s.x, s.y, s.z];
         let (last_t, last_p) = self.last.unwrap_or((s.time_s, [s.x, s.y, s.z]));
         let dt = s.time_s - last_t;
         if self.source == PositionSource::Flow {

@@ -143,8 +143,10 @@ pub struct CrtpServer {
     z_hold: Option<f64>,
     /// External positions of this step, for the estimator.
     external: Vec<[f64; 3]>,
-    /// The console's unsent text (port 0).
+    /// The console's unsent text (port 0), and whether a client has
+    /// connected (sent more than the null packet of a scan's probe).
     console: ConsoleTap,
+    client: bool,
     pub stats: CrtpStats,
 }
 
@@ -175,6 +177,7 @@ impl CrtpServer {
             z_hold: None,
             external: Vec::new(),
             console,
+            client: false,
             stats: CrtpStats::default(),
         })
     }
@@ -185,8 +188,15 @@ impl CrtpServer {
 
     /// The estimate and ranges of this step's sensor read; the decks from
     /// the first one (the param TOC is fixed from then on).
-    fn observe(&mut self, s: &Sensors, est: &[f64; 15], gains: &super::pid::PidGains) {
+    fn observe(
+        &mut self,
+        s: &Sensors,
+        est: &[f64; 15],
+        world: [f64; 3],
+        gains: &super::pid::PidGains,
+    ) {
         let t = &mut self.telemetry;
+        t.world = world;
         t.pos = [est[0], est[1], est[2]];
         t.yaw = est[3];
         t.vel = [est[4], est[5], est[6]];
@@ -240,6 +250,11 @@ impl CrtpServer {
                 return Ok(());
             }
         };
+        // A scan probes with the null packet and goes away: the console's
+        // lines wait for a client that connects.
+        if (p.port, p.channel) != (PORT_LINK, 3) {
+            self.client = true;
+        }
         let reply = self.answer(&p, now);
         match reply {
             Some(r) => {
@@ -443,10 +458,10 @@ impl CrtpServer {
         }
     }
 
-    /// The console's complete lines, once the client has spoken (see
+    /// The console's complete lines, once a client has connected (see
     /// [`console`]).
     fn send_console(&mut self) -> io::Result<()> {
-        if self.last_packet.is_none() {
+        if !self.client {
             return Ok(());
         }
         for d in console::take_packets(&self.console) {
@@ -535,7 +550,12 @@ impl Stm32 {
         self.stats.pid_iterations += 1;
         let (dt, actual) = self.measured(&s);
         let mut server = self.crtp.take().expect("the CRTP process has a link");
-        server.observe(&s, &self.motion.est, &self.flight.pid.gains);
+        server.observe(
+            &s,
+            &self.motion.est,
+            self.motion.world,
+            &self.flight.pid.gains,
+        );
         let result = (|| {
             server.serve(now).map_err(io_device)?;
             server.send_console().map_err(io_device)?;

@@ -61,6 +61,8 @@ pub struct Telemetry {
     pub power: PowerTelemetry,
     /// The dead-reckoned position's error variance per axis (m², flow mode).
     pub position_variance: Option<f64>,
+    /// The world's position of the drone (its GPS), whatever the estimate.
+    pub world: [f64; 3],
 }
 
 fn mm(m: f64) -> f64 {
@@ -173,6 +175,12 @@ pub fn log_toc(with_cluster: bool, with_variance: bool) -> Vec<LogVar> {
         // cfclient's flight tab logs these to enable its flight controls.
         var!(LOG_UINT8, "sys", "canfly", |_| 1.0),
         var!(LOG_UINT16, "supervisor", "info", supervisor_info),
+        // This platform's own: the world's position of the drone (its GPS),
+        // what a motion-capture system measures, for a client that stands
+        // in for one (send it back with `send_extpos`; docs/CFLIB.md).
+        var!(LOG_FLOAT, "world", "x", |t| t.world[0]),
+        var!(LOG_FLOAT, "world", "y", |t| t.world[1]),
+        var!(LOG_FLOAT, "world", "z", |t| t.world[2]),
     ];
     if with_variance {
         v.push(var!(LOG_FLOAT, "kalman", "varPX", |t| t
