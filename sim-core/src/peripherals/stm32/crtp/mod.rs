@@ -68,6 +68,8 @@ const DEVICE_TYPE: &[u8] = b"CF21 (cosim)";
 /// The link service's source answer (cflib's `platformservice.py` checks
 /// the first 18 bytes).
 const LINK_MAGIC: &[u8] = b"Bitcraze Crazyflie";
+/// The null packet (port 15, channel 3, link bits set): cflib's scan probe.
+const NULL_PACKET: u8 = 0xFF;
 
 /// Position loop of the position set-point and the high-level commander:
 /// velocity demand per metre of error, and its horizontal limit. The
@@ -238,7 +240,13 @@ impl CrtpServer {
 
     fn dispatch(&mut self, bytes: &[u8], now: Picos) -> io::Result<()> {
         self.stats.packets_in += 1;
-        self.last_packet = Some(now);
+        // A scan (cflib's, cfclient's at start) probes with the null packet
+        // and goes away: neither the link's idle time nor the console's
+        // lines start with a probe, they wait for a client that connects.
+        if bytes != [NULL_PACKET] {
+            self.last_packet = Some(now);
+            self.client = true;
+        }
         if let Some(r) = &mut self.recorder {
             r.record(now, bytes)?;
         }
@@ -250,11 +258,6 @@ impl CrtpServer {
                 return Ok(());
             }
         };
-        // A scan probes with the null packet and goes away: the console's
-        // lines wait for a client that connects.
-        if (p.port, p.channel) != (PORT_LINK, 3) {
-            self.client = true;
-        }
         let reply = self.answer(&p, now);
         match reply {
             Some(r) => {

@@ -42,9 +42,10 @@ pub enum Known {
     MultirangerDeck,
     AiDeck,
     /// A deck the firmware has a driver for but this drone does not carry
-    /// (cfclient's flight tab reads `deck.bcFlow`, `bcLighthouse4`,
-    /// `bcLoco`, `bcDWM1000` to know whether it may offer command-based
-    /// flight; the firmware registers one `deck.bc…` per driver).
+    /// (the firmware registers one `deck.bc…` per driver; cfclient's flight
+    /// tab reads `bcFlow`, `bcZRanger`, `bcZRanger2`, `bcLighthouse4`,
+    /// `bcLoco`, `bcDWM1000` for its assist modes and command-based flight,
+    /// its LED-ring tab `bcLedRing`, and fails on a missing one).
     AbsentDeck,
     /// `locSrv.extPosStdDev` (m): the standard deviation external positions
     /// are fused with.
@@ -174,7 +175,15 @@ impl Params {
         for (group, name, g) in GAINS {
             params.push(p(PARAM_FLOAT, group, name, Known::Gain(g), g.of(gains)));
         }
-        for name in ["bcFlow", "bcLighthouse4", "bcLoco", "bcDWM1000"] {
+        for name in [
+            "bcFlow",
+            "bcZRanger",
+            "bcZRanger2",
+            "bcLighthouse4",
+            "bcLoco",
+            "bcDWM1000",
+            "bcLedRing",
+        ] {
             params.push(p(ro, "deck", name, Known::AbsentDeck, 0.0));
         }
         params.push(p(
