@@ -333,5 +333,17 @@ mod tests {
         let mut g = PidGains::default();
         p.apply_gains(&mut g);
         assert_eq!(g.kd_att_rp, 0.2f32 as f64);
+        // cfclient's decks: present as 0; the extpos σ: 0.01 m, a negative
+        // write keeps it.
+        let zr = toc::find(p.entries(), "deck.bcZRanger2").unwrap();
+        assert_eq!(p.read(&zr.to_le_bytes()), Some(vec![zr as u8, 0, 0, 0]));
+        let sd = toc::find(p.entries(), "locSrv.extPosStdDev").unwrap();
+        let mut w = sd.to_le_bytes().to_vec();
+        w.extend((-1.0f32).to_le_bytes());
+        assert_eq!(p.write(&w).unwrap().0[2..], 0.01f32.to_le_bytes());
+        w.truncate(2);
+        w.extend(0.05f32.to_le_bytes());
+        p.write(&w).unwrap();
+        assert_eq!(p.get(Known::ExtPosStdDev), 0.05f32 as f64);
     }
 }

@@ -224,3 +224,35 @@ pub fn encode(ty: u8, v: f64, out: &mut Vec<u8>) {
         _ => {}
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn get(toc: &[LogVar], name: &str, t: &Telemetry) -> Option<f64> {
+        toc.iter()
+            .find(|v| format!("{}.{}", v.entry.group, v.entry.name) == name)
+            .map(|v| (v.get)(t))
+    }
+
+    #[test]
+    fn cfclients_variables_and_the_variance_are_logged() {
+        let mut t = Telemetry {
+            position_variance: Some(2.5e-4),
+            world: [1.0, 2.0, 0.5],
+            ..Telemetry::default()
+        };
+        let toc = log_toc(false, true);
+        assert_eq!(get(&toc, "sys.canfly", &t), Some(1.0));
+        // On the ground: can arm, armed, auto-arm, can fly.
+        assert_eq!(get(&toc, "supervisor.info", &t), Some(15.0));
+        t.collective = 5000.0;
+        assert_eq!(get(&toc, "supervisor.info", &t), Some(31.0));
+        t.roll = 1.2;
+        assert_eq!(get(&toc, "supervisor.info", &t), Some(63.0));
+        assert_eq!(get(&toc, "kalman.varPY", &t), Some(2.5e-4));
+        assert_eq!(get(&toc, "world.y", &t), Some(2.0));
+        // The variance only with the flow filter.
+        assert_eq!(get(&log_toc(false, false), "kalman.varPX", &t), None);
+    }
+}
