@@ -601,7 +601,7 @@ impl Stm32 {
             ..DesiredState::default()
         };
         let ramped = f.height_desired == sp.height;
-        let commands = self.control(&s, &actual, &mut desired, dt)?;
+        let commands = self.control(&s, &actual, &mut desired, dt, None)?;
         let near = (s.z - sp.height).abs() <= self.cfg.tolerance;
         let outcome = match self.process {
             Process::TakingOff if ramped && near => Outcome::Reached,

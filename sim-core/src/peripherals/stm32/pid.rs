@@ -145,7 +145,26 @@ impl PidController {
         desired: &mut DesiredState,
         dt: f64,
     ) -> MotorCommands {
+        self.step_limited(actual, desired, dt, None)
+    }
+
+    /// [`Self::step`] with the velocity loop's roll/pitch output limited to
+    /// ±`tilt_limit` (rad) when given, as the Crazyflie firmware's velocity
+    /// controller limits its attitude output (`position_controller_pid.c`,
+    /// `rLimit`/`pLimit` = 20°). `None` is the Webots C code unchanged (no
+    /// output limit: `pid_horizontal_velocity_controller`).
+    pub fn step_limited(
+        &mut self,
+        actual: &ActualState,
+        desired: &mut DesiredState,
+        dt: f64,
+        tilt_limit: Option<f64>,
+    ) -> MotorCommands {
         self.horizontal_velocity(actual, desired, dt);
+        if let Some(l) = tilt_limit {
+            desired.roll = desired.roll.clamp(-l, l);
+            desired.pitch = desired.pitch.clamp(-l, l);
+        }
         let mut cmd = ControlCommands {
             altitude: self.fixed_height(actual, desired, dt),
             ..ControlCommands::default()

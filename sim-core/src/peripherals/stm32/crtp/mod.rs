@@ -43,7 +43,7 @@ use protocol::Sensors;
 
 use self::commander::{Commander, Setpoint, Watched};
 use self::console::ConsoleTap;
-use self::high_level::{HighLevel, Reference};
+use self::high_level::HighLevel;
 pub use self::link::CrtpSpec;
 use self::link::{Pacer, Recorder, Source};
 use self::packet::*;
@@ -76,6 +76,11 @@ const NULL_PACKET: u8 = 0xFF;
 /// firmware's `position_controller_pid.c` uses kp = 2 and 1 m/s on x, y.
 pub const KP_POSITION: f64 = 2.0;
 pub const MAX_HORIZONTAL_SPEED: f64 = 1.0;
+/// Largest roll/pitch the velocity loop may ask for when a CRTP client
+/// flies by velocity or position (rad): the firmware's
+/// `PID_VEL_ROLL_MAX`/`PID_VEL_PITCH_MAX`, 20° (`position_controller_pid.c`
+/// constrains the velocity PID's attitude output to it).
+pub const TILT_LIMIT: f64 = 20.0 * std::f64::consts::PI / 180.0;
 
 /// The CRTP link's settings (run keys `crtp`, `pace`, `crtp_idle_s`).
 #[derive(Debug, Clone, PartialEq)]
@@ -355,12 +360,19 @@ impl CrtpServer {
         }
     }
 
-    /// The position loop: the world-frame velocity toward `r` (plus its
-    /// feed-forward), limited, in the body frame; the yaw by the heading
-    /// loop of the race's controller.
-    fn track(&self, r: Reference) -> Demand {
+    /// The position loop of the firmware's PID controller
+    /// (`position_controller_pid.c`): a world-frame velocity toward the
+    /// set-point `pos`, proportional to the error (kp 2, no feed-forward:
+    /// `PID_POS_X_KFF` = 0, and with the high-level commander's absolute
+    /// set-points the PID controller flies the planner's position only, not
+    /// its velocity), limited, in the body frame; the yaw by the heading
+    /// loop of the race's controller. Adding the plan's velocity on top
+    /// (as this did before) made the loop unstable with the Webots velocity
+    /// loop: cfclient's 0.5 m in 1 s overshot, oscillated with a growing
+    /// amplitude and flipped the drone (docs/CFLIB.md).
+    fn track(&self, pos: [f64; 3], yaw: f64) -> Demand {
         let t = &self.telemetry;
-        let mut v = [0, 1].map(|i| r.vel[i] + KP_POSITION * (r.pos[i] - t.pos[i]));
+        let mut v = [0, 1].map(|i| KP_POSITION * (pos[i] - t.pos[i]));
         let n = v[0].hypot(v[1]);
         if n > MAX_HORIZONTAL_SPEED {
             v = v.map(|c| c * MAX_HORIZONTAL_SPEED / n);
@@ -369,8 +381,8 @@ impl CrtpServer {
         Demand::Track {
             vx,
             vy,
-            z: r.pos[2],
-            yaw_rate: (K_HEADING * wrap_angle(r.yaw - t.yaw)).clamp(-MAX_YAW_RATE, MAX_YAW_RATE),
+            z: pos[2],
+            yaw_rate: (K_HEADING * wrap_angle(yaw - t.yaw)).clamp(-MAX_YAW_RATE, MAX_YAW_RATE),
         }
     }
 
@@ -448,14 +460,10 @@ impl CrtpServer {
                         yaw_rate,
                     }
                 }
-                Setpoint::Position { x, y, z, yaw } => self.track(Reference {
-                    pos: [x, y, z],
-                    vel: [0.0; 3],
-                    yaw,
-                }),
+                Setpoint::Position { x, y, z, yaw } => self.track([x, y, z], yaw),
             },
             Watched::None => match self.hl.reference(now) {
-                Some(r) => self.track(r),
+                Some(r) => self.track(r.pos, r.yaw),
                 None => Demand::Off,
             },
         }
@@ -614,7 +622,7 @@ impl Stm32 {
                         altitude: z,
                         ..DesiredState::default()
                     };
-                    self.control(&s, &actual, &mut desired, dt)?
+                    self.control(&s, &actual, &mut desired, dt, Some(TILT_LIMIT))?
                 }
             };
             if commands.as_array().iter().any(|m| !m.is_finite()) {
