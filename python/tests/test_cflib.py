@@ -380,3 +380,54 @@ def test_external_positions_bound_the_flow_estimates_drift(lab):
     assert drift[False][2] > 0.1, drift
     assert drift[True][0] < 0.1, drift
     assert drift[True][2] < drift[False][2] / 4, drift
+
+
+# The firmware's velocity controller limits the demanded roll and pitch to
+# 20° (`PID_VEL_ROLL_MAX`, `position_controller_pid.c`); the CRTP position
+# loop does the same (sim-core crtp::TILT_LIMIT).
+TILT_LIMIT = math.radians(20.0)
+
+
+def test_cfclient_buttons_fly_upright(lab):
+    """What cfclient's command-based flight buttons send (cfclient's
+    `FlightTab._flight_command`: 0.5 m at 0.5 m/s): take off 0.5 m in 1 s,
+    forward, back, left, right 0.5 m in 1 s each (`go_to`, relative), then
+    land from the estimated height at 0.5 m/s. The drone flies every move
+    with |roll|, |pitch| within the firmware's 20° (before the fix the
+    first move flipped it), reaches each goal, and ends on the floor
+    upright."""
+    pace = 2.0
+    lab_run = lab("cflib-lab", BASE_PORT + 7, pace=pace)
+    z = [0.0]
+    with SyncCrazyflie(lab_run.uri, cf=Crazyflie(rw_cache=None)) as scf:
+        cf = scf.cf
+        conf = LogConfig("Pose", 50)  # cfclient's pose logger
+        conf.add_variable("stateEstimate.z", "float")
+        conf.data_received_cb.add_callback(lambda _t, d, _c: z.__setitem__(0, d["stateEstimate.z"]))
+        cf.log.add_config(conf)
+        conf.start()
+        cf.param.set_value("commander.enHighLevel", "1")
+        hl = cf.high_level_commander
+        hl.takeoff(z[0] + 0.5, 1.0)
+        time.sleep(3.0 / pace)
+        for dx, dy in ((0.5, 0.0), (-0.5, 0.0), (0.0, 0.5), (0.0, -0.5)):
+            hl.go_to(dx, dy, 0.0, 0.0, 1.0, relative=True)
+            time.sleep(3.0 / pace)
+        hl.land(0.0, z[0] / 0.5)
+        time.sleep(2.0 / pace)
+        conf.stop()
+    rows = trajectory(lab_run.finish())
+    start = rows[0]
+    # The flight: up to the landing's descent through 0.35 m.
+    last_high = max(i for i, r in enumerate(rows) if r["z"] > 0.35)
+    flight = rows[: last_high + 1]
+    tilt = max(max(abs(r["roll"]), abs(r["pitch"])) for r in flight)
+    print(f"largest tilt in flight {tilt:.3f} rad; end {rows[-1]}")
+    assert tilt < TILT_LIMIT, tilt
+    # Each move reached its goal (forward +x, back, left +y, back).
+    assert max(r["x"] for r in flight) - start["x"] > 0.45
+    assert max(r["y"] for r in flight) - start["y"] > 0.45
+    end = rows[-1]
+    assert end["z"] < 0.03 and max(r["collisions"] for r in rows) == 0, end
+    assert abs(end["roll"]) < 0.05 and abs(end["pitch"]) < 0.05, end
+    assert math.hypot(end["x"] - start["x"], end["y"] - start["y"]) < 0.15, end

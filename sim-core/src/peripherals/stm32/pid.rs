@@ -321,6 +321,34 @@ mod tests {
     }
 
     #[test]
+    fn tilt_limit_clamps_the_velocity_loops_attitude_only_when_given() {
+        // vx demand 1 m/s from rest over 32 ms: 2·c(1) + 0.5·1/0.032 = 17.6
+        // rad of pitch from the C code; 20° with the firmware's limit.
+        let actual = ActualState {
+            altitude: 1.0,
+            ..Default::default()
+        };
+        let want = DesiredState {
+            altitude: 1.0,
+            vx: 1.0,
+            vy: -1.0,
+            ..Default::default()
+        };
+        let (mut free, mut limited) = (want, want);
+        let mut a = PidController::new(PidGains::default());
+        let mut b = PidController::new(PidGains::default());
+        let ma = a.step(&actual, &mut free, 0.032);
+        assert_eq!(b.step_limited(&actual, &mut want.clone(), 0.032, None), ma);
+        assert!((free.pitch - 17.625).abs() < 1e-9, "{free:?}");
+        let l = 20f64.to_radians();
+        let mut c = PidController::new(PidGains::default());
+        let mc = c.step_limited(&actual, &mut limited, 0.032, Some(l));
+        assert_eq!((limited.pitch, limited.roll), (l, l));
+        // The attitude loop then sees the limited demand: a smaller kick.
+        assert!((mc.m2 - mc.m1).abs() < (ma.m2 - ma.m1).abs());
+    }
+
+    #[test]
     fn yaw_rate_error_is_proportional_only() {
         let mut pid = PidController::new(PidGains::default());
         let actual = ActualState {
