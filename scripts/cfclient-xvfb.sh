@@ -2,9 +2,9 @@
 # Bitcraze's cfclient against the simulator, headless (docs/CFLIB.md,
 # "cfclient"): Xvfb, `cosim run cflib-lab`, cfclient connected to
 # udp://127.0.0.1:19859, a flight by its command-based flight buttons
-# (take off, up, down, land: xdotool clicks) and screenshots of the
-# flight, console and plotter tabs. (Its horizontal buttons move 0.5 m in
-# 1 s, which the Webots PID cannot fly: docs/CFLIB.md.)
+# (take off, up, down, forward, back, left, right, land: xdotool clicks;
+# each moves 0.5 m in 1 s) and screenshots of the flight, console and
+# plotter tabs.
 #
 #   scripts/cfclient-xvfb.sh [OUT_DIR]      # default /tmp/cfclient-shots
 #
@@ -96,7 +96,18 @@ sleep 2
 shot cfclient-flight
 sleep 1
 click 1522 866 # Down 0.5 m
-sleep 2
+sleep 3
+# The arrows: forward, back, left, right, 0.5 m in 1 s each (docs/CFLIB.md,
+# "cfclient's moves").
+click 1485 779 # Forward
+sleep 3
+click 1485 832 # Back
+sleep 3
+click 1439 805 # Left
+sleep 3
+shot cfclient-moves
+click 1531 805 # Right
+sleep 3
 tab plotter
 sleep 2
 shot cfclient-plotter
