@@ -72,9 +72,19 @@ const LINK_MAGIC: &[u8] = b"Bitcraze Crazyflie";
 const NULL_PACKET: u8 = 0xFF;
 
 /// Position loop of the position set-point and the high-level commander:
-/// velocity demand per metre of error, and its horizontal limit. The
-/// firmware's `position_controller_pid.c` uses kp = 2 and 1 m/s on x, y.
-pub const KP_POSITION: f64 = 2.0;
+/// velocity demand per metre of error, and its horizontal limit.
+///
+/// The firmware's `position_controller_pid.c` uses kp = 2 (1/s) on x, y
+/// over a velocity loop of 25°, 0.44 rad, per m/s (`PID_VEL_X_KP`,
+/// `platform_defaults_cf2.h`): 0.87 rad of tilt per metre of position
+/// error. The velocity loop here is the Webots controller's, 2 rad per m/s
+/// (DESIGN.md §4), 4.6 times stiffer; with the firmware's kp on top the
+/// loop was marginal: in one of four cfclient-button sessions the moves
+/// grew into an oscillation that hit a wall (docs/CFLIB.md). kp = 1 keeps
+/// every recorded session stable with the tilt within 0.15 rad; it is not
+/// the firmware's value but closer to its loop gain (2 rad/m, against
+/// 4 rad/m with kp 2).
+pub const KP_POSITION: f64 = 1.0;
 pub const MAX_HORIZONTAL_SPEED: f64 = 1.0;
 /// Largest roll/pitch the velocity loop may ask for when a CRTP client
 /// flies by velocity or position (rad): the firmware's
@@ -362,7 +372,7 @@ impl CrtpServer {
 
     /// The position loop of the firmware's PID controller
     /// (`position_controller_pid.c`): a world-frame velocity toward the
-    /// set-point `pos`, proportional to the error (kp 2, no feed-forward:
+    /// set-point `pos`, proportional to the error ([`KP_POSITION`], no feed-forward:
     /// `PID_POS_X_KFF` = 0, and with the high-level commander's absolute
     /// set-points the PID controller flies the planner's position only, not
     /// its velocity), limited, in the body frame; the yaw by the heading
