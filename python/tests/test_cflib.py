@@ -396,7 +396,7 @@ def test_cfclient_buttons_fly_upright(lab):
     (before the fix the first move flipped it), reaches each goal and
     hits nothing. *Land* (0.5 m/s) ends on the floor; whether upright is
     printed, not asserted: its touchdown bounce tipped the drone over in
-    one of five sessions (docs/CFLIB.md, an open problem)."""
+    one of six sessions (docs/CFLIB.md, an open problem)."""
     pace = 2.0
     lab_run = lab("cflib-lab", BASE_PORT + 7, pace=pace)
     z = [0.0]
