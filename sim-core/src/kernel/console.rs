@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
+use crate::peripherals::stm32::crtp::console::{self as crtp_console, ConsoleTap};
 use crate::power::PowerNetwork;
 use crate::units::Picos;
 
@@ -18,6 +19,8 @@ struct Inner {
     echo: bool,
     /// Everything printed, for the summary and tests.
     text: Vec<u8>,
+    /// The CRTP link's console (port 0), when one is served.
+    tap: Option<ConsoleTap>,
 }
 
 /// A shared console: the ISS's semihosting writes into it through
@@ -49,6 +52,7 @@ impl Console {
                 file,
                 echo,
                 text: Vec::new(),
+                tap: None,
             })),
         })
     }
@@ -57,6 +61,12 @@ impl Console {
         ConsoleWriter {
             inner: Arc::clone(&self.inner),
         }
+    }
+
+    /// From now on everything printed is also appended to `tap` (the CRTP
+    /// console's unsent text).
+    pub fn set_tap(&self, tap: ConsoleTap) {
+        self.inner.lock().expect("console lock").tap = Some(tap);
     }
 
     pub fn write_str(&self, s: &str) {
@@ -86,6 +96,9 @@ impl Write for ConsoleWriter {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
         let mut inner = self.inner.lock().expect("console lock");
         inner.text.extend_from_slice(buf);
+        if let Some(tap) = &inner.tap {
+            crtp_console::append(tap, buf);
+        }
         if inner.echo {
             let mut out = io::stdout().lock();
             out.write_all(buf)?;

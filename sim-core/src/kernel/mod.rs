@@ -36,9 +36,10 @@ use crate::cluster::Cluster;
 use crate::config::{PlatformConfig, RunConfig};
 use crate::iss::{load_elf, Cpu, CpuConfig, ElfError, Memory, StopReason};
 use crate::peripherals::radio::{self, RadioDevice};
+use crate::peripherals::stm32::crtp::console::ConsoleTap;
 use crate::peripherals::stm32::crtp::{CrtpConfig, CrtpServer, PowerTelemetry};
 use crate::peripherals::stm32::estimator::{FlowFilterParams, MetresPerSecond};
-use crate::peripherals::stm32::Stm32Config;
+use crate::peripherals::stm32::{PositionSource, Stm32Config};
 use crate::peripherals::{Camera, DeviceError, DevicePower, Stm32, WorldLink, WorldSession};
 use crate::power::sag::OnEmpty;
 use crate::power::{CoreState, Loads, PowerError, PowerLogger, PowerNetwork};
@@ -258,14 +259,22 @@ impl<W: WorldLink> Run<W> {
             DevicePower::new(write_delay(&cfg.platform, "stm32")),
         );
         if let Some(spec) = &cfg.run.crtp {
-            let server = CrtpServer::open(CrtpConfig {
-                spec: spec.clone(),
-                pace: cfg.run.pace,
-                idle: Picos((cfg.run.crtp_idle_s * Picos::PER_S as f64).round() as u64),
-                record: cfg.out_dir.as_ref().map(|d| d.join(CRTP_RECORDING)),
-                ai_deck: cfg.platform.sensor("camera").is_some() || cfg.platform.cluster.is_some(),
-                cluster: cfg.platform.cluster.is_some(),
-            })?;
+            // The console's text goes to the CRTP client too (port 0).
+            let tap = ConsoleTap::default();
+            let server = CrtpServer::open(
+                CrtpConfig {
+                    spec: spec.clone(),
+                    pace: cfg.run.pace,
+                    idle: Picos((cfg.run.crtp_idle_s * Picos::PER_S as f64).round() as u64),
+                    record: cfg.out_dir.as_ref().map(|d| d.join(CRTP_RECORDING)),
+                    ai_deck: cfg.platform.sensor("camera").is_some()
+                        || cfg.platform.cluster.is_some(),
+                    cluster: cfg.platform.cluster.is_some(),
+                    position_variance: cfg.run.position_source == PositionSource::Flow,
+                },
+                tap.clone(),
+            )?;
+            console.set_tap(tap);
             stm32.attach_crtp(server);
         }
         let radios = [radio::uwb::SPEC, radio::p2p::SPEC]

@@ -31,6 +31,23 @@
 //!   start, the 2 × 2 covariance stays σᵥ²·I: one scalar per filter, two
 //!   scalar updates (as `mm_flow.c`'s two scalar updates).
 //!
+//! - **External positions** (issue 22: cflib's `send_extpos`, a motion
+//!   capture system's measurement). The Bitcraze EKF fuses them as a
+//!   position measurement with the standard deviation `locSrv.extPosStdDev`
+//!   (`mm_position.c`). Here the position is not a state of the velocity
+//!   filter, so the update is a scalar Kalman update on the dead-reckoned
+//!   position alone, one per axis, with its own error variance Pₚ:
+//!   K = Pₚ/(Pₚ + σₘ²), p += K·(m − p), Pₚ = (1 − K)·Pₚ. Pₚ is 0 at the
+//!   known start and grows each step by what dead reckoning adds: the flow
+//!   noise integrated, (σ·dt)² (the filter has unit gain at low frequency,
+//!   so the integral of its estimate's noise grows as the raw flow's), plus
+//!   a flow scale error of [`FLOW_SCALE_STD`] × the speed, (ε·|v|·dt)². The
+//!   velocity is not corrected (it has no covariance with the position
+//!   here): the next steps integrate from the corrected position, so the
+//!   drift is pulled back at every measurement and cannot accumulate. No
+//!   measurement, no change: without external positions the filter's
+//!   estimate is exactly the dead reckoning it was.
+//!
 //! Why a filter and not the raw flow: the velocity loop of the Bitcraze
 //! controller differentiates the velocity error (kd_vel_xy = 0.5 over a
 //! 32 ms step), so per-sample noise σ becomes attitude demands of about
@@ -50,6 +67,10 @@ pub struct MetresPerSecond(pub f64);
 /// An acceleration or its standard deviation (m/s²).
 #[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]
 pub struct MetresPerSecond2(pub f64);
+
+/// A distance or its standard deviation (m).
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]
+pub struct Metres(pub f64);
 
 /// A time step (s).
 #[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]
@@ -82,6 +103,12 @@ pub const DEFAULT_ACCEL_STD: MetresPerSecond2 = MetresPerSecond2(0.03);
 /// = 0.123 m/s; a 32 ms sample sums 3.2 readings' pixels: σ = 0.123/√3.2 =
 /// 0.069 m/s.
 pub const DEFAULT_FLOW_STD: MetresPerSecond = MetresPerSecond(0.069);
+
+/// The flow's scale uncertainty assumed by the position variance (a
+/// fraction of the speed): the Flow deck's velocity is the pixel rate times
+/// the height, so a height misjudged by 5 % scales it by 5 % (the world's
+/// `flow_scale` = 1.05 in seed 004's room models exactly this).
+pub const FLOW_SCALE_STD: f64 = 0.05;
 
 impl Default for FlowFilterParams {
     fn default() -> Self {
@@ -147,6 +174,9 @@ pub struct FlowFilter {
     position: [f64; 2],
     /// Variance of each velocity component's error (m²/s²).
     variance: f64,
+    /// Variance of each position component's error (m²), for external
+    /// position updates (see the module's note).
+    position_variance: f64,
     /// The previous sample's tilt acceleration (for the trapezoid).
     last_accel: Option<[f64; 2]>,
 }
@@ -160,6 +190,7 @@ impl FlowFilter {
             velocity: [0.0; 2],
             position,
             variance: 0.0,
+            position_variance: 0.0,
             last_accel: None,
         }
     }
@@ -175,6 +206,28 @@ impl FlowFilter {
     /// The velocity error's variance per axis.
     pub fn variance(&self) -> f64 {
         self.variance
+    }
+
+    /// The position error's variance per axis (m²): the firmware's
+    /// `kalman.varPX`, `varPY`.
+    pub fn position_variance(&self) -> f64 {
+        self.position_variance
+    }
+
+    /// An external position measurement `m` (x, y) with standard deviation
+    /// `std` (m): the scalar Kalman update of the module's note. Returns
+    /// the corrected position.
+    pub fn fuse_position(&mut self, m: [f64; 2], std: Metres) -> [f64; 2] {
+        let r = std.0 * std.0;
+        let p = self.position_variance;
+        // An exact measurement (σ = 0) replaces the estimate; otherwise
+        // p + r > 0.
+        let k = if r > 0.0 { p / (p + r) } else { 1.0 };
+        for (e, m) in self.position.iter_mut().zip(m) {
+            *e += k * (m - *e);
+        }
+        self.position_variance = (1.0 - k) * p;
+        self.position
     }
 
     /// One sensor read `dt` after the previous one: predict with the
@@ -211,6 +264,9 @@ impl FlowFilter {
         for (p, v) in self.position.iter_mut().zip(self.velocity) {
             *p += v * dt.0;
         }
+        let speed = self.velocity[0].hypot(self.velocity[1]);
+        self.position_variance +=
+            (self.params.flow_std.0 * dt.0).powi(2) + (FLOW_SCALE_STD * speed * dt.0).powi(2);
     }
 }
 

@@ -66,9 +66,10 @@ impl Stm32 {
         actual: &ActualState,
         desired: &mut DesiredState,
         dt: f64,
+        tilt_limit: Option<f64>,
     ) -> Result<MotorCommands, DeviceError> {
         let f = &mut self.flight;
-        let commands = f.pid.step(actual, desired, dt);
+        let commands = f.pid.step_limited(actual, desired, dt, tilt_limit);
         if commands.as_array().iter().any(|m| !m.is_finite()) {
             return Err(invalid(format!(
                 "the controller produced non-finite motor commands {commands:?} from {s:?}"
@@ -177,7 +178,7 @@ impl Stm32 {
             altitude: f.height_desired,
             ..DesiredState::default()
         };
-        let commands = self.control(&s, &actual, &mut desired, dt)?;
+        let commands = self.control(&s, &actual, &mut desired, dt, None)?;
 
         // Targets set by the firmware are counted (GET_STABLE and landing are
         // the STM32's own).

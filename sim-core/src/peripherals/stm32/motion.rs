@@ -42,7 +42,7 @@
 
 use protocol::{Reply, Request, Sensors};
 
-use super::estimator::{Attitude, Drift, FlowFilter, FlowFilterParams, Seconds};
+use super::estimator::{Attitude, Drift, FlowFilter, FlowFilterParams, Metres, Seconds};
 use super::pid::{to_body, DesiredState, MotorCommands};
 use super::{invalid, world_err, Outcome, Process, Stm32};
 use crate::peripherals::{DeviceCtx, DeviceError, LinkError, TimedReg};
@@ -196,6 +196,9 @@ pub(super) struct Motion {
     pub(super) landed_for: u32,
     /// P2P_ENABLE, P2P_SELF, P2P_ID, P2P_RSSI.
     p2p: [u8; (EXT_END - P2P_ENABLE) as usize],
+    /// The world's position of the last sensor read (its GPS), before the
+    /// flow mode replaces x, y with the estimate.
+    pub(super) world: [f64; 3],
 }
 
 impl Motion {
@@ -222,6 +225,7 @@ impl Motion {
             last: None,
             landed_for: 0,
             p2p: [0; (EXT_END - P2P_ENABLE) as usize],
+            world: [0.0; 3],
         }
     }
 
@@ -331,6 +335,7 @@ impl Motion {
             (Some(vx), Some(vy)) => Some((vx, vy)),
             _ => None,
         };
+        self.world = [s.x, s.y, s.z];
         let (last_t, last_p) = self.last.unwrap_or((s.time_s, [s.x, s.y, s.z]));
         let dt = s.time_s - last_t;
         if self.source == PositionSource::Flow {
@@ -390,6 +395,30 @@ impl Motion {
             fvy,
         ];
         Ok(())
+    }
+
+    /// An external position (x, y, z; m) with standard deviation `std`:
+    /// in flow mode the dead-reckoned x, y are corrected
+    /// ([`FlowFilter::fuse_position`]) and the corrected x, y returned; the
+    /// GPS (already absolute) and the height (the world's) take nothing.
+    pub(super) fn fuse_external(&mut self, m: [f64; 3], std: Metres) -> Option<[f64; 2]> {
+        if self.source != PositionSource::Flow {
+            return None;
+        }
+        let p = self.dead.fuse_position([m[0], m[1]], std);
+        self.est[0..2].copy_from_slice(&p);
+        // The next step's velocity is the position's difference from here:
+        // from the corrected position, so a correction is not a velocity.
+        if let Some((_, last)) = &mut self.last {
+            last[0..2].copy_from_slice(&p);
+        }
+        Some(p)
+    }
+
+    /// The dead-reckoned position's error variance per axis (m²), in flow
+    /// mode.
+    pub(super) fn position_variance(&self) -> Option<f64> {
+        (self.source == PositionSource::Flow).then(|| self.dead.position_variance())
     }
 
     /// The estimate's position.
@@ -620,7 +649,7 @@ impl Stm32 {
             ..DesiredState::default()
         };
         let ramped = f.height_desired == sp.height;
-        let commands = self.control(&s, &actual, &mut desired, dt)?;
+        let commands = self.control(&s, &actual, &mut desired, dt, None)?;
         let near = (s.z - sp.height).abs() <= self.cfg.tolerance;
         let outcome = match self.process {
             Process::TakingOff if ramped && near => Outcome::Reached,

@@ -145,7 +145,26 @@ impl PidController {
         desired: &mut DesiredState,
         dt: f64,
     ) -> MotorCommands {
+        self.step_limited(actual, desired, dt, None)
+    }
+
+    /// [`Self::step`] with the velocity loop's roll/pitch output limited to
+    /// ±`tilt_limit` (rad) when given, as the Crazyflie firmware's velocity
+    /// controller limits its attitude output (`position_controller_pid.c`,
+    /// `rLimit`/`pLimit` = 20°). `None` is the Webots C code unchanged (no
+    /// output limit: `pid_horizontal_velocity_controller`).
+    pub fn step_limited(
+        &mut self,
+        actual: &ActualState,
+        desired: &mut DesiredState,
+        dt: f64,
+        tilt_limit: Option<f64>,
+    ) -> MotorCommands {
         self.horizontal_velocity(actual, desired, dt);
+        if let Some(l) = tilt_limit {
+            desired.roll = desired.roll.clamp(-l, l);
+            desired.pitch = desired.pitch.clamp(-l, l);
+        }
         let mut cmd = ControlCommands {
             altitude: self.fixed_height(actual, desired, dt),
             ..ControlCommands::default()
@@ -299,6 +318,34 @@ mod tests {
         assert!((m.m2 - (48.0 + 0.625)).abs() < 1e-12);
         assert!((m.m3 - (48.0 + 0.625)).abs() < 1e-12);
         assert!((m.m4 - (48.0 - 0.625)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn tilt_limit_clamps_the_velocity_loops_attitude_only_when_given() {
+        // vx demand 1 m/s from rest over 32 ms: 2·c(1) + 0.5·1/0.032 = 17.6
+        // rad of pitch from the C code; 20° with the firmware's limit.
+        let actual = ActualState {
+            altitude: 1.0,
+            ..Default::default()
+        };
+        let want = DesiredState {
+            altitude: 1.0,
+            vx: 1.0,
+            vy: -1.0,
+            ..Default::default()
+        };
+        let (mut free, mut limited) = (want, want);
+        let mut a = PidController::new(PidGains::default());
+        let mut b = PidController::new(PidGains::default());
+        let ma = a.step(&actual, &mut free, 0.032);
+        assert_eq!(b.step_limited(&actual, &mut want.clone(), 0.032, None), ma);
+        assert!((free.pitch - 17.625).abs() < 1e-9, "{free:?}");
+        let l = 20f64.to_radians();
+        let mut c = PidController::new(PidGains::default());
+        let mc = c.step_limited(&actual, &mut limited, 0.032, Some(l));
+        assert_eq!((limited.pitch, limited.roll), (l, l));
+        // The attitude loop then sees the limited demand: a smaller kick.
+        assert!((mc.m2 - mc.m1).abs() < (ma.m2 - ma.m1).abs());
     }
 
     #[test]

@@ -19,7 +19,7 @@
 use std::collections::BTreeMap;
 
 use super::packet::{u16_at, MAX_DATA};
-use super::telemetry::{encode, log_toc, type_size, LogVar, Telemetry};
+use super::telemetry::{encode, log_toc, type_size, LogGroups, LogVar, Telemetry};
 use super::toc::{self, TocEntry};
 use crate::units::Picos;
 
@@ -68,8 +68,8 @@ pub struct Log {
 }
 
 impl Log {
-    pub fn new(with_cluster: bool, with_radar: bool) -> Self {
-        let vars = log_toc(with_cluster, with_radar);
+    pub fn new(groups: LogGroups) -> Self {
+        let vars = log_toc(groups);
         let entries = vars.iter().map(|v| v.entry.clone()).collect();
         Log {
             vars,
@@ -214,7 +214,7 @@ mod tests {
 
     #[test]
     fn blocks_are_created_started_sent_and_refused_as_the_firmware() {
-        let mut log = Log::new(false, false);
+        let mut log = Log::new(LogGroups::default());
         let x = toc::find(log.entries(), "stateEstimate.x").unwrap();
         let v = toc::find(log.entries(), "pm.vbat").unwrap();
         let [xl, xh] = x.to_le_bytes();

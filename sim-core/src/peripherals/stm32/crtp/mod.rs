@@ -14,20 +14,22 @@
 //!
 //! | port | file | served |
 //! |---|---|---|
-//! | 0 console | — | nothing is printed to the client |
+//! | 0 console | [`console`] | the console's lines |
 //! | 2 param | [`param`] | TOC v2, read, write |
 //! | 3 commander | [`commander`] | roll/pitch/yaw-rate/thrust |
 //! | 4 mem | here | `GET_NUMBER_OF_MEMORIES` → 0 |
 //! | 5 log | [`log`] | TOC v2, blocks, periodic data |
-//! | 6 localization | here | external position / pose: counted, not fused |
+//! | 6 localization | [`localization`] | external position / pose (and packed), fused into the flow estimate |
 //! | 7 generic set-points | [`commander`] | stop, velocity world, z distance, hover, position, notify stop |
 //! | 8 high-level commander | [`high_level`] | take-off, land, go-to, stop, group mask |
 //! | 13 platform | here | protocol version, firmware version, device type |
 //! | 15 link | here | echo, source (the "Bitcraze Crazyflie" magic), sink, null |
 
 pub mod commander;
+pub mod console;
 pub mod high_level;
 pub mod link;
+pub mod localization;
 pub mod log;
 pub mod packet;
 pub mod param;
@@ -40,13 +42,15 @@ use std::path::PathBuf;
 use protocol::Sensors;
 
 use self::commander::{Commander, Setpoint, Watched};
-use self::high_level::{HighLevel, Reference};
+use self::console::ConsoleTap;
+use self::high_level::HighLevel;
 pub use self::link::CrtpSpec;
 use self::link::{Pacer, Recorder, Source};
 use self::packet::*;
 use self::param::{Decks, Known, Params};
 pub use self::telemetry::PowerTelemetry;
-use self::telemetry::{Telemetry, PWM_FULL};
+use self::telemetry::{LogGroups, Telemetry, PWM_FULL};
+use super::estimator::Metres;
 use super::flight::Outcome;
 use super::motion::{wrap_angle, K_HEADING, MAX_YAW_RATE};
 use super::pid::{to_body, DesiredState, MotorCommands};
@@ -64,12 +68,29 @@ const DEVICE_TYPE: &[u8] = b"CF21 (cosim)";
 /// The link service's source answer (cflib's `platformservice.py` checks
 /// the first 18 bytes).
 const LINK_MAGIC: &[u8] = b"Bitcraze Crazyflie";
+/// The null packet (port 15, channel 3, link bits set): cflib's scan probe.
+const NULL_PACKET: u8 = 0xFF;
 
 /// Position loop of the position set-point and the high-level commander:
-/// velocity demand per metre of error, and its horizontal limit. The
-/// firmware's `position_controller_pid.c` uses kp = 2 and 1 m/s on x, y.
-pub const KP_POSITION: f64 = 2.0;
+/// velocity demand per metre of error, and its horizontal limit.
+///
+/// The firmware's `position_controller_pid.c` uses kp = 2 (1/s) on x, y
+/// over a velocity loop of 25°, 0.44 rad, per m/s (`PID_VEL_X_KP`,
+/// `platform_defaults_cf2.h`): 0.87 rad of tilt per metre of position
+/// error. The velocity loop here is the Webots controller's, 2 rad per m/s
+/// (DESIGN.md §4), 4.6 times stiffer; with the firmware's kp on top the
+/// loop was marginal: in one of four cfclient-button sessions the moves
+/// grew into an oscillation that hit a wall (docs/CFLIB.md). kp = 1 keeps
+/// every recorded session stable with the tilt within 0.15 rad; it is not
+/// the firmware's value but closer to its loop gain (2 rad/m, against
+/// 4 rad/m with kp 2).
+pub const KP_POSITION: f64 = 1.0;
 pub const MAX_HORIZONTAL_SPEED: f64 = 1.0;
+/// Largest roll/pitch the velocity loop may ask for when a CRTP client
+/// flies by velocity or position (rad): the firmware's
+/// `PID_VEL_ROLL_MAX`/`PID_VEL_PITCH_MAX`, 20° (`position_controller_pid.c`
+/// constrains the velocity PID's attitude output to it).
+pub const TILT_LIMIT: f64 = 20.0 * std::f64::consts::PI / 180.0;
 
 /// The CRTP link's settings (run keys `crtp`, `pace`, `crtp_idle_s`).
 #[derive(Debug, Clone, PartialEq)]
@@ -85,6 +106,9 @@ pub struct CrtpConfig {
     pub ai_deck: bool,
     /// The platform has the GAP8 cluster (`gap8.*` log variables).
     pub cluster: bool,
+    /// The estimate is the flow filter's, which keeps a position variance
+    /// (`kalman.varPX`, `varPY` log variables).
+    pub position_variance: bool,
 }
 
 /// Counters printed when the link closes.
@@ -94,7 +118,9 @@ pub struct CrtpStats {
     pub packets_out: u64,
     pub malformed: u64,
     pub ignored: u64,
+    /// External positions received (port 6) and fused into the estimate.
     pub external_positions: u64,
+    pub fused: u64,
 }
 
 /// What the controller flies in one iteration.
@@ -134,6 +160,12 @@ pub struct CrtpServer {
     z_hold: Option<f64>,
     /// The drone's radio id when its firmware runs seed 004's radar.
     radar: Option<u8>,
+    /// External positions of this step, for the estimator.
+    external: Vec<[f64; 3]>,
+    /// The console's unsent text (port 0), and whether a client has
+    /// connected (sent more than the null packet of a scan's probe).
+    console: ConsoleTap,
+    client: bool,
     pub stats: CrtpStats,
 }
 
@@ -143,7 +175,7 @@ fn io_device(e: io::Error) -> DeviceError {
 
 impl CrtpServer {
     /// Binds the link (or reads the recording) and creates the recording.
-    pub fn open(cfg: CrtpConfig) -> io::Result<CrtpServer> {
+    pub fn open(cfg: CrtpConfig, console: ConsoleTap) -> io::Result<CrtpServer> {
         let source = Source::open(&cfg.spec)?;
         let recorder = match &cfg.record {
             Some(p) if source.is_live() => Some(Recorder::create(p)?),
@@ -151,7 +183,11 @@ impl CrtpServer {
         };
         let pace = if source.is_live() { cfg.pace } else { 0.0 };
         Ok(CrtpServer {
-            log: log::Log::new(cfg.cluster, false),
+            log: log::Log::new(LogGroups {
+                cluster: cfg.cluster,
+                radar: false,
+                variance: cfg.position_variance,
+            }),
             cfg,
             source,
             recorder,
@@ -163,6 +199,9 @@ impl CrtpServer {
             last_packet: None,
             z_hold: None,
             radar: None,
+            external: Vec::new(),
+            console,
+            client: false,
             stats: CrtpStats::default(),
         })
     }
@@ -176,7 +215,11 @@ impl CrtpServer {
     /// and parameters join the TOCs.
     pub fn enable_radar(&mut self, id: u8) {
         self.radar = Some(id);
-        self.log = log::Log::new(self.cfg.cluster, true);
+        self.log = log::Log::new(LogGroups {
+            cluster: self.cfg.cluster,
+            radar: true,
+            variance: self.cfg.position_variance,
+        });
     }
 
     /// What the radar heard last (P2P_ID, P2P_RSSI), for the log.
@@ -195,8 +238,15 @@ impl CrtpServer {
 
     /// The estimate and ranges of this step's sensor read; the decks from
     /// the first one (the param TOC is fixed from then on).
-    fn observe(&mut self, s: &Sensors, est: &[f64; 15], gains: &super::pid::PidGains) {
+    fn observe(
+        &mut self,
+        s: &Sensors,
+        est: &[f64; 15],
+        world: [f64; 3],
+        gains: &super::pid::PidGains,
+    ) {
         let t = &mut self.telemetry;
+        t.world = world;
         t.pos = [est[0], est[1], est[2]];
         t.yaw = est[3];
         t.vel = [est[4], est[5], est[6]];
@@ -240,7 +290,13 @@ impl CrtpServer {
 
     fn dispatch(&mut self, bytes: &[u8], now: Picos) -> io::Result<()> {
         self.stats.packets_in += 1;
-        self.last_packet = Some(now);
+        // A scan (cflib's, cfclient's at start) probes with the null packet
+        // and goes away: neither the link's idle time nor the console's
+        // lines start with a probe, they wait for a client that connects.
+        if bytes != [NULL_PACKET] {
+            self.last_packet = Some(now);
+            self.client = true;
+        }
         if let Some(r) = &mut self.recorder {
             r.record(now, bytes)?;
         }
@@ -320,8 +376,14 @@ impl CrtpServer {
                 }
                 None
             }
-            (PORT_LOCALIZATION, _) => {
-                self.stats.external_positions += 1;
+            (PORT_LOCALIZATION, ch) => {
+                match localization::positions(ch, d) {
+                    Some(ps) => {
+                        self.stats.external_positions += ps.len() as u64;
+                        self.external.extend(ps);
+                    }
+                    None => self.stats.ignored += 1,
+                }
                 None
             }
             _ => {
@@ -343,12 +405,19 @@ impl CrtpServer {
         }
     }
 
-    /// The position loop: the world-frame velocity toward `r` (plus its
-    /// feed-forward), limited, in the body frame; the yaw by the heading
-    /// loop of the race's controller.
-    fn track(&self, r: Reference) -> Demand {
+    /// The position loop of the firmware's PID controller
+    /// (`position_controller_pid.c`): a world-frame velocity toward the
+    /// set-point `pos`, proportional to the error ([`KP_POSITION`], no feed-forward:
+    /// `PID_POS_X_KFF` = 0, and with the high-level commander's absolute
+    /// set-points the PID controller flies the planner's position only, not
+    /// its velocity), limited, in the body frame; the yaw by the heading
+    /// loop of the race's controller. Adding the plan's velocity on top
+    /// (as this did before) made the loop unstable with the Webots velocity
+    /// loop: cfclient's 0.5 m in 1 s overshot, oscillated with a growing
+    /// amplitude and flipped the drone (docs/CFLIB.md).
+    fn track(&self, pos: [f64; 3], yaw: f64) -> Demand {
         let t = &self.telemetry;
-        let mut v = [0, 1].map(|i| r.vel[i] + KP_POSITION * (r.pos[i] - t.pos[i]));
+        let mut v = [0, 1].map(|i| KP_POSITION * (pos[i] - t.pos[i]));
         let n = v[0].hypot(v[1]);
         if n > MAX_HORIZONTAL_SPEED {
             v = v.map(|c| c * MAX_HORIZONTAL_SPEED / n);
@@ -357,8 +426,8 @@ impl CrtpServer {
         Demand::Track {
             vx,
             vy,
-            z: r.pos[2],
-            yaw_rate: (K_HEADING * wrap_angle(r.yaw - t.yaw)).clamp(-MAX_YAW_RATE, MAX_YAW_RATE),
+            z: pos[2],
+            yaw_rate: (K_HEADING * wrap_angle(yaw - t.yaw)).clamp(-MAX_YAW_RATE, MAX_YAW_RATE),
         }
     }
 
@@ -436,17 +505,27 @@ impl CrtpServer {
                         yaw_rate,
                     }
                 }
-                Setpoint::Position { x, y, z, yaw } => self.track(Reference {
-                    pos: [x, y, z],
-                    vel: [0.0; 3],
-                    yaw,
-                }),
+                Setpoint::Position { x, y, z, yaw } => self.track([x, y, z], yaw),
             },
             Watched::None => match self.hl.reference(now) {
-                Some(r) => self.track(r),
+                Some(r) => self.track(r.pos, r.yaw),
                 None => Demand::Off,
             },
         }
+    }
+
+    /// The console's complete lines, once a client has connected (see
+    /// [`console`]).
+    fn send_console(&mut self) -> io::Result<()> {
+        if !self.client {
+            return Ok(());
+        }
+        for d in console::take_packets(&self.console) {
+            self.stats.packets_out += 1;
+            self.source
+                .send(&Packet::new(PORT_CONSOLE, 0, d).encode())?;
+        }
+        Ok(())
     }
 
     /// The log blocks due at `now`.
@@ -479,6 +558,26 @@ impl CrtpServer {
 }
 
 impl Stm32 {
+    /// The step's external positions into the estimate (flow mode; the
+    /// GPS takes nothing), with `locSrv.extPosStdDev`: `s` and the
+    /// telemetry get the corrected x, y before the controller flies on them.
+    fn fuse_external(&mut self, server: &mut CrtpServer, s: &mut Sensors) {
+        let std = server
+            .params
+            .as_ref()
+            .map_or(localization::DEFAULT_EXT_POS_STD, |p| {
+                p.get(Known::ExtPosStdDev)
+            });
+        for m in std::mem::take(&mut server.external) {
+            if let Some(p) = self.motion.fuse_external(m, Metres(std)) {
+                [s.x, s.y] = p;
+                server.telemetry.pos[0..2].copy_from_slice(&p);
+                server.stats.fused += 1;
+            }
+        }
+        server.telemetry.position_variance = self.motion.position_variance();
+    }
+
     /// Gives the STM32 its CRTP link (`--crtp`).
     pub fn attach_crtp(&mut self, server: CrtpServer) {
         self.crtp = Some(Box::new(server));
@@ -503,15 +602,22 @@ impl Stm32 {
         now: Picos,
         ctx: &mut DeviceCtx<'_>,
     ) -> Result<(Outcome, MotorCommands), DeviceError> {
-        let s = self.read_sensors(now, ctx)?;
+        let mut s = self.read_sensors(now, ctx)?;
         self.stats.pid_iterations += 1;
         let (dt, actual) = self.measured(&s);
         let mut server = self.crtp.take().expect("the CRTP process has a link");
-        server.observe(&s, &self.motion.est, &self.flight.pid.gains);
+        server.observe(
+            &s,
+            &self.motion.est,
+            self.motion.world,
+            &self.flight.pid.gains,
+        );
         server.radar_heard(self.motion.p2p_heard());
         let result = (|| {
             server.serve(now).map_err(io_device)?;
             self.motion.set_p2p_enable(server.radar_enabled());
+            server.send_console().map_err(io_device)?;
+            self.fuse_external(&mut server, &mut s);
             if let Some(p) = &server.params {
                 p.apply_gains(&mut self.flight.pid.gains);
             }
@@ -563,7 +669,7 @@ impl Stm32 {
                         altitude: z,
                         ..DesiredState::default()
                     };
-                    self.control(&s, &actual, &mut desired, dt)?
+                    self.control(&s, &actual, &mut desired, dt, Some(TILT_LIMIT))?
                 }
             };
             if commands.as_array().iter().any(|m| !m.is_finite()) {
@@ -582,8 +688,8 @@ impl Stm32 {
                 server.flush().map_err(io_device)?;
                 let st = server.stats;
                 let msg = format!(
-                    "[CRTP] link closed: {} packets in ({} malformed, {} ignored, {} external positions), {} out\n",
-                    st.packets_in, st.malformed, st.ignored, st.external_positions, st.packets_out
+                    "[CRTP] link closed: {} packets in ({} malformed, {} ignored, {} external positions, {} fused), {} out\n",
+                    st.packets_in, st.malformed, st.ignored, st.external_positions, st.fused, st.packets_out
                 );
                 (ctx.console)(&msg);
                 Outcome::Reached

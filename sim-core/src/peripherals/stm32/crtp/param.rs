@@ -9,6 +9,7 @@
 //! Type bytes as `param.h`: bit 3 unsigned, bits 0..1 the size (0 = 1 byte,
 //! 2 = 4 bytes), 0x06 float, bit 6 read-only.
 
+use super::localization::DEFAULT_EXT_POS_STD;
 use super::packet::u16_at;
 use super::toc::{self, TocEntry};
 use crate::peripherals::stm32::pid::PidGains;
@@ -40,6 +41,15 @@ pub enum Known {
     FlowDeck,
     MultirangerDeck,
     AiDeck,
+    /// A deck the firmware has a driver for but this drone does not carry
+    /// (the firmware registers one `deck.bc…` per driver; cfclient's flight
+    /// tab reads `bcFlow`, `bcZRanger`, `bcZRanger2`, `bcLighthouse4`,
+    /// `bcLoco`, `bcDWM1000` for its assist modes and command-based flight,
+    /// its LED-ring tab `bcLedRing`, and fails on a missing one).
+    AbsentDeck,
+    /// `locSrv.extPosStdDev` (m): the standard deviation external positions
+    /// are fused with.
+    ExtPosStdDev,
     EnHighLevel,
     ResetEstimation,
     Controller,
@@ -175,6 +185,24 @@ impl Params {
             params.push(p(PARAM_UINT8, "radar", "enable", Known::RadarEnable, 0.0));
             params.push(p(ro, "radar", "myId", Known::RadarId, f64::from(id)));
         }
+        for name in [
+            "bcFlow",
+            "bcZRanger",
+            "bcZRanger2",
+            "bcLighthouse4",
+            "bcLoco",
+            "bcDWM1000",
+            "bcLedRing",
+        ] {
+            params.push(p(ro, "deck", name, Known::AbsentDeck, 0.0));
+        }
+        params.push(p(
+            PARAM_FLOAT,
+            "locSrv",
+            "extPosStdDev",
+            Known::ExtPosStdDev,
+            DEFAULT_EXT_POS_STD,
+        ));
         let entries = params.iter().map(|p| p.entry.clone()).collect();
         Params {
             params,
@@ -247,6 +275,9 @@ impl Params {
             Known::Controller => CONTROLLER_PID,
             // A gain must be a finite number (the PID would fly NaN).
             Known::Gain(_) if !v.is_finite() => p.value,
+            // A standard deviation is finite and not negative (the update
+            // would not be a Kalman update).
+            Known::ExtPosStdDev if !(v.is_finite() && v >= 0.0) => p.value,
             _ => v,
         };
         let (known, value) = (p.known, p.value);
@@ -327,5 +358,22 @@ mod tests {
         let (ans, k) = p.write(&[en as u8, 0, 1]).unwrap();
         assert_eq!((ans, k), (vec![en as u8, 0, 1], Known::RadarEnable));
         assert_eq!(p.get(Known::RadarEnable), 1.0);
+    }
+
+    #[test]
+    fn cfclients_decks_read_zero_and_the_extpos_std_dev_refuses_negatives() {
+        let mut p = Params::new(Decks::default(), &PidGains::default(), None);
+        // cfclient's decks: present as 0; the extpos σ: 0.01 m, a negative
+        // write keeps it.
+        let zr = toc::find(p.entries(), "deck.bcZRanger2").unwrap();
+        assert_eq!(p.read(&zr.to_le_bytes()), Some(vec![zr as u8, 0, 0, 0]));
+        let sd = toc::find(p.entries(), "locSrv.extPosStdDev").unwrap();
+        let mut w = sd.to_le_bytes().to_vec();
+        w.extend((-1.0f32).to_le_bytes());
+        assert_eq!(p.write(&w).unwrap().0[2..], 0.01f32.to_le_bytes());
+        w.truncate(2);
+        w.extend(0.05f32.to_le_bytes());
+        p.write(&w).unwrap();
+        assert_eq!(p.get(Known::ExtPosStdDev), 0.05f32 as f64);
     }
 }

@@ -63,6 +63,10 @@ pub struct Telemetry {
     /// The radar's last drone heard (0: none for 3 s) and its RSSI (dBm).
     pub radar_id: f64,
     pub radar_rssi: f64,
+    /// The dead-reckoned position's error variance per axis (m², flow mode).
+    pub position_variance: Option<f64>,
+    /// The world's position of the drone (its GPS), whatever the estimate.
+    pub world: [f64; 3],
 }
 
 fn mm(m: f64) -> f64 {
@@ -104,10 +108,46 @@ macro_rules! var {
     };
 }
 
-/// The log TOC; `gap8.*` only on a platform with a cluster (the AI deck's
-/// GAP8), `radar.*` only on a drone whose firmware runs seed 004's radar.
-/// Angles in degrees as the firmware logs them.
-pub fn log_toc(with_cluster: bool, with_radar: bool) -> Vec<LogVar> {
+/// The firmware's `supervisor.info` bits (`supervisor.h`, as cfclient's
+/// flight tab reads them): can be armed, is armed, auto-arm (the Crazyflie
+/// 2.1 arms itself), can fly, is flying, is tumbled.
+const SUPERVISOR_CAN_ARM: u16 = 1 << 0;
+const SUPERVISOR_ARMED: u16 = 1 << 1;
+const SUPERVISOR_AUTO_ARM: u16 = 1 << 2;
+const SUPERVISOR_CAN_FLY: u16 = 1 << 3;
+const SUPERVISOR_FLYING: u16 = 1 << 4;
+const SUPERVISOR_TUMBLED: u16 = 1 << 5;
+
+/// `supervisor.info`: always armed and able to fly (auto-arming, no
+/// supervisor lock modelled); flying while the motors turn; tumbled when
+/// the body's z axis is more than 60° from the vertical (the firmware's
+/// `supervisorIsTumbled`: the accelerometer's z below 0.5 g).
+fn supervisor_info(t: &Telemetry) -> f64 {
+    let mut bits = SUPERVISOR_CAN_ARM | SUPERVISOR_ARMED | SUPERVISOR_AUTO_ARM | SUPERVISOR_CAN_FLY;
+    if t.collective > 0.0 {
+        bits |= SUPERVISOR_FLYING;
+    }
+    if t.roll.cos() * t.pitch.cos() < 0.5 {
+        bits |= SUPERVISOR_TUMBLED;
+    }
+    f64::from(bits)
+}
+
+/// The optional groups of a drone's log TOC.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LogGroups {
+    /// `gap8.*`: a platform with a cluster (the AI deck's GAP8).
+    pub cluster: bool,
+    /// `radar.*`: a drone whose firmware runs seed 004's radar.
+    pub radar: bool,
+    /// `kalman.varPX`, `varPY`: the estimate is the flow filter's (which
+    /// keeps a position variance for external positions).
+    pub variance: bool,
+}
+
+/// The log TOC, with the optional `groups`. Angles in degrees as the
+/// firmware logs them.
+pub fn log_toc(groups: LogGroups) -> Vec<LogVar> {
     let mut v = vec![
         var!(LOG_FLOAT, "stateEstimate", "x", |t| t.pos[0]),
         var!(LOG_FLOAT, "stateEstimate", "y", |t| t.pos[1]),
@@ -146,14 +186,31 @@ pub fn log_toc(with_cluster: bool, with_radar: bool) -> Vec<LogVar> {
         var!(LOG_FLOAT, "power", "iBattery", |t| t.power.i_battery),
         var!(LOG_FLOAT, "power", "iVcc", |t| t.power.i_vcc),
         var!(LOG_FLOAT, "power", "pMotor", |t| t.power.p_motor),
+        // cfclient's flight tab logs these to enable its flight controls.
+        var!(LOG_UINT8, "sys", "canfly", |_| 1.0),
+        var!(LOG_UINT16, "supervisor", "info", supervisor_info),
+        // This platform's own: the world's position of the drone (its GPS),
+        // what a motion-capture system measures, for a client that stands
+        // in for one (send it back with `send_extpos`; docs/CFLIB.md).
+        var!(LOG_FLOAT, "world", "x", |t| t.world[0]),
+        var!(LOG_FLOAT, "world", "y", |t| t.world[1]),
+        var!(LOG_FLOAT, "world", "z", |t| t.world[2]),
     ];
-    if with_cluster {
+    if groups.variance {
+        v.push(var!(LOG_FLOAT, "kalman", "varPX", |t| t
+            .position_variance
+            .unwrap_or(0.0)));
+        v.push(var!(LOG_FLOAT, "kalman", "varPY", |t| t
+            .position_variance
+            .unwrap_or(0.0)));
+    }
+    if groups.cluster {
         v.push(var!(LOG_FLOAT, "gap8", "pCluster", |t| t
             .power
             .p_cluster
             .unwrap_or(0.0)));
     }
-    if with_radar {
+    if groups.radar {
         v.push(var!(LOG_UINT8, "radar", "id", |t| t.radar_id));
         v.push(var!(LOG_FLOAT, "radar", "rssi", |t| t.radar_rssi));
     }
@@ -183,5 +240,40 @@ pub fn encode(ty: u8, v: f64, out: &mut Vec<u8>) {
         LOG_FLOAT => out.extend((v as f32).to_le_bytes()),
         LOG_FP16 => out.extend(half::f16::from_f64(v).to_le_bytes()),
         _ => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn get(toc: &[LogVar], name: &str, t: &Telemetry) -> Option<f64> {
+        toc.iter()
+            .find(|v| format!("{}.{}", v.entry.group, v.entry.name) == name)
+            .map(|v| (v.get)(t))
+    }
+
+    #[test]
+    fn cfclients_variables_and_the_variance_are_logged() {
+        let mut t = Telemetry {
+            position_variance: Some(2.5e-4),
+            world: [1.0, 2.0, 0.5],
+            ..Telemetry::default()
+        };
+        let toc = log_toc(LogGroups {
+            variance: true,
+            ..LogGroups::default()
+        });
+        assert_eq!(get(&toc, "sys.canfly", &t), Some(1.0));
+        // On the ground: can arm, armed, auto-arm, can fly.
+        assert_eq!(get(&toc, "supervisor.info", &t), Some(15.0));
+        t.collective = 5000.0;
+        assert_eq!(get(&toc, "supervisor.info", &t), Some(31.0));
+        t.roll = 1.2;
+        assert_eq!(get(&toc, "supervisor.info", &t), Some(63.0));
+        assert_eq!(get(&toc, "kalman.varPY", &t), Some(2.5e-4));
+        assert_eq!(get(&toc, "world.y", &t), Some(2.0));
+        // The variance only with the flow filter.
+        assert_eq!(get(&log_toc(LogGroups::default()), "kalman.varPX", &t), None);
     }
 }
