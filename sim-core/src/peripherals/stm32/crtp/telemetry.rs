@@ -274,6 +274,9 @@ mod tests {
         assert_eq!(get(&toc, "kalman.varPY", &t), Some(2.5e-4));
         assert_eq!(get(&toc, "world.y", &t), Some(2.0));
         // The variance only with the flow filter.
-        assert_eq!(get(&log_toc(LogGroups::default()), "kalman.varPX", &t), None);
+        assert_eq!(
+            get(&log_toc(LogGroups::default()), "kalman.varPX", &t),
+            None
+        );
     }
 }
