@@ -193,6 +193,8 @@ fn non_default(key: &str) -> &'static str {
         "crtp" => "udp:127.0.0.1:19850",
         "pace" => "4",
         "crtp_idle_s" => "2.5",
+        "cluster.cores" => "4",
+        "cluster.mhz" => "90",
         // The ISS back end that is not the host's default.
         "iss" if cfg!(target_arch = "x86_64") => "interp",
         "iss" => "jit",

@@ -405,7 +405,10 @@ mod tests {
         // extension (cosim_regs.h, 102428-102431) and everything after it.
         assert!((102_428..102_432).all(|o| route(o).is_none()));
         assert_eq!(route(102_432), Some(Target::Stm32(stm32::motion::EXT_CTRL)));
-        assert_eq!(route(102_631), Some(Target::Stm32(229)));
-        assert!((102_632..0x1A000).all(|o| route(o).is_none()));
+        // The extension's last register (the radar's, docs/LAB.md).
+        let last = stm32::motion::EXT_END - 1;
+        assert_eq!(last, 245);
+        assert_eq!(route(102_647), Some(Target::Stm32(last)));
+        assert!((102_648..0x1A000).all(|o| route(o).is_none()));
     }
 }
