@@ -13,6 +13,7 @@
  */
 #include <pmsis.h>
 #include <stdio.h>
+#include "../host_stop.h"
 
 #include "decode.h"
 #include "frame.h"
@@ -40,12 +41,6 @@ static inline uint32_t fc_now(void)
     return v;
 }
 
-/* A plain 4-byte ebreak (not compressed, no semihosting markers around it):
- * the host's stop. */
-static inline void host_stop(void)
-{
-    __asm__ volatile(".option push\n.option norvc\nebreak\n.option pop" ::: "memory");
-}
 
 static struct pi_device cluster;
 

@@ -14,6 +14,7 @@
  * with status 131 (128 + breakpoint cause, start.S).
  */
 #include <stdio.h>
+#include "../host_stop.h"
 
 #include "gate_detect.h"
 
@@ -30,11 +31,6 @@ static inline uint32_t mcycle(void)
     return c;
 }
 
-/* A 4-byte ebreak, so that the host resumes at pc + 4. */
-static inline void host_stop(void)
-{
-    __asm__ volatile(".option push\n\t.option norvc\n\tebreak\n\t.option pop" ::: "memory");
-}
 
 int main(void)
 {
