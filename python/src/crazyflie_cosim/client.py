@@ -64,6 +64,18 @@ class Endpoint:
                     if deadline is not None and time.monotonic() > deadline:
                         raise TimeoutError(f"{self}: the server's listen backlog stayed full") from None
                     time.sleep(0.002)
+                except ConnectionRefusedError:
+                    # The socket file appears at bind(2), before listen(2):
+                    # a client that sees the path in that window is refused
+                    # (seen on a loaded CI machine). Retry as the Rust
+                    # client does (protocol::blocking::Connection::connect_retry);
+                    # a server that is really gone still fails at the deadline.
+                    sock.close()
+                    if deadline is None:
+                        deadline = time.monotonic() + 10.0
+                    if time.monotonic() > deadline:
+                        raise
+                    time.sleep(0.005)
                 except OSError:
                     sock.close()
                     raise
