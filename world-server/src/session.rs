@@ -149,9 +149,6 @@ pub struct Session {
     lockstep: Lockstep<Queued>,
     channel: Channel,
     names: Vec<String>,
-    /// Per drone: its radios (the checks of a RADIO_SEND that a query
-    /// answered early passes, see [`Session::answer_early`]).
-    radios: Vec<Vec<protocol::Radio>>,
     multi: bool,
     /// Positions at the last two step boundaries (radio interpolation).
     before: Snapshot,
@@ -234,7 +231,6 @@ impl Session {
             camera,
             channel,
             names,
-            radios: desc.drones.iter().map(|d| d.radios.clone()).collect(),
             multi,
             before: Snapshot {
                 time: world.time(),
@@ -412,14 +408,11 @@ impl Session {
                 radio,
                 data,
                 offset_ps,
-            } => {
-                self.radios[d].contains(radio)
-                    && (1..=radio.max_payload()).contains(&data.len())
-                    && Picos::from_ms(self.lockstep.clock(d).0)
-                        .0
-                        .checked_add(*offset_ps)
-                        .is_some()
-            }
+            } => send_start(self.lockstep.clock(d), *offset_ps).is_some_and(|start| {
+                self.channel
+                    .check_send(d, *radio, data.len(), start)
+                    .is_ok()
+            }),
             _ => false,
         }
     }
@@ -555,17 +548,14 @@ impl Session {
                 data,
                 offset_ps,
             } => {
-                let start = Picos::from_ms(now.0)
-                    .0
-                    .checked_add(offset_ps)
-                    .ok_or_else(|| {
-                        self.fail(
-                            d,
-                            format!("RADIO_SEND offset_ps {offset_ps} is beyond the end of time"),
-                        )
-                    })?;
+                let start = send_start(now, offset_ps).ok_or_else(|| {
+                    self.fail(
+                        d,
+                        format!("RADIO_SEND offset_ps {offset_ps} is beyond the end of time"),
+                    )
+                })?;
                 self.channel
-                    .send(d, radio, data, Picos(start))
+                    .send(d, radio, data, start)
                     .map_err(|e| self.fail(d, format!("RADIO_SEND: {e}")))
             }
             Request::Stop => {
@@ -751,6 +741,12 @@ impl Session {
             data,
         })
     }
+}
+
+/// A RADIO_SEND's start: the drone's time plus its offset (`None` past
+/// the end of time).
+fn send_start(now: Millis, offset_ps: u64) -> Option<Picos> {
+    Picos::from_ms(now.0).0.checked_add(offset_ps).map(Picos)
 }
 
 /// A request that only reads the world and has a reply (STOP has a reply

@@ -237,6 +237,48 @@ impl Channel {
         }
     }
 
+    /// What [`Channel::send`] checks before it sends: the drone, its
+    /// radio, the payload's length, a start not before what is resolved.
+    /// The session asks it too, to know whether a RADIO_SEND will pass.
+    pub fn check_send(
+        &self,
+        from: usize,
+        radio: Radio,
+        len: usize,
+        start: Picos,
+    ) -> Result<(), ChannelError> {
+        let d = self
+            .drones
+            .get(from)
+            .ok_or(ChannelError::UnknownDrone(from))?;
+        let name = || d.desc.name.clone();
+        if d.retired {
+            return Err(ChannelError::Retired { drone: name() });
+        }
+        if !d.desc.radios.contains(&radio) {
+            return Err(ChannelError::NoSuchRadio {
+                drone: name(),
+                radio,
+            });
+        }
+        if len == 0 || len > radio.max_payload() {
+            return Err(ChannelError::BadLength {
+                drone: name(),
+                radio,
+                len,
+                max: radio.max_payload(),
+            });
+        }
+        if start < self.resolved {
+            return Err(ChannelError::InThePast {
+                drone: name(),
+                start: start.0,
+                resolved: self.resolved.0,
+            });
+        }
+        Ok(())
+    }
+
     /// RADIO_SEND of drone `from`: a transmission starting at world time
     /// `start`. It is resolved (positions, receptions) by the first
     /// [`Channel::resolve`] past `start`; its TX-done is ready at once.
@@ -251,36 +293,8 @@ impl Channel {
         data: Vec<u8>,
         start: Picos,
     ) -> Result<(), ChannelError> {
-        let resolved = self.resolved;
-        let d = self
-            .drones
-            .get_mut(from)
-            .ok_or(ChannelError::UnknownDrone(from))?;
-        let name = || d.desc.name.clone();
-        if d.retired {
-            return Err(ChannelError::Retired { drone: name() });
-        }
-        if !d.desc.radios.contains(&radio) {
-            return Err(ChannelError::NoSuchRadio {
-                drone: name(),
-                radio,
-            });
-        }
-        if data.is_empty() || data.len() > radio.max_payload() {
-            return Err(ChannelError::BadLength {
-                drone: name(),
-                radio,
-                len: data.len(),
-                max: radio.max_payload(),
-            });
-        }
-        if start < resolved {
-            return Err(ChannelError::InThePast {
-                drone: name(),
-                start: start.0,
-                resolved: resolved.0,
-            });
-        }
+        self.check_send(from, radio, data.len(), start)?;
+        let d = &mut self.drones[from];
         // The chip stamps the frame when it leaves its digital part (the
         // platform's start, also a delayed TX's programmed time); the
         // antenna radiates it tx_delay later (DESIGN.md §16; 0 with the
