@@ -925,7 +925,7 @@ impl Cpu {
             CSR_TIMEH => (self.mtime() >> 32) as u32,
             CSR_MVENDORID | CSR_MARCHID | CSR_MIMPID => 0,
             CSR_MHARTID => self.cfg.hart_id,
-            _ => return None,
+            _ => return trigger::read(csr),
         })
     }
 
@@ -971,7 +971,8 @@ impl Cpu {
                 let new = (self.minstret() & 0xffff_ffff) | (v as u64) << 32;
                 self.minstret_off = new.wrapping_sub(self.instret + 1);
             }
-            // misa, mstatush, mip and the ID registers ignore writes.
+            // misa, mstatush, mip, the ID registers and the trigger CSRs
+            // (trigger.rs) ignore writes.
             _ => {}
         }
     }
@@ -1290,4 +1291,5 @@ impl Cpu {
 #[cfg(target_arch = "x86_64")]
 mod jit_run;
 mod poll;
+mod trigger;
 use poll::PollTracker;
