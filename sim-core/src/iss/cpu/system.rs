@@ -1,0 +1,160 @@
+//! The system instructions: ecall, ebreak (and semihosting), mret, wfi,
+//! the CSR instructions and the illegal-instruction trap.
+
+use super::csr::{CSR_CYCLE, CSR_INSTRETH};
+use super::*;
+
+impl Cpu {
+    pub(super) fn illegal(&mut self, mem: &mut Memory, raw: u32, pc: u32) -> Sys {
+        self.trap(mem, cause::ILLEGAL_INSTRUCTION, raw, pc);
+        Sys::Trapped
+    }
+
+    #[cold]
+    pub(super) fn step_system(
+        &mut self,
+        mem: &mut Memory,
+        _dev: &mut dyn Mmio,
+        d: Decoded,
+        pc: u32,
+        a: u32,
+    ) -> Sys {
+        let machine = self.privilege == Privilege::Machine;
+        match d.op {
+            op::ECALL => {
+                let c = if machine {
+                    cause::ECALL_M
+                } else {
+                    cause::ECALL_U
+                };
+                self.trap(mem, c, 0, pc);
+                Sys::Trapped
+            }
+            op::EBREAK => {
+                let around = (
+                    mem.read_u32(pc.wrapping_sub(4)),
+                    mem.read_u32(pc.wrapping_add(4)),
+                );
+                if !d.compressed
+                    && around == (Some(semihost::SEMIHOST_PRE), Some(semihost::SEMIHOST_POST))
+                {
+                    return self.semihosting(mem);
+                }
+                if self.cfg.ebreak_stops {
+                    self.stop(StopReason::Breakpoint { pc });
+                    return Sys::Trapped;
+                }
+                self.trap(mem, cause::BREAKPOINT, pc, pc);
+                Sys::Trapped
+            }
+            op::MRET if machine => {
+                let mpie = self.mstatus & MSTATUS_MPIE != 0;
+                self.privilege = if self.mstatus & MSTATUS_MPP == MSTATUS_MPP {
+                    Privilege::Machine
+                } else {
+                    Privilege::User
+                };
+                self.mstatus &= !(MSTATUS_MIE | MSTATUS_MPP);
+                self.mstatus |= MSTATUS_MPIE | ((mpie as u32) * MSTATUS_MIE);
+                // MPRV is cleared when returning to a less-privileged mode.
+                if self.privilege == Privilege::User {
+                    self.mstatus &= !MSTATUS_MPRV;
+                }
+                self.break_block();
+                Sys::Jump(self.mepc)
+            }
+            // wfi in user mode traps at once: the spec allows an
+            // implementation-defined time limit, ours is zero.
+            op::WFI if machine => {
+                if self.mip() & self.mie == 0 {
+                    self.sleeping = true;
+                    self.break_block();
+                }
+                Sys::Next(None)
+            }
+            op::CSRRW | op::CSRRS | op::CSRRC | op::CSRRWI | op::CSRRSI | op::CSRRCI => {
+                let csr = (d.imm & 0xfff) as u16;
+                let imm_form = d.op >= op::CSRRWI;
+                let src = if imm_form {
+                    (d.imm as u32 >> 12) & 31
+                } else {
+                    a
+                };
+                let writes = match d.op {
+                    op::CSRRW | op::CSRRWI => true,
+                    op::CSRRS | op::CSRRC => d.rs1 != 0,
+                    _ => src != 0,
+                };
+                let raw = self.raw_at(mem, pc, d);
+                let level = (csr >> 8) & 3;
+                if level > self.privilege as u16 || (writes && csr >> 10 == 3) {
+                    return self.illegal(mem, raw, pc);
+                }
+                // User access to the counters needs mcounteren.
+                if !machine && (CSR_CYCLE..=CSR_INSTRETH).contains(&csr) {
+                    let bit = (csr & 0x1f) as u32;
+                    if bit > 2 || self.mcounteren & (1 << bit) == 0 {
+                        return self.illegal(mem, raw, pc);
+                    }
+                }
+                let Some(old) = self.csr_read(csr) else {
+                    return self.illegal(mem, raw, pc);
+                };
+                if timing::slow_csr(csr) {
+                    self.cycles += timing::SLOW_CSR_EXTRA;
+                }
+                if writes {
+                    let new = match d.op {
+                        op::CSRRW | op::CSRRWI => src,
+                        op::CSRRS | op::CSRRSI => old | src,
+                        _ => old & !src,
+                    };
+                    self.csr_write(csr, new);
+                }
+                Sys::Next(Some(old))
+            }
+            _ => {
+                let raw = if d.op == op::ILLEGAL {
+                    d.imm as u32
+                } else {
+                    self.raw_at(mem, pc, d)
+                };
+                self.illegal(mem, raw, pc)
+            }
+        }
+    }
+
+    /// The raw bits of the instruction at pc (for mtval on illegal
+    /// instructions that decoded to a known op, e.g. mret in user mode).
+    pub(super) fn raw_at(&self, mem: &Memory, pc: u32, d: Decoded) -> u32 {
+        let mut b = [0u8; 4];
+        let n = d.len() as usize;
+        if mem.read_bytes(pc, &mut b[..n]).is_err() {
+            return 0;
+        }
+        u32::from_le_bytes(b)
+    }
+
+    #[cold]
+    pub(super) fn semihosting(&mut self, mem: &mut Memory) -> Sys {
+        let clock = semihost::Clock {
+            now: self.now(),
+            cycles: self.cycles,
+            hz: self.cfg.clock.0,
+        };
+        match self.semihost.call(self.regs[10], self.regs[11], mem, clock) {
+            Ok(semihost::Outcome::Return(v)) => {
+                self.regs[10] = v;
+                Sys::Next(None)
+            }
+            Ok(semihost::Outcome::Exit(code)) => {
+                self.stop(StopReason::Exit { code });
+                Sys::Next(None)
+            }
+            Err(e) => {
+                self.stop(StopReason::Fatal(IssError::Console(e.to_string())));
+                Sys::Trapped
+            }
+        }
+    }
+}
