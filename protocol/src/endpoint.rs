@@ -89,20 +89,27 @@ pub(crate) fn bind_unix(path: &Path, backlog: u32) -> Result<(UnixListener, u64)
         let published = std::fs::hard_link(private, path);
         let _ = std::fs::remove_file(private);
         if let Err(e) = published {
-            return Err(if e.kind() == io::ErrorKind::AlreadyExists {
-                ProtocolError::AddrInUse {
-                    path: path.display().to_string(),
-                }
-            } else {
-                ProtocolError::Io(io::Error::new(
-                    e.kind(),
-                    format!("cannot publish socket {}: {e}", path.display()),
-                ))
-            });
+            let taken = e.kind() == io::ErrorKind::AlreadyExists;
+            return Err(path_error(path, e, taken, "cannot publish socket"));
         }
     }
     let ino = std::fs::symlink_metadata(path)?.ino();
     Ok((UnixListener::from(fd), ino))
+}
+
+/// The error for a socket path that could not be taken: "in use" when
+/// another socket holds it (`taken`), else `what` and the OS error.
+fn path_error(path: &Path, e: io::Error, taken: bool, what: &str) -> ProtocolError {
+    if taken {
+        ProtocolError::AddrInUse {
+            path: path.display().to_string(),
+        }
+    } else {
+        ProtocolError::Io(io::Error::new(
+            e.kind(),
+            format!("{what} {}: {e}", path.display()),
+        ))
+    }
 }
 
 /// `DIR/.NAME.PID.bind` beside `path`, if it fits `sockaddr_un`.
@@ -152,16 +159,8 @@ fn bind_listen(bound: &Path, path: &Path, backlog: u32) -> Result<OwnedFd> {
         ) != 0
         {
             let e = io::Error::last_os_error();
-            return Err(if e.kind() == io::ErrorKind::AddrInUse {
-                ProtocolError::AddrInUse {
-                    path: path.display().to_string(),
-                }
-            } else {
-                ProtocolError::Io(io::Error::new(
-                    e.kind(),
-                    format!("cannot bind {}: {e}", path.display()),
-                ))
-            });
+            let taken = e.kind() == io::ErrorKind::AddrInUse;
+            return Err(path_error(path, e, taken, "cannot bind"));
         }
         if let Err(e) = std::fs::set_permissions(bound, std::fs::Permissions::from_mode(0o600)) {
             let _ = std::fs::remove_file(bound);
