@@ -96,6 +96,64 @@ pub enum State {
     #[default]
     Idle,
     Flying(Move),
+    /// A landing's plan is over (or the drone reached the ground first):
+    /// flying on until the drone is down (see [`Touchdown`]).
+    Touchdown(Touchdown),
+}
+
+/// A landing's end. The firmware stops the motors when the landing plan
+/// ends (`TRAJECTORY_STATE_LANDING` → `IDLE`, `planner.c`), with its drone
+/// on the floor: its z position and velocity PIDs track the plan. The
+/// Webots height loop here lags a fast plan: cfclient's 0.5 m/s landing
+/// ended with the drone 9–40 cm up, falling at 0.7–0.8 m/s. Cut then, the
+/// world's rotors (which spin down at their limited rate, DESIGN.md §5)
+/// kept most of the weight for a second while the drone hit the floor and
+/// bounced with no attitude control, rotating at the rate the impact gave
+/// it (the contact solver's, DESIGN.md §5: 1 iteration); flown on to the
+/// floor and cut at the first contact it did the same on its bounce. So
+/// the landing ends as EXT_LAND's does (`motion.rs`): the height set-point
+/// descends from where the drone is at [`TOUCHDOWN_SPEED`], the position
+/// loop holds the plan's end above [`LEVEL_HEIGHT_M`], below it the
+/// attitude loop holds the drone level (no position loop fighting the
+/// floor's friction: that skidded), and the motors stop once the drone
+/// has rested within [`GROUND_M`] of the goal for [`LANDED_ITERATIONS`]
+/// iterations, or [`TOUCHDOWN_TIMEOUT_S`] after the plan's end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Touchdown {
+    /// The plan's end (x, y, z, yaw).
+    pub end: [f64; 4],
+    /// The descending height set-point (m) and when it was last lowered.
+    z: f64,
+    at: Picos,
+    deadline: Picos,
+    resting: u32,
+}
+
+/// The touchdown's descent (m/s): slow enough that the drone meets the
+/// floor without bouncing off it.
+pub const TOUCHDOWN_SPEED: f64 = 0.2;
+/// Height above the landing goal below which the drone is held level
+/// (m): the last bounce-prone centimetres, without the position loop.
+pub const LEVEL_HEIGHT_M: f64 = 0.10;
+/// Within this of the landing goal the drone is on the floor (m): the
+/// seed-004 room's drone rests with its centre 0.015 m up (its start).
+pub const GROUND_M: f64 = 0.03;
+/// Slower than this vertically (m/s) the drone rests (not bouncing).
+pub const RESTING_SPEED: f64 = 0.05;
+/// Iterations resting on the floor before the motors stop, as EXT_LAND's
+/// (`motion.rs`, `LANDED_ITERATIONS`): a bounce restarts the count.
+pub const LANDED_ITERATIONS: u32 = 3;
+/// The longest the drone is flown after its landing plan ended (s): the
+/// motors stop then wherever it is, as the firmware's would at once.
+pub const TOUCHDOWN_TIMEOUT_S: f64 = 5.0;
+
+/// What the planner asks of the controller.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Aim {
+    /// Follow this reference with the position loop.
+    Track(Reference),
+    /// Level attitude, the height loop at this height (m), yaw held.
+    Level { z: f64 },
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -184,7 +242,7 @@ impl HighLevel {
                 let r = m.reference(now);
                 [r.pos[0], r.pos[1], r.pos[2], r.yaw]
             }
-            State::Idle => pose,
+            State::Idle | State::Touchdown(_) => pose,
         }
     }
 
@@ -201,15 +259,50 @@ impl HighLevel {
         });
     }
 
-    /// The reference at `now`; a finished landing turns the motors off.
-    pub fn reference(&mut self, now: Picos) -> Option<Reference> {
+    /// What to fly at `now` with the estimated height `z` and vertical
+    /// speed `vz`; `None`: motors off. A landing ends in a [`Touchdown`]
+    /// when its plan ends or when the drone gets within [`LEVEL_HEIGHT_M`]
+    /// of the goal first (a slow plan), which stops the motors once the
+    /// drone rests on the floor.
+    pub fn aim(&mut self, now: Picos, z: f64, vz: f64) -> Option<Aim> {
         match self.state {
             State::Idle => None,
-            State::Flying(m) if m.landing && m.finished(now) => {
-                self.state = State::Idle;
-                None
+            State::Flying(m) if m.landing && (m.finished(now) || z <= m.to[2] + LEVEL_HEIGHT_M) => {
+                // The plan's end plus the timeout (a huge duration
+                // saturates).
+                let wait = (m.duration + TOUCHDOWN_TIMEOUT_S) * Picos::PER_S as f64;
+                self.state = State::Touchdown(Touchdown {
+                    end: m.to,
+                    z: z.max(m.to[2]),
+                    at: now,
+                    deadline: Picos(m.start.0.saturating_add(wait as u64)),
+                    resting: 0,
+                });
+                self.aim(now, z, vz)
             }
-            State::Flying(m) => Some(m.reference(now)),
+            State::Flying(m) => Some(Aim::Track(m.reference(now))),
+            State::Touchdown(mut t) => {
+                let goal = t.end[2];
+                let rests = z <= goal + GROUND_M && vz.abs() < RESTING_SPEED;
+                t.resting = if rests { t.resting + 1 } else { 0 };
+                if t.resting >= LANDED_ITERATIONS || now >= t.deadline {
+                    self.state = State::Idle;
+                    return None;
+                }
+                let dt = now.saturating_sub(t.at).as_secs_f64();
+                t.z = (t.z - TOUCHDOWN_SPEED * dt).max(goal);
+                t.at = now;
+                self.state = State::Touchdown(t);
+                Some(if z > goal + LEVEL_HEIGHT_M {
+                    Aim::Track(Reference {
+                        pos: [t.end[0], t.end[1], t.z],
+                        vel: [0.0; 3],
+                        yaw: t.end[3],
+                    })
+                } else {
+                    Aim::Level { z: t.z }
+                })
+            }
         }
     }
 }
@@ -237,16 +330,29 @@ mod tests {
         assert!((ds - 35.0 / 16.0).abs() < 1e-12);
     }
 
+    fn track(a: Option<Aim>) -> Reference {
+        match a {
+            Some(Aim::Track(r)) => r,
+            other => panic!("expected a tracked reference, got {other:?}"),
+        }
+    }
+
+    fn land(z: f32, t: f32) -> Vec<u8> {
+        let mut l = takeoff(z, t);
+        l[0] = COMMAND_LAND_2;
+        l
+    }
+
     #[test]
     fn takeoff_goto_land_plan_from_the_estimate_then_stop() {
         let mut hl = HighLevel::default();
         let t0 = Picos::from_ms(2000);
         hl.command(&takeoff(1.0, 2.0), t0, [0.5, -1.0, 0.0, 0.3]);
-        let r = hl.reference(t0 + Picos::from_ms(1000)).unwrap();
+        let r = track(hl.aim(t0 + Picos::from_ms(1000), 0.4, 0.0));
         assert_eq!(r.pos[0], 0.5);
         assert!((r.pos[2] - 0.5).abs() < 1e-9);
         assert!((r.yaw - 0.3).abs() < 1e-6);
-        let end = hl.reference(t0 + Picos::from_ms(2500)).unwrap();
+        let end = track(hl.aim(t0 + Picos::from_ms(2500), 1.0, 0.0));
         assert!((end.pos[2] - 1.0).abs() < 1e-9 && end.vel == [0.0; 3]);
         // Relative go-to from the plan's end.
         let mut g = vec![COMMAND_GO_TO_2, 0, 1, 0];
@@ -255,19 +361,59 @@ mod tests {
         }
         let t1 = t0 + Picos::from_ms(3000);
         hl.command(&g, t1, [9.0; 4]);
-        let r = hl.reference(t1 + Picos::from_ms(4000)).unwrap();
+        let r = track(hl.aim(t1 + Picos::from_ms(4000), 1.0, 0.0));
         assert!((r.pos[0] - 1.5).abs() < 1e-6);
-        // A landing ends with the motors off.
-        let mut l = takeoff(0.0, 1.0);
-        l[0] = COMMAND_LAND_2;
+        // A landing tracks its plan while the drone is up ...
         let t2 = t1 + Picos::from_ms(5000);
-        hl.command(&l, t2, [9.0; 4]);
-        assert!(hl.reference(t2 + Picos::from_ms(500)).is_some());
-        assert!(hl.reference(t2 + Picos::from_ms(1000)).is_none());
+        hl.command(&land(0.0, 1.0), t2, [9.0; 4]);
+        assert!(hl.aim(t2 + Picos::from_ms(500), 0.5, -0.5).is_some());
+        // ... and the motors stop once the drone rests on the floor.
+        let mut t = t2 + Picos::from_ms(600);
+        assert!(matches!(hl.aim(t, 0.015, -0.3), Some(Aim::Level { .. })));
+        for _ in 0..LANDED_ITERATIONS - 1 {
+            t = t + Picos::from_ms(32);
+            assert!(matches!(hl.aim(t, 0.015, 0.0), Some(Aim::Level { .. })));
+        }
+        assert_eq!(hl.aim(t + Picos::from_ms(32), 0.015, 0.0), None);
         assert_eq!(hl.state, State::Idle);
         // Short or non-finite commands are ignored.
         hl.command(&takeoff(1.0, 2.0)[..8], t2, [0.0; 4]);
         hl.command(&takeoff(f32::NAN, 2.0), t2, [0.0; 4]);
         assert_eq!(hl.state, State::Idle);
+    }
+
+    #[test]
+    fn a_landing_flies_on_until_the_drone_is_down() {
+        let mut hl = HighLevel::default();
+        let t0 = Picos::from_ms(1000);
+        let ms = |s: f64| t0 + Picos::from_ms((s * 1000.0).round() as u64);
+        hl.command(&land(0.0, 1.0), t0, [1.0, 2.0, 0.5, 0.0]);
+        // The plan is over, the drone still 0.3 m up and falling: held over
+        // the plan's end by the position loop, the height set-point
+        // descending from the drone's height at TOUCHDOWN_SPEED ...
+        let r = track(hl.aim(ms(1.1), 0.3, -0.7));
+        assert_eq!(r.pos, [1.0, 2.0, 0.3]);
+        let r = track(hl.aim(ms(1.6), 0.2, -0.3));
+        assert!((r.pos[2] - (0.3 - 0.5 * TOUCHDOWN_SPEED)).abs() < 1e-9, "{r:?}");
+        // ... then level below LEVEL_HEIGHT_M, down to the goal.
+        let Some(Aim::Level { z }) = hl.aim(ms(2.0), 0.08, -0.2) else {
+            panic!("level")
+        };
+        assert!((z - (0.2 - 0.4 * TOUCHDOWN_SPEED)).abs() < 1e-9, "{z}");
+        assert_eq!(hl.aim(ms(4.0), 0.08, -0.2), Some(Aim::Level { z: 0.0 }));
+        // Touching the floor while moving, or a bounce, is not resting.
+        for (z, vz) in [(0.02, -0.3), (0.02, 0.0), (0.02, 0.2), (0.02, 0.0), (0.02, 0.01)] {
+            assert!(hl.aim(ms(4.1), z, vz).is_some());
+        }
+        assert_eq!(hl.aim(ms(4.2), 0.02, 0.0), None);
+        // Never down: the motors stop TOUCHDOWN_TIMEOUT_S after the plan's end.
+        hl.command(&land(0.0, 1.0), t0, [1.0, 2.0, 0.5, 0.0]);
+        assert!(hl.aim(ms(1.0 + TOUCHDOWN_TIMEOUT_S - 0.01), 0.3, 0.0).is_some());
+        assert_eq!(hl.aim(ms(1.0 + TOUCHDOWN_TIMEOUT_S), 0.3, 0.0), None);
+        // A slow landing that nears the floor before its plan ends is
+        // levelled then (the position loop would skid it along the floor).
+        hl.command(&land(0.0, 10.0), t0, [1.0, 2.0, 0.5, 0.0]);
+        assert!(matches!(hl.aim(ms(5.0), 0.11, -0.1), Some(Aim::Track(_))));
+        assert!(matches!(hl.aim(ms(5.0), 0.09, -0.1), Some(Aim::Level { .. })));
     }
 }

@@ -43,7 +43,7 @@ use protocol::Sensors;
 
 use self::commander::{Commander, Setpoint, Watched};
 use self::console::ConsoleTap;
-use self::high_level::HighLevel;
+use self::high_level::{Aim, HighLevel};
 pub use self::link::CrtpSpec;
 use self::link::{Pacer, Recorder, Source};
 use self::packet::*;
@@ -507,8 +507,15 @@ impl CrtpServer {
                 }
                 Setpoint::Position { x, y, z, yaw } => self.track([x, y, z], yaw),
             },
-            Watched::None => match self.hl.reference(now) {
-                Some(r) => self.track(r.pos, r.yaw),
+            Watched::None => match self.hl.aim(now, t.pos[2], t.vel[2]) {
+                Some(Aim::Track(r)) => self.track(r.pos, r.yaw),
+                Some(Aim::Level { z }) => Demand::Attitude {
+                    roll: 0.0,
+                    pitch: 0.0,
+                    yaw_rate: 0.0,
+                    collective: None,
+                    z,
+                },
                 None => Demand::Off,
             },
         }
