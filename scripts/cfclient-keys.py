@@ -10,8 +10,8 @@ with the keyboard"; the key map in crazyflie_cosim/cfclient_keys.py).
     scripts/cfclient-keys.py --script "t@0, up@5:1.5, left@8:1, l@11"
                                                 # scripted keys: KEY@START[:HOLD] (wall seconds; hold 0.35 s)
 
-Runs with any Python that has pyzmq (cfclient's own venv has it) and finds
-the checkout's python/src by itself.
+Runs with any Python that has pyzmq (cfclient's own venv has it) and
+imports the checkout's python/src.
 """
 
 from __future__ import annotations
@@ -20,10 +20,8 @@ import argparse
 import sys
 from pathlib import Path
 
-try:
-    import crazyflie_cosim  # noqa: F401
-except ImportError:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python" / "src"))
+# This checkout's package first (an installed one may be another checkout's).
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python" / "src"))
 
 from crazyflie_cosim.cfclient_keys import ZMQ_INPUT, CfclientKeys, Speeds, push  # noqa: E402
 from crazyflie_cosim.lab.keys import Hold, ScriptedKeys, TerminalKeys  # noqa: E402

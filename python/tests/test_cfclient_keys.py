@@ -98,7 +98,8 @@ def test_cfclient_flown_by_keys_takes_off_moves_and_lands_upright(binaries, tmp_
         "window_size": [1600, 1000], "enable_zmq_input": True, "input_device": ZMQ_DEVICE,
         "assistedControl": 3}))
     procs = []
-    display = ":78"
+    # A display nobody uses (X servers hold /tmp/.X<n>-lock).
+    display = next(f":{n}" for n in range(78, 178) if not Path(f"/tmp/.X{n}-lock").exists())
     try:
         procs.append(subprocess.Popen(["Xvfb", display, "-screen", "0", "1600x1000x24"],
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))

@@ -10,7 +10,7 @@
 //! | 3 STOP | group | motors off |
 //! | 4 GO_TO | group, relative, x, y, z, yaw (rad), duration (s) | |
 //! | 7 TAKEOFF_2 | group, height, yaw, use current yaw (bool), duration | |
-//! | 8 LAND_2 | group, height, yaw, use current yaw, duration | then motors off |
+//! | 8 LAND_2 | group, height, yaw, use current yaw, duration | a [`Touchdown`]: down at ≤ 0.2 m/s, motors off just above the floor |
 //! | 12 GO_TO_2 | group, relative, linear, x, y, z, yaw, duration | |
 //!
 //! The firmware plans a 7th-order polynomial per axis from the current
@@ -47,7 +47,6 @@ pub struct Move {
     pub from: [f64; 4],
     pub to: [f64; 4],
     pub linear: bool,
-    pub landing: bool,
 }
 
 /// Position, velocity and yaw of the plan at `now`.
@@ -96,64 +95,91 @@ pub enum State {
     #[default]
     Idle,
     Flying(Move),
-    /// A landing's plan is over (or the drone reached the ground first):
-    /// flying on until the drone is down (see [`Touchdown`]).
+    /// Landing (see [`Touchdown`]).
     Touchdown(Touchdown),
 }
 
-/// A landing's end. The firmware stops the motors when the landing plan
-/// ends (`TRAJECTORY_STATE_LANDING` → `IDLE`, `planner.c`), with its drone
-/// on the floor: its z position and velocity PIDs track the plan. The
-/// Webots height loop here lags a fast plan: cfclient's 0.5 m/s landing
-/// ended with the drone 9–40 cm up, falling at 0.7–0.8 m/s. Cut then, the
-/// world's rotors (which spin down at their limited rate, DESIGN.md §5)
-/// kept most of the weight for a second while the drone hit the floor and
-/// bounced with no attitude control, rotating at the rate the impact gave
-/// it (the contact solver's, DESIGN.md §5: 1 iteration); flown on to the
-/// floor and cut at the first contact it did the same on its bounce. So
-/// the landing ends as EXT_LAND's does (`motion.rs`): the height set-point
-/// descends from where the drone is at [`TOUCHDOWN_SPEED`], the position
-/// loop holds the plan's end above [`LEVEL_HEIGHT_M`], below it the
-/// attitude loop holds the drone level (no position loop fighting the
-/// floor's friction: that skidded), and the motors stop once the drone
-/// has rested within [`GROUND_M`] of the goal for [`LANDED_ITERATIONS`]
-/// iterations, or [`TOUCHDOWN_TIMEOUT_S`] after the plan's end.
+/// A landing. The firmware plans it as any move (a 7th-order polynomial
+/// to the goal height in the duration asked) and stops the motors when the
+/// plan ends (`TRAJECTORY_STATE_LANDING` → `IDLE`, `planner.c`), with its
+/// drone on the floor: its z position and velocity PIDs track the plan.
+/// Here that tipped the drone over in most landings (docs/CFLIB.md,
+/// "cfclient's Land"), for two reasons of this platform's:
+///
+/// - the Webots height loop (DESIGN.md §4) lags a fast plan and the
+///   world's motors change speed at a limited rate (DESIGN.md §5): at the
+///   end of cfclient's 0.5 m/s landing (peak 1.09 m/s) the drone was 9–40
+///   cm up, falling at 0.7–1.1 m/s, and could not brake in what was left;
+/// - a drone that meets the floor with its rotors near the hover speed has
+///   no weight on it: the impact's small asymmetry becomes a free rotation
+///   that the Webots attitude loop (0.5 per rad) is far too weak to stop.
+///   world-server drop tests: at hover thrust a 0.3 m/s touchdown tips the
+///   body 0.64 rad and 0.5 m/s turns it over; at 70 % of it or with the
+///   motors off, 0.03 rad and 0.07–0.15 rad. Cut at the plan's end, the
+///   rotors (spinning down at their limited rate) still held the weight
+///   when the drone hit the floor.
+///
+/// So a landing here is flown as a pilot (or EXT_LAND, `motion.rs`) lands:
+/// the position loop holds x, y and the yaw while the height set-point
+/// descends from the drone's height at the plan's mean speed, at most
+/// [`TOUCHDOWN_SPEED`], to [`CUT_HEIGHT_M`] above the goal; once the drone
+/// hovers there ([`LANDED_ITERATIONS`] iterations within [`CUT_TOLERANCE_M`]
+/// and slower than [`RESTING_SPEED`]) the motors stop and it sinks the last
+/// centimetres on its spinning-down rotors, meeting the floor slowly with
+/// the thrust below its weight. [`TOUCHDOWN_TIMEOUT_S`] after the descent's
+/// end the motors stop wherever the drone is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Touchdown {
-    /// The plan's end (x, y, z, yaw).
+    /// The goal (x, y, z, yaw).
     pub end: [f64; 4],
-    /// The descending height set-point (m) and when it was last lowered.
+    /// The descending height set-point (m), its speed (m/s) and when it
+    /// was last lowered.
     z: f64,
+    speed: f64,
     at: Picos,
     deadline: Picos,
-    resting: u32,
+    hovering: u32,
 }
 
-/// The touchdown's descent (m/s): slow enough that the drone meets the
-/// floor without bouncing off it.
+/// The fastest descent (m/s): 60 seeded cfclient sessions landed upright
+/// at 0.2 m/s, 19 of 20 at 0.3 (`scripts/cfclient-landings.py`).
 pub const TOUCHDOWN_SPEED: f64 = 0.2;
-/// Height above the landing goal below which the drone is held level
-/// (m): the last bounce-prone centimetres, without the position loop.
-pub const LEVEL_HEIGHT_M: f64 = 0.10;
-/// Within this of the landing goal the drone is on the floor (m): the
-/// seed-004 room's drone rests with its centre 0.015 m up (its start).
-pub const GROUND_M: f64 = 0.03;
-/// Slower than this vertically (m/s) the drone rests (not bouncing).
+/// Where the motors stop, above the landing goal (m): the drone's centre
+/// rests 0.015 m up, so 3.5 cm of fall on spinning-down rotors.
+pub const CUT_HEIGHT_M: f64 = 0.05;
+/// Within this of the cut height and slower than [`RESTING_SPEED`]
+/// vertically (m/s), the drone hovers there.
+pub const CUT_TOLERANCE_M: f64 = 0.02;
 pub const RESTING_SPEED: f64 = 0.05;
-/// Iterations resting on the floor before the motors stop, as EXT_LAND's
-/// (`motion.rs`, `LANDED_ITERATIONS`): a bounce restarts the count.
+/// Iterations hovering at the cut height before the motors stop, as
+/// EXT_LAND's (`motion.rs`, `LANDED_ITERATIONS`).
 pub const LANDED_ITERATIONS: u32 = 3;
-/// The longest the drone is flown after its landing plan ended (s): the
-/// motors stop then wherever it is, as the firmware's would at once.
-pub const TOUCHDOWN_TIMEOUT_S: f64 = 5.0;
+/// How long after the descent's end the motors stop at the latest (s).
+pub const TOUCHDOWN_TIMEOUT_S: f64 = 3.0;
 
-/// What the planner asks of the controller.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Aim {
-    /// Follow this reference with the position loop.
-    Track(Reference),
-    /// Level attitude, the height loop at this height (m), yaw held.
-    Level { z: f64 },
+impl Touchdown {
+    /// A landing from height `z` to `to` asked to take `duration` s;
+    /// `None` for a non-finite or negative argument.
+    fn new(now: Picos, z: f64, to: [f64; 4], duration: f64) -> Option<Touchdown> {
+        let ok = to.iter().all(|v| v.is_finite()) && z.is_finite() && duration.is_finite();
+        if !ok || duration < 0.0 {
+            return None;
+        }
+        let cut = to[2] + CUT_HEIGHT_M;
+        let drop = (z - cut).max(0.0);
+        let mean = if duration > 0.0 { drop / duration } else { f64::INFINITY };
+        let speed = mean.min(TOUCHDOWN_SPEED).max(1e-3);
+        // The descent plus the timeout (a huge time saturates).
+        let wait = (drop / speed + TOUCHDOWN_TIMEOUT_S) * Picos::PER_S as f64;
+        Some(Touchdown {
+            end: to,
+            z: z.max(cut),
+            speed,
+            at: now,
+            deadline: Picos(now.0.saturating_add(wait as u64)),
+            hovering: 0,
+        })
+    }
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -176,7 +202,7 @@ impl HighLevel {
             return;
         }
         let f = |i: usize| f32_at(d, i);
-        let plan = |to: [f64; 4], duration: f64, linear: bool, landing: bool| {
+        let plan = |to: [f64; 4], duration: f64, linear: bool| {
             let ok = to.iter().all(|v| v.is_finite()) && duration.is_finite() && duration >= 0.0;
             ok.then_some(Move {
                 start: now,
@@ -184,7 +210,6 @@ impl HighLevel {
                 from: self.from(now, pose),
                 to,
                 linear,
-                landing,
             })
         };
         let new = match cmd {
@@ -203,7 +228,14 @@ impl HighLevel {
                 };
                 let from = self.from(now, pose);
                 let yaw = if cur != 0 { from[3] } else { yaw };
-                plan([from[0], from[1], h, yaw], t, false, cmd == COMMAND_LAND_2)
+                let to = [from[0], from[1], h, yaw];
+                if cmd == COMMAND_LAND_2 {
+                    if let Some(td) = Touchdown::new(now, from[2].max(pose[2]), to, t) {
+                        self.state = State::Touchdown(td);
+                    }
+                    return;
+                }
+                plan(to, t, false)
             }
             COMMAND_GO_TO | COMMAND_GO_TO_2 => {
                 let (rel, linear, o) = if cmd == COMMAND_GO_TO {
@@ -225,7 +257,7 @@ impl HighLevel {
                 } else {
                     [x, y, z, yaw]
                 };
-                plan(to, t, linear != 0, false)
+                plan(to, t, linear != 0)
             }
             _ => None,
         };
@@ -255,52 +287,31 @@ impl HighLevel {
             from: pose,
             to: pose,
             linear: false,
-            landing: false,
         });
     }
 
     /// What to fly at `now` with the estimated height `z` and vertical
-    /// speed `vz`; `None`: motors off. A landing ends in a [`Touchdown`]
-    /// when its plan ends or when the drone gets within [`LEVEL_HEIGHT_M`]
-    /// of the goal first (a slow plan), which stops the motors once the
-    /// drone rests on the floor.
-    pub fn aim(&mut self, now: Picos, z: f64, vz: f64) -> Option<Aim> {
+    /// speed `vz`; `None`: motors off (a [`Touchdown`] ends so).
+    pub fn aim(&mut self, now: Picos, z: f64, vz: f64) -> Option<Reference> {
         match self.state {
             State::Idle => None,
-            State::Flying(m) if m.landing && (m.finished(now) || z <= m.to[2] + LEVEL_HEIGHT_M) => {
-                // The plan's end plus the timeout (a huge duration
-                // saturates).
-                let wait = (m.duration + TOUCHDOWN_TIMEOUT_S) * Picos::PER_S as f64;
-                self.state = State::Touchdown(Touchdown {
-                    end: m.to,
-                    z: z.max(m.to[2]),
-                    at: now,
-                    deadline: Picos(m.start.0.saturating_add(wait as u64)),
-                    resting: 0,
-                });
-                self.aim(now, z, vz)
-            }
-            State::Flying(m) => Some(Aim::Track(m.reference(now))),
+            State::Flying(m) => Some(m.reference(now)),
             State::Touchdown(mut t) => {
-                let goal = t.end[2];
-                let rests = z <= goal + GROUND_M && vz.abs() < RESTING_SPEED;
-                t.resting = if rests { t.resting + 1 } else { 0 };
-                if t.resting >= LANDED_ITERATIONS || now >= t.deadline {
+                let cut = t.end[2] + CUT_HEIGHT_M;
+                let there = (z - cut).abs() <= CUT_TOLERANCE_M && vz.abs() < RESTING_SPEED;
+                t.hovering = if there { t.hovering + 1 } else { 0 };
+                if t.hovering >= LANDED_ITERATIONS || now >= t.deadline {
                     self.state = State::Idle;
                     return None;
                 }
                 let dt = now.saturating_sub(t.at).as_secs_f64();
-                t.z = (t.z - TOUCHDOWN_SPEED * dt).max(goal);
+                t.z = (t.z - t.speed * dt).max(cut);
                 t.at = now;
                 self.state = State::Touchdown(t);
-                Some(if z > goal + LEVEL_HEIGHT_M {
-                    Aim::Track(Reference {
-                        pos: [t.end[0], t.end[1], t.z],
-                        vel: [0.0; 3],
-                        yaw: t.end[3],
-                    })
-                } else {
-                    Aim::Level { z: t.z }
+                Some(Reference {
+                    pos: [t.end[0], t.end[1], t.z],
+                    vel: [0.0; 3],
+                    yaw: t.end[3],
                 })
             }
         }
@@ -330,11 +341,8 @@ mod tests {
         assert!((ds - 35.0 / 16.0).abs() < 1e-12);
     }
 
-    fn track(a: Option<Aim>) -> Reference {
-        match a {
-            Some(Aim::Track(r)) => r,
-            other => panic!("expected a tracked reference, got {other:?}"),
-        }
+    fn track(a: Option<Reference>) -> Reference {
+        a.expect("a reference to track")
     }
 
     fn land(z: f32, t: f32) -> Vec<u8> {
@@ -363,18 +371,22 @@ mod tests {
         hl.command(&g, t1, [9.0; 4]);
         let r = track(hl.aim(t1 + Picos::from_ms(4000), 1.0, 0.0));
         assert!((r.pos[0] - 1.5).abs() < 1e-6);
-        // A landing tracks its plan while the drone is up ...
+        // A landing descends at TOUCHDOWN_SPEED from the plan's height over
+        // the plan's point, the motors stop once the drone hovers at the
+        // cut height.
         let t2 = t1 + Picos::from_ms(5000);
-        hl.command(&land(0.0, 1.0), t2, [9.0; 4]);
-        assert!(hl.aim(t2 + Picos::from_ms(500), 0.5, -0.5).is_some());
-        // ... and the motors stop once the drone rests on the floor.
-        let mut t = t2 + Picos::from_ms(600);
-        assert!(matches!(hl.aim(t, 0.015, -0.3), Some(Aim::Level { .. })));
+        hl.command(&land(0.0, 1.0), t2, [9.0, 9.0, 0.8, 9.0]);
+        let r = track(hl.aim(t2 + Picos::from_ms(500), 0.9, -0.1));
+        assert_eq!([r.pos[0], r.pos[1]], [1.5, -1.0]);
+        assert!((r.pos[2] - (1.0 - 0.5 * TOUCHDOWN_SPEED)).abs() < 1e-9, "{r:?}");
+        let mut t = t2 + Picos::from_ms(6000);
+        let cut = CUT_HEIGHT_M;
+        assert_eq!(track(hl.aim(t, cut, -0.2)).pos[2], cut);
         for _ in 0..LANDED_ITERATIONS - 1 {
             t = t + Picos::from_ms(32);
-            assert!(matches!(hl.aim(t, 0.015, 0.0), Some(Aim::Level { .. })));
+            assert!(hl.aim(t, cut, 0.0).is_some());
         }
-        assert_eq!(hl.aim(t + Picos::from_ms(32), 0.015, 0.0), None);
+        assert_eq!(hl.aim(t + Picos::from_ms(32), cut, 0.0), None);
         assert_eq!(hl.state, State::Idle);
         // Short or non-finite commands are ignored.
         hl.command(&takeoff(1.0, 2.0)[..8], t2, [0.0; 4]);
@@ -383,37 +395,31 @@ mod tests {
     }
 
     #[test]
-    fn a_landing_flies_on_until_the_drone_is_down() {
+    fn a_landing_descends_slowly_and_stops_the_motors_just_above_the_floor() {
         let mut hl = HighLevel::default();
         let t0 = Picos::from_ms(1000);
         let ms = |s: f64| t0 + Picos::from_ms((s * 1000.0).round() as u64);
-        hl.command(&land(0.0, 1.0), t0, [1.0, 2.0, 0.5, 0.0]);
-        // The plan is over, the drone still 0.3 m up and falling: held over
-        // the plan's end by the position loop, the height set-point
-        // descending from the drone's height at TOUCHDOWN_SPEED ...
-        let r = track(hl.aim(ms(1.1), 0.3, -0.7));
-        assert_eq!(r.pos, [1.0, 2.0, 0.3]);
-        let r = track(hl.aim(ms(1.6), 0.2, -0.3));
-        assert!((r.pos[2] - (0.3 - 0.5 * TOUCHDOWN_SPEED)).abs() < 1e-9, "{r:?}");
-        // ... then level below LEVEL_HEIGHT_M, down to the goal.
-        let Some(Aim::Level { z }) = hl.aim(ms(2.0), 0.08, -0.2) else {
-            panic!("level")
-        };
-        assert!((z - (0.2 - 0.4 * TOUCHDOWN_SPEED)).abs() < 1e-9, "{z}");
-        assert_eq!(hl.aim(ms(4.0), 0.08, -0.2), Some(Aim::Level { z: 0.0 }));
-        // Touching the floor while moving, or a bounce, is not resting.
-        for (z, vz) in [(0.02, -0.3), (0.02, 0.0), (0.02, 0.2), (0.02, 0.0), (0.02, 0.01)] {
-            assert!(hl.aim(ms(4.1), z, vz).is_some());
+        // From 0.45 m in 0.1 s: at TOUCHDOWN_SPEED (2 s to the cut height).
+        hl.command(&land(0.0, 0.1), t0, [1.0, 2.0, 0.45, 0.0]);
+        let r = track(hl.aim(ms(1.0), 0.3, -0.2));
+        assert_eq!(r.pos, [1.0, 2.0, 0.45 - TOUCHDOWN_SPEED]);
+        assert_eq!(track(hl.aim(ms(2.5), 0.1, -0.2)).pos[2], CUT_HEIGHT_M);
+        // Passing through the cut height, or bouncing, is not hovering there.
+        let cut = CUT_HEIGHT_M;
+        for (z, vz) in [(cut, -0.2), (cut, 0.0), (cut, 0.1), (cut, 0.0), (cut, 0.01)] {
+            assert!(hl.aim(ms(2.6), z, vz).is_some());
         }
-        assert_eq!(hl.aim(ms(4.2), 0.02, 0.0), None);
-        // Never down: the motors stop TOUCHDOWN_TIMEOUT_S after the plan's end.
-        hl.command(&land(0.0, 1.0), t0, [1.0, 2.0, 0.5, 0.0]);
-        assert!(hl.aim(ms(1.0 + TOUCHDOWN_TIMEOUT_S - 0.01), 0.3, 0.0).is_some());
-        assert_eq!(hl.aim(ms(1.0 + TOUCHDOWN_TIMEOUT_S), 0.3, 0.0), None);
-        // A slow landing that nears the floor before its plan ends is
-        // levelled then (the position loop would skid it along the floor).
-        hl.command(&land(0.0, 10.0), t0, [1.0, 2.0, 0.5, 0.0]);
-        assert!(matches!(hl.aim(ms(5.0), 0.11, -0.1), Some(Aim::Track(_))));
-        assert!(matches!(hl.aim(ms(5.0), 0.09, -0.1), Some(Aim::Level { .. })));
+        assert_eq!(hl.aim(ms(2.7), cut, 0.0), None);
+        // A slower landing keeps its own mean speed (0.4 m in 8 s).
+        hl.command(&land(0.0, 8.0), t0, [1.0, 2.0, 0.45, 0.0]);
+        assert!((track(hl.aim(ms(4.0), 0.3, -0.05)).pos[2] - 0.25).abs() < 1e-9);
+        // Never there: the motors stop TOUCHDOWN_TIMEOUT_S after the descent.
+        hl.command(&land(0.0, 0.1), t0, [1.0, 2.0, 0.45, 0.0]);
+        assert!(hl.aim(ms(2.0 + TOUCHDOWN_TIMEOUT_S - 0.01), 0.3, 0.0).is_some());
+        assert_eq!(hl.aim(ms(2.0 + TOUCHDOWN_TIMEOUT_S), 0.3, 0.0), None);
+        // Bad arguments are ignored.
+        hl.command(&land(f32::NAN, 1.0), t0, [1.0, 2.0, 0.45, 0.0]);
+        hl.command(&land(0.0, -1.0), t0, [1.0, 2.0, 0.45, 0.0]);
+        assert_eq!(hl.state, State::Idle);
     }
 }
