@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import math
 import random
 import struct
 import subprocess
@@ -94,9 +93,10 @@ def session(rng: random.Random) -> tuple[list[tuple[int, bytes]], list[str]]:
         t += rng.uniform(1.5, 3.5)
     packets.append((t, land(0.0, z / LAND_SPEED)))
     clicks.append(f"land from {z:.2f} m")
-    end = t + z / LAND_SPEED + 3.0
-    # cflib's keep-alive while the user watches the landing, then its
-    # close_link (a zero set-point).
+    # cflib's keep-alive while the user watches the landing (10 s: the
+    # drone comes down at most 0.2 m/s here, docs/CFLIB.md), then its
+    # close_link (a zero set-point) when they disconnect.
+    end = t + 10.0
     k = packets[0][0] + 0.4
     while k < end:
         packets.append((k, bytes([ECHO, 0])))

@@ -13,7 +13,6 @@ import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -109,8 +108,9 @@ def test_cfclient_flown_by_keys_takes_off_moves_and_lands_upright(binaries, tmp_
              "--set", "crtp_idle_s=3"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         procs.append(lab)
         env = dict(os.environ, HOME=str(home), DISPLAY=display, QT_QPA_PLATFORM="xcb")
-        log = open(tmp_path / "cfclient.log", "w")
-        procs.append(subprocess.Popen([str(CFCLIENT), "--debug", "info"], env=env, stdout=log, stderr=subprocess.STDOUT))
+        with open(tmp_path / "cfclient.log", "w") as log:
+            procs.append(subprocess.Popen([str(CFCLIENT), "--debug", "info"], env=env, stdout=log,
+                                          stderr=subprocess.STDOUT))
         deadline = time.time() + 40
         text = ""
         while "Adding device ZMQ@" not in text:

@@ -434,7 +434,8 @@ def test_cfclient_buttons_fly_upright(lab):
 
 def test_deck_memories_list_the_drones_decks(lab):
     """cflib reads the decks' 1-wire memories (port 4) at connection: one
-    per deck of cflib-lab's drone (Flow deck v2, Multi-ranger), their
+    per deck of cflib-lab's drone (the `deck.bc…` parameters at 1: Flow
+    deck v2, Multi-ranger and the AI deck of its platform), their
     EEPROMs valid (cflib checks both CRCs) with the firmware drivers' names
     and Bitcraze's vendor and product ids (docs/CFLIB.md, "Deck
     memories")."""
@@ -444,9 +445,13 @@ def test_deck_memories_list_the_drones_decks(lab):
     with SyncCrazyflie(lab_run.uri, cf=Crazyflie(rw_cache=None)) as scf:
         mems = scf.cf.mem.get_mems(MemoryElement.TYPE_1W)
         deadline = time.time() + 5
-        while not all(m.valid for m in mems) and time.time() < deadline:
+        while not (all(m.valid for m in mems) and scf.cf.param.is_updated) and time.time() < deadline:
             time.sleep(0.05)
         decks = {m.elements.get("Board name"): (m.vid, m.pid, m.size, m.valid) for m in mems}
+        present = {k for k, v in scf.cf.param.values["deck"].items() if int(v) == 1}
     lab_run.finish()
     print(decks)
-    assert decks == {"bcFlow2": (0xBC, 0x0F, 112, True), "bcMultiranger": (0xBC, 0x0C, 112, True)}
+    # The firmware drivers' ids (flowdeck_v1v2.c, multiranger.c, aideck.c).
+    ids = {"bcFlow2": 0x0F, "bcMultiranger": 0x0C, "bcAI": 0x12}
+    assert {"bcFlow2", "bcMultiranger"} <= present
+    assert decks == {name: (0xBC, ids[name], 112, True) for name in present}

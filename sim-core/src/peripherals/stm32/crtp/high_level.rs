@@ -113,11 +113,12 @@ pub enum State {
 /// - a drone that meets the floor with its rotors near the hover speed has
 ///   no weight on it: the impact's small asymmetry becomes a free rotation
 ///   that the Webots attitude loop (0.5 per rad) is far too weak to stop.
-///   world-server drop tests: at hover thrust a 0.3 m/s touchdown tips the
-///   body 0.64 rad and 0.5 m/s turns it over; at 70 % of it or with the
-///   motors off, 0.03 rad and 0.07–0.15 rad. Cut at the plan's end, the
-///   rotors (spinning down at their limited rate) still held the weight
-///   when the drone hit the floor.
+///   world-server's `a_touchdown_below_the_hover_thrust_settles_flat`:
+///   at the hover speed a 0.3 m/s touchdown tilts the body 0.64 rad and
+///   0.7 m/s turns it over; at 70 % of it, or with the motors off, the
+///   largest tilt is 0.07–0.34 rad and it settles flat. Cut at the plan's
+///   end, the rotors (spinning down at their limited rate) still held the
+///   weight when the drone hit the floor.
 ///
 /// So a landing here is flown as a pilot (or EXT_LAND, `motion.rs`) lands:
 /// the position loop holds x, y and the yaw while the height set-point
@@ -167,8 +168,13 @@ impl Touchdown {
         }
         let cut = to[2] + CUT_HEIGHT_M;
         let drop = (z - cut).max(0.0);
-        let mean = if duration > 0.0 { drop / duration } else { f64::INFINITY };
-        let speed = mean.min(TOUCHDOWN_SPEED).max(1e-3);
+        let mean = if duration > 0.0 {
+            drop / duration
+        } else {
+            f64::INFINITY
+        };
+        // At least 1 mm/s: a landing asked to take ages still ends.
+        let speed = mean.clamp(1e-3, TOUCHDOWN_SPEED);
         // The descent plus the timeout (a huge time saturates).
         let wait = (drop / speed + TOUCHDOWN_TIMEOUT_S) * Picos::PER_S as f64;
         Some(Touchdown {
@@ -378,12 +384,15 @@ mod tests {
         hl.command(&land(0.0, 1.0), t2, [9.0, 9.0, 0.8, 9.0]);
         let r = track(hl.aim(t2 + Picos::from_ms(500), 0.9, -0.1));
         assert_eq!([r.pos[0], r.pos[1]], [1.5, -1.0]);
-        assert!((r.pos[2] - (1.0 - 0.5 * TOUCHDOWN_SPEED)).abs() < 1e-9, "{r:?}");
+        assert!(
+            (r.pos[2] - (1.0 - 0.5 * TOUCHDOWN_SPEED)).abs() < 1e-9,
+            "{r:?}"
+        );
         let mut t = t2 + Picos::from_ms(6000);
         let cut = CUT_HEIGHT_M;
         assert_eq!(track(hl.aim(t, cut, -0.2)).pos[2], cut);
         for _ in 0..LANDED_ITERATIONS - 1 {
-            t = t + Picos::from_ms(32);
+            t += Picos::from_ms(32);
             assert!(hl.aim(t, cut, 0.0).is_some());
         }
         assert_eq!(hl.aim(t + Picos::from_ms(32), cut, 0.0), None);
@@ -415,7 +424,9 @@ mod tests {
         assert!((track(hl.aim(ms(4.0), 0.3, -0.05)).pos[2] - 0.25).abs() < 1e-9);
         // Never there: the motors stop TOUCHDOWN_TIMEOUT_S after the descent.
         hl.command(&land(0.0, 0.1), t0, [1.0, 2.0, 0.45, 0.0]);
-        assert!(hl.aim(ms(2.0 + TOUCHDOWN_TIMEOUT_S - 0.01), 0.3, 0.0).is_some());
+        assert!(hl
+            .aim(ms(2.0 + TOUCHDOWN_TIMEOUT_S - 0.01), 0.3, 0.0)
+            .is_some());
         assert_eq!(hl.aim(ms(2.0 + TOUCHDOWN_TIMEOUT_S), 0.3, 0.0), None);
         // Bad arguments are ignored.
         hl.command(&land(f32::NAN, 1.0), t0, [1.0, 2.0, 0.45, 0.0]);

@@ -261,8 +261,14 @@ mod tests {
         assert_eq!(m.read(&[0, 0, 0, 0, 0, 30]).unwrap()[5], EIO); // longer than a packet
         assert_eq!(m.read(&[7, 0, 0, 0, 0, 1]).unwrap()[5], EIO); // no such memory
         assert_eq!(m.read(&[0, 0, 0]), None);
-        assert_eq!(m.write(&[0, 0, 0, 0, 0, 1, 2]), Some(vec![0, 0, 0, 0, 0, EIO]));
+        assert_eq!(
+            m.write(&[0, 0, 0, 0, 0, 1, 2]),
+            Some(vec![0, 0, 0, 0, 0, EIO])
+        );
         assert_eq!(m.info(&[9]), None);
-        assert_eq!(Memories::new(&Decks::default()).info(&[1]), Some(vec![1, 0]));
+        assert_eq!(
+            Memories::new(&Decks::default()).info(&[1]),
+            Some(vec![1, 0])
+        );
     }
 }
