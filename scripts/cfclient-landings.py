@@ -9,8 +9,9 @@ relative `go_to`s, then *Land*: `land(0, z / 0.5)`, 0.5 m/s), as CRTP
 recordings (`crtp.jsonl`, the high-level commander's packets on port 8 and
 cflib's UDP keep-alive echoes), replays each through `cosim run cflib-lab
 --set crtp=replay:FILE` (unpaced, exact) and prints, per session, the
-largest tilt in flight, the largest tilt after touchdown, the attitude at
-the end and whether the drone ended upright.
+largest tilt in flight, the largest tilt after touchdown, how far it slid
+from its last point above 0.1 m, the attitude at the end and whether the
+drone ended upright.
 
     scripts/cfclient-landings.py [--sessions 20] [--seed 1] [--out /tmp/cfclient-landings]
     scripts/cfclient-landings.py --hover     # cfclient flown by an input device instead
@@ -29,6 +30,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import random
 import struct
 import subprocess
@@ -180,7 +182,7 @@ def main() -> int:
         ap.error("--sessions must be at least 1")
     rng = random.Random(a.seed)
     upright = 0
-    print("session  flight tilt  touchdown tilt  end roll  end pitch  end z  upright  clicks")
+    print("session  flight tilt  touchdown tilt  slide  end roll  end pitch  end z  upright  clicks")
     for i in range(a.sessions):
         packets, clicks = (hover_session if a.hover else session)(rng)
         d = a.out / f"s{i:02}"
@@ -192,7 +194,9 @@ def main() -> int:
         end = rows[-1]
         ok = tilt(end) < UPRIGHT and end["z"] < 0.03
         upright += ok
-        print(f"{i:7}  {max(map(tilt, rows[:high + 1])):11.3f}  {max(map(tilt, rows[high + 1:])):14.3f}  "
+        # How far the drone moved from its last point above 0.1 m (m).
+        slide = math.hypot(end["x"] - rows[high]["x"], end["y"] - rows[high]["y"])
+        print(f"{i:7}  {max(map(tilt, rows[:high + 1])):11.3f}  {max(map(tilt, rows[high + 1:])):14.3f}  {slide:5.3f}  "
               f"{end['roll']:8.3f}  {end['pitch']:9.3f}  {end['z']:5.3f}  {'yes' if ok else 'NO':7}  "
               f"{', '.join(clicks)}")
     print(f"upright after landing: {upright} of {a.sessions} (seed {a.seed})")
