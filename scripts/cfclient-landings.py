@@ -32,6 +32,7 @@ import csv
 import json
 import math
 import random
+import shutil
 import struct
 import subprocess
 import sys
@@ -174,6 +175,9 @@ def main() -> int:
     ap.add_argument("--sessions", type=int, default=20)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", type=Path, default=Path("/tmp/cfclient-landings"))
+    ap.add_argument("--keep", action="store_true",
+                    help="keep each run's outputs (about 40 MB a session); by default only "
+                         "session.jsonl and trajectory.csv stay")
     ap.add_argument("--hover", action="store_true",
                     help="cfclient flown by an input device in Hover mode instead of its buttons")
     ap.add_argument("--cosim", type=Path, default=ROOT / "target" / "release" / "cosim")
@@ -190,6 +194,9 @@ def main() -> int:
         rec = d / "session.jsonl"
         rec.write_text("".join(json.dumps({"platform_ps": t, "crtp": b.hex()}) + "\n" for t, b in packets))
         rows = replay(a.cosim, rec, d / "run")
+        if not a.keep:
+            shutil.copy(d / "run" / "trajectory.csv", d / "trajectory.csv")
+            shutil.rmtree(d / "run")
         high = max(j for j, r in enumerate(rows) if r["z"] > 0.1)
         end = rows[-1]
         ok = tilt(end) < UPRIGHT and end["z"] < 0.03
