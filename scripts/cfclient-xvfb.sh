@@ -7,6 +7,10 @@
 # plotter tabs.
 #
 #   scripts/cfclient-xvfb.sh [OUT_DIR]      # default /tmp/cfclient-shots
+#   scripts/cfclient-xvfb.sh --keys [OUT_DIR]
+#       # flown with the keyboard instead: cfclient's ZMQ input device and
+#       # scripts/cfclient-keys.py pushing scripted keys (take off, forward,
+#       # left, turn, land; docs/CFLIB.md, "cfclient flown with the keyboard")
 #
 # Needs: cfclient in a venv (CFCLIENT, default /tmp/cfclient-venv/bin/cfclient;
 # `python3 -m venv /tmp/cfclient-venv && /tmp/cfclient-venv/bin/pip install
@@ -21,6 +25,11 @@
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
+KEYS=0
+if [ "${1:-}" = --keys ]; then
+    KEYS=1
+    shift
+fi
 OUT=${1:-/tmp/cfclient-shots}
 CFCLIENT=${CFCLIENT:-/tmp/cfclient-venv/bin/cfclient}
 DISPLAY_NR=${DISPLAY_NR:-:77}
@@ -31,14 +40,20 @@ mkdir -p "$OUT"
 HOME_DIR=$(mktemp -d)
 mkdir -p "$HOME_DIR/.config/cfclient"
 # The URI preselected (cfclient scans 19850-19859 at start and lists the
-# simulator), the tabs shown, the window's size; no ZMQ input device (with
-# an input device cfclient disables its command-based flight buttons).
+# simulator), the tabs shown, the window's size; for the buttons no ZMQ
+# input device (with an input device cfclient disables its command-based
+# flight buttons), for the keys its ZMQ input selected, in Hover mode (3).
+if [ "$KEYS" = 1 ]; then
+    ZMQ='"enable_zmq_input": true, "input_device": "ZMQ@tcp://127.0.0.1:1212", "assistedControl": 3'
+else
+    ZMQ='"enable_zmq_input": false'
+fi
 cat > "$HOME_DIR/.config/cfclient/config.json" <<EOF
 {
   "link_uri": "udp://127.0.0.1:$PORT",
   "open_tabs": "Flight Control,Console,Plotter,Log TOC,Parameters",
   "window_size": [1600, 1000],
-  "enable_zmq_input": false
+  $ZMQ
 }
 EOF
 
@@ -81,6 +96,21 @@ shot() { import -window root "$OUT/$1.png"; }
 click 304 47 # Connect
 sleep 6
 shot cfclient-connected
+if [ "$KEYS" = 1 ]; then
+    # The keys (wall seconds from now): take off to cfclient's 0.4 m, up
+    # 1 s (0.3 m/s), forward 2 s, left 1.5 s, turn left 1 s, land.
+    "$(dirname "$CFCLIENT")/python" "$ROOT/scripts/cfclient-keys.py" \
+        --script "t@0, r@4:1, up@6:2, left@9:1.5, q@11.5:1, l@14" >"$OUT/keys.log" 2>&1 &
+    keys=$!
+    sleep 10.5
+    shot cfclient-keys
+    wait "$keys"
+    shot cfclient-keys-landed
+    click 304 47 # Disconnect
+    wait "$cosim"
+    echo "screenshots in $OUT; the run in $OUT/run"
+    exit 0
+fi
 tab plotter
 sleep 1
 click 795 182 # the plotter's log block list

@@ -6,7 +6,9 @@
 #   - the RISC-V cross compiler and picolibc, clang-19 (firmware
 #     builds: `make -C sim-core/firmware check`, the cluster's kernels);
 #   - a Python venv in target/py-venv with python/requirements-test.txt
-#     (pytest, numpy, gymnasium, pandas, cflib) for python/tests and training/tests.
+#     (pytest, numpy, gymnasium, pandas, cflib) for python/tests and training/tests;
+#   - Bitcraze's cfclient in its own venv, target/cfclient-venv (PyQt6; the
+#     cfclient test flies it under Xvfb: python/tests/test_cfclient_keys.py).
 # System packages come from apt-get through scripts/install-deps.sh (root,
 # or sudo when there is one); set
 # COSIM_NO_INSTALL=1 to only check and fail with what is missing.
@@ -39,6 +41,15 @@ if [ "$want" != "$(cat "$stamp" 2>/dev/null || true)" ]; then
   fi
   printf '%s' "$want" > "$stamp"
 fi
+
+step "cfclient venv (target/cfclient-venv)"
+cfvenv=target/cfclient-venv
+if [ ! -x "$cfvenv/bin/cfclient" ]; then
+  python3 -m venv "$cfvenv"
+  "$cfvenv/bin/python" -m pip install -q --upgrade pip
+  "$cfvenv/bin/python" -m pip install -q cfclient
+fi
+export CFCLIENT="$PWD/$cfvenv/bin/cfclient"
 
 step "cargo test --workspace"
 cargo test --workspace "$@"

@@ -383,12 +383,12 @@ TILT_LIMIT = math.radians(20.0)
 def test_cfclient_buttons_fly_upright(lab):
     """What cfclient's command-based flight buttons send (cfclient's
     `FlightTab._flight_command`: 0.5 m at 0.5 m/s): take off 0.5 m in 1 s,
-    forward, back, left, right 0.5 m in 1 s each (`go_to`, relative). The
-    drone flies every move with |roll|, |pitch| within the firmware's 20°
-    (before the fix the first move flipped it), reaches each goal and
-    hits nothing. *Land* (0.5 m/s) ends on the floor; whether upright is
-    printed, not asserted: its touchdown bounce tipped the drone over in
-    one of six sessions (docs/CFLIB.md, an open problem)."""
+    forward, back, left, right 0.5 m in 1 s each (`go_to`, relative),
+    *Land* at 0.5 m/s. The drone flies every move with |roll|, |pitch|
+    within the firmware's 20° (before the fix the first move flipped it),
+    reaches each goal, hits nothing, and ends on the floor upright (before
+    the landing's touchdown, docs/CFLIB.md "cfclient's Land", its bounce
+    tipped it over in most sessions)."""
     pace = 2.0
     lab_run = lab("cflib-lab", BASE_PORT + 7, pace=pace)
     z = [0.0]
@@ -407,7 +407,7 @@ def test_cfclient_buttons_fly_upright(lab):
             hl.go_to(dx, dy, 0.0, 0.0, 1.0, relative=True)
             time.sleep(3.0 / pace)
         hl.land(0.0, z[0] / 0.5)
-        time.sleep(2.0 / pace)
+        time.sleep(4.0 / pace)
         conf.stop()
     rows = trajectory(lab_run.finish())
     start = rows[0]
@@ -423,5 +423,35 @@ def test_cfclient_buttons_fly_upright(lab):
     assert max(r["x"] for r in flight) - start["x"] < 0.55
     assert max(r["y"] for r in flight) - start["y"] < 0.55
     end = rows[-1]
-    assert max(r["collisions"] for r in flight) == 0
+    assert max(r["collisions"] for r in rows) == 0
     assert end["z"] < 0.03, end
+    # Upright: level on the floor, and never tipped far on the way down.
+    after = max(max(abs(r["roll"]), abs(r["pitch"])) for r in rows[last_high:])
+    print(f"largest tilt from 0.35 m down {after:.3f} rad")
+    assert max(abs(end["roll"]), abs(end["pitch"])) < 0.05, end
+    assert after < TILT_LIMIT, after
+
+
+def test_deck_memories_list_the_drones_decks(lab):
+    """cflib reads the decks' 1-wire memories (port 4) at connection: one
+    per deck of cflib-lab's drone (the `deck.bc…` parameters at 1: Flow
+    deck v2, Multi-ranger and the AI deck of its platform), their
+    EEPROMs valid (cflib checks both CRCs) with the firmware drivers' names
+    and Bitcraze's vendor and product ids (docs/CFLIB.md, "Deck
+    memories")."""
+    from cflib.crazyflie.mem import MemoryElement
+
+    lab_run = lab("cflib-lab", BASE_PORT + 8, pace=4.0)
+    with SyncCrazyflie(lab_run.uri, cf=Crazyflie(rw_cache=None)) as scf:
+        mems = scf.cf.mem.get_mems(MemoryElement.TYPE_1W)
+        deadline = time.time() + 5
+        while not (all(m.valid for m in mems) and scf.cf.param.is_updated) and time.time() < deadline:
+            time.sleep(0.05)
+        decks = {m.elements.get("Board name"): (m.vid, m.pid, m.size, m.valid) for m in mems}
+        present = {k for k, v in scf.cf.param.values["deck"].items() if int(v) == 1}
+    lab_run.finish()
+    print(decks)
+    # The firmware drivers' ids (flowdeck_v1v2.c, multiranger.c, aideck.c).
+    ids = {"bcFlow2": 0x0F, "bcMultiranger": 0x0C, "bcAI": 0x12}
+    assert {"bcFlow2", "bcMultiranger"} <= present
+    assert decks == {name: (0xBC, ids[name], 112, True) for name in present}

@@ -82,6 +82,19 @@ fn bad_packets_get_the_firmwares_answers_and_never_crash_the_drone() {
     // An unknown port, an unknown set-point type, a short high-level take-off.
     assert_eq!(ask(&s, &[0xA0, 1, 2]), None);
     assert_eq!(ask(&s, &[0x70, 42, 1, 2]), None);
+    // Memories (port 4): a short read, a read of a memory that is not
+    // there (EIO), the details of an id past the last, a write (the decks'
+    // EEPROMs are read-only here: EIO).
+    assert_eq!(ask(&s, &[0x41, 0, 0]), None);
+    assert_eq!(
+        ask(&s, &[0x41, 9, 0, 0, 0, 0, 4]),
+        Some(vec![0x4D, 9, 0, 0, 0, 0, 5])
+    );
+    assert_eq!(ask(&s, &[0x40, 2, 9]), Some(vec![0x4C, 2]));
+    assert_eq!(
+        ask(&s, &[0x42, 0, 0, 0, 0, 0, 1]),
+        Some(vec![0x4E, 0, 0, 0, 0, 0, 5])
+    );
     assert_eq!(ask(&s, &[0x80, 7, 0]), None);
     // Log: a TOC item beyond the table gets nothing; a block with an
     // unknown variable ENOENT (2), a start of a missing block too.

@@ -284,3 +284,44 @@ fn same_commands_give_bit_identical_trajectories() {
     // And the drone actually flew (the comparison is not between two rests).
     assert!(a.last().unwrap().position[2] > 0.5);
 }
+
+/// The tilt (rad) of the body's z axis from the vertical.
+fn tilt(w: &World) -> f64 {
+    let q = w.state(0).quaternion;
+    (1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]))
+        .clamp(-1.0, 1.0)
+        .acos()
+}
+
+#[test]
+fn a_touchdown_below_the_hover_thrust_settles_flat() {
+    // A level drone 2 cm above the floor, falling at `v`, its rotors held
+    // at `frac` of the hover speed: with the motors off or at 70 % (the
+    // weight on the floor) it settles flat; at the hover speed (no weight
+    // on the floor) the impact's rotation is free and tips it (printed:
+    // why the CRTP landing stops the motors before touching down,
+    // sim-core crtp/high_level.rs `Touchdown`, docs/CFLIB.md "cfclient's Land").
+    for frac in [0.0, 0.7, 1.0] {
+        for v in [0.1, 0.3, 0.5, 0.7, 1.0] {
+            let mut w = world(EMPTY, 32, 1);
+            w.teleport(0, DVec3::new(0.0, 0.0, 0.035), DQuat::IDENTITY);
+            w.set_velocities(0, DVec3::new(0.0, 0.0, -v), DVec3::ZERO);
+            let h = hover_speed() * frac;
+            w.motors_mut(0).set_speeds_now(signed([h; 4]));
+            let mut most: f64 = 0.0;
+            for _ in 0..20 {
+                w.set_motor_commands(0, MotorCommands([h; 4])).unwrap();
+                w.step();
+                most = most.max(tilt(&w));
+            }
+            println!("rotors {frac:.1} x hover, touchdown at {v:.1} m/s: largest tilt {most:.3} rad, after 0.64 s {:.3} rad", tilt(&w));
+            if frac < 1.0 {
+                assert!(
+                    most < 0.35 && tilt(&w) < 0.01,
+                    "{frac} {v}: {most} {}",
+                    tilt(&w)
+                );
+            }
+        }
+    }
+}

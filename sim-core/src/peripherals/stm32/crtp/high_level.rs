@@ -10,7 +10,7 @@
 //! | 3 STOP | group | motors off |
 //! | 4 GO_TO | group, relative, x, y, z, yaw (rad), duration (s) | |
 //! | 7 TAKEOFF_2 | group, height, yaw, use current yaw (bool), duration | |
-//! | 8 LAND_2 | group, height, yaw, use current yaw, duration | then motors off |
+//! | 8 LAND_2 | group, height, yaw, use current yaw, duration | a [`Touchdown`]: down at ≤ 0.2 m/s, motors off just above the floor |
 //! | 12 GO_TO_2 | group, relative, linear, x, y, z, yaw, duration | |
 //!
 //! The firmware plans a 7th-order polynomial per axis from the current
@@ -47,7 +47,6 @@ pub struct Move {
     pub from: [f64; 4],
     pub to: [f64; 4],
     pub linear: bool,
-    pub landing: bool,
 }
 
 /// Position, velocity and yaw of the plan at `now`.
@@ -96,6 +95,109 @@ pub enum State {
     #[default]
     Idle,
     Flying(Move),
+    /// Landing (see [`Touchdown`]).
+    Touchdown(Touchdown),
+}
+
+/// A landing. The firmware plans it as any move (a 7th-order polynomial
+/// to the goal height in the duration asked) and stops the motors when the
+/// plan ends (`TRAJECTORY_STATE_LANDING` → `IDLE`, `planner.c`), with its
+/// drone on the floor: its z position and velocity PIDs track the plan.
+/// Here that tipped the drone over in most landings (docs/CFLIB.md,
+/// "cfclient's Land"), for two reasons of this platform's:
+///
+/// - the Webots height loop (DESIGN.md §4) lags a fast plan and the
+///   world's motors change speed at a limited rate (DESIGN.md §5): at the
+///   end of cfclient's 0.5 m/s landing (peak 1.09 m/s) the drone was 9–40
+///   cm up, falling at 0.7–1.1 m/s, and could not brake in what was left;
+/// - a drone that meets the floor with its rotors near the hover speed has
+///   no weight on it: the impact's small asymmetry becomes a free rotation
+///   that the Webots attitude loop (0.5 per rad) is far too weak to stop.
+///   world-server's `a_touchdown_below_the_hover_thrust_settles_flat`:
+///   at the hover speed a 0.3 m/s touchdown tilts the body 0.64 rad and
+///   0.7 m/s turns it over; at 70 % of it, or with the motors off, the
+///   largest tilt is 0.07–0.34 rad and it settles flat. Cut at the plan's
+///   end, the rotors (spinning down at their limited rate) still held the
+///   weight when the drone hit the floor.
+///
+/// So a landing here is flown as a pilot (or EXT_LAND, `motion.rs`) lands:
+/// the position loop holds x, y and the yaw while the height set-point
+/// descends from the drone's height at the plan's mean speed, at most
+/// [`TOUCHDOWN_SPEED`], slowing down over the last 0.2 m
+/// ([`APPROACH_RATE`]), to [`CUT_HEIGHT_M`] above the goal; once the drone
+/// hovers there ([`LANDED_ITERATIONS`] iterations within [`CUT_TOLERANCE_M`]
+/// and slower than [`RESTING_SPEED`]) the motors stop and it sinks the last
+/// centimetres on its spinning-down rotors, meeting the floor slowly with
+/// the thrust below its weight. [`TOUCHDOWN_TIMEOUT_S`] after the descent's
+/// end the motors stop wherever the drone is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Touchdown {
+    /// The goal (x, y, z, yaw).
+    pub end: [f64; 4],
+    /// The descending height set-point (m), its speed (m/s) and when it
+    /// was last lowered.
+    z: f64,
+    speed: f64,
+    at: Picos,
+    deadline: Picos,
+    hovering: u32,
+}
+
+/// The fastest descent (m/s): 60 seeded cfclient sessions landed upright
+/// at 0.2 m/s, 19 of 20 at 0.3 (`scripts/cfclient-landings.py`, before
+/// the [`APPROACH_RATE`] slow-down).
+pub const TOUCHDOWN_SPEED: f64 = 0.2;
+/// Near the cut height the descent slows to this rate times the height
+/// left (1/s: from 0.2 m above it, exponentially with a 1 s time
+/// constant). The height loop lags (DESIGN.md §4, the world's limited
+/// motor acceleration): a set-point that stopped at 0.2 m/s carried the
+/// drone through the cut height onto the floor with its motors on, where
+/// it tipped (0.22 rad on average) and skidded (17 cm on average, up to
+/// 43 cm); slowing from 0.1 m above (2/s), 7 cm and 31 cm; from 0.2 m,
+/// 3 mm and 1.1 cm, the largest tilt 0.06 rad on average (40 seeded
+/// sessions each, `scripts/cfclient-landings.py --seed 2`).
+pub const APPROACH_RATE: f64 = 1.0;
+/// Where the motors stop, above the landing goal (m): the drone's centre
+/// rests 0.015 m up, so 3.5 cm of fall on spinning-down rotors.
+pub const CUT_HEIGHT_M: f64 = 0.05;
+/// Within this of the cut height and slower than [`RESTING_SPEED`]
+/// vertically (m/s), the drone hovers there.
+pub const CUT_TOLERANCE_M: f64 = 0.02;
+pub const RESTING_SPEED: f64 = 0.05;
+/// Iterations hovering at the cut height before the motors stop, as
+/// EXT_LAND's (`motion.rs`, `LANDED_ITERATIONS`).
+pub const LANDED_ITERATIONS: u32 = 3;
+/// How long after the descent's end the motors stop at the latest (s).
+pub const TOUCHDOWN_TIMEOUT_S: f64 = 3.0;
+
+impl Touchdown {
+    /// A landing from height `z` to `to` asked to take `duration` s;
+    /// `None` for a non-finite or negative argument.
+    fn new(now: Picos, z: f64, to: [f64; 4], duration: f64) -> Option<Touchdown> {
+        let ok = to.iter().all(|v| v.is_finite()) && z.is_finite() && duration.is_finite();
+        if !ok || duration < 0.0 {
+            return None;
+        }
+        let cut = to[2] + CUT_HEIGHT_M;
+        let drop = (z - cut).max(0.0);
+        let mean = if duration > 0.0 {
+            drop / duration
+        } else {
+            f64::INFINITY
+        };
+        // At least 1 mm/s: a landing asked to take ages still ends.
+        let speed = mean.clamp(1e-3, TOUCHDOWN_SPEED);
+        // The descent plus the timeout (a huge time saturates).
+        let wait = (drop / speed + TOUCHDOWN_TIMEOUT_S) * Picos::PER_S as f64;
+        Some(Touchdown {
+            end: to,
+            z: z.max(cut),
+            speed,
+            at: now,
+            deadline: Picos(now.0.saturating_add(wait as u64)),
+            hovering: 0,
+        })
+    }
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -118,7 +220,7 @@ impl HighLevel {
             return;
         }
         let f = |i: usize| f32_at(d, i);
-        let plan = |to: [f64; 4], duration: f64, linear: bool, landing: bool| {
+        let plan = |to: [f64; 4], duration: f64, linear: bool| {
             let ok = to.iter().all(|v| v.is_finite()) && duration.is_finite() && duration >= 0.0;
             ok.then_some(Move {
                 start: now,
@@ -126,7 +228,6 @@ impl HighLevel {
                 from: self.from(now, pose),
                 to,
                 linear,
-                landing,
             })
         };
         let new = match cmd {
@@ -145,7 +246,14 @@ impl HighLevel {
                 };
                 let from = self.from(now, pose);
                 let yaw = if cur != 0 { from[3] } else { yaw };
-                plan([from[0], from[1], h, yaw], t, false, cmd == COMMAND_LAND_2)
+                let to = [from[0], from[1], h, yaw];
+                if cmd == COMMAND_LAND_2 {
+                    if let Some(td) = Touchdown::new(now, from[2].max(pose[2]), to, t) {
+                        self.state = State::Touchdown(td);
+                    }
+                    return;
+                }
+                plan(to, t, false)
             }
             COMMAND_GO_TO | COMMAND_GO_TO_2 => {
                 let (rel, linear, o) = if cmd == COMMAND_GO_TO {
@@ -167,7 +275,7 @@ impl HighLevel {
                 } else {
                     [x, y, z, yaw]
                 };
-                plan(to, t, linear != 0, false)
+                plan(to, t, linear != 0)
             }
             _ => None,
         };
@@ -184,7 +292,7 @@ impl HighLevel {
                 let r = m.reference(now);
                 [r.pos[0], r.pos[1], r.pos[2], r.yaw]
             }
-            State::Idle => pose,
+            State::Idle | State::Touchdown(_) => pose,
         }
     }
 
@@ -197,19 +305,36 @@ impl HighLevel {
             from: pose,
             to: pose,
             linear: false,
-            landing: false,
         });
     }
 
-    /// The reference at `now`; a finished landing turns the motors off.
-    pub fn reference(&mut self, now: Picos) -> Option<Reference> {
+    /// What to fly at `now` with the estimated height `z` and vertical
+    /// speed `vz`; `None`: motors off (a [`Touchdown`] ends so).
+    pub fn aim(&mut self, now: Picos, z: f64, vz: f64) -> Option<Reference> {
         match self.state {
             State::Idle => None,
-            State::Flying(m) if m.landing && m.finished(now) => {
-                self.state = State::Idle;
-                None
-            }
             State::Flying(m) => Some(m.reference(now)),
+            State::Touchdown(mut t) => {
+                let cut = t.end[2] + CUT_HEIGHT_M;
+                let there = (z - cut).abs() <= CUT_TOLERANCE_M && vz.abs() < RESTING_SPEED;
+                t.hovering = if there { t.hovering + 1 } else { 0 };
+                if t.hovering >= LANDED_ITERATIONS || now >= t.deadline {
+                    self.state = State::Idle;
+                    return None;
+                }
+                // The last centimetres slow down exponentially: the drone
+                // arrives at the cut height instead of braking through it.
+                let dt = now.saturating_sub(t.at).as_secs_f64();
+                let v = t.speed.min(APPROACH_RATE * (t.z - cut));
+                t.z = (t.z - v * dt).max(cut);
+                t.at = now;
+                self.state = State::Touchdown(t);
+                Some(Reference {
+                    pos: [t.end[0], t.end[1], t.z],
+                    vel: [0.0; 3],
+                    yaw: t.end[3],
+                })
+            }
         }
     }
 }
@@ -237,16 +362,26 @@ mod tests {
         assert!((ds - 35.0 / 16.0).abs() < 1e-12);
     }
 
+    fn track(a: Option<Reference>) -> Reference {
+        a.expect("a reference to track")
+    }
+
+    fn land(z: f32, t: f32) -> Vec<u8> {
+        let mut l = takeoff(z, t);
+        l[0] = COMMAND_LAND_2;
+        l
+    }
+
     #[test]
     fn takeoff_goto_land_plan_from_the_estimate_then_stop() {
         let mut hl = HighLevel::default();
         let t0 = Picos::from_ms(2000);
         hl.command(&takeoff(1.0, 2.0), t0, [0.5, -1.0, 0.0, 0.3]);
-        let r = hl.reference(t0 + Picos::from_ms(1000)).unwrap();
+        let r = track(hl.aim(t0 + Picos::from_ms(1000), 0.4, 0.0));
         assert_eq!(r.pos[0], 0.5);
         assert!((r.pos[2] - 0.5).abs() < 1e-9);
         assert!((r.yaw - 0.3).abs() < 1e-6);
-        let end = hl.reference(t0 + Picos::from_ms(2500)).unwrap();
+        let end = track(hl.aim(t0 + Picos::from_ms(2500), 1.0, 0.0));
         assert!((end.pos[2] - 1.0).abs() < 1e-9 && end.vel == [0.0; 3]);
         // Relative go-to from the plan's end.
         let mut g = vec![COMMAND_GO_TO_2, 0, 1, 0];
@@ -255,19 +390,70 @@ mod tests {
         }
         let t1 = t0 + Picos::from_ms(3000);
         hl.command(&g, t1, [9.0; 4]);
-        let r = hl.reference(t1 + Picos::from_ms(4000)).unwrap();
+        let r = track(hl.aim(t1 + Picos::from_ms(4000), 1.0, 0.0));
         assert!((r.pos[0] - 1.5).abs() < 1e-6);
-        // A landing ends with the motors off.
-        let mut l = takeoff(0.0, 1.0);
-        l[0] = COMMAND_LAND_2;
+        // A landing descends at TOUCHDOWN_SPEED from the plan's height over
+        // the plan's point, the motors stop once the drone hovers at the
+        // cut height.
         let t2 = t1 + Picos::from_ms(5000);
-        hl.command(&l, t2, [9.0; 4]);
-        assert!(hl.reference(t2 + Picos::from_ms(500)).is_some());
-        assert!(hl.reference(t2 + Picos::from_ms(1000)).is_none());
+        hl.command(&land(0.0, 1.0), t2, [9.0, 9.0, 0.8, 9.0]);
+        let r = track(hl.aim(t2 + Picos::from_ms(500), 0.9, -0.1));
+        assert_eq!([r.pos[0], r.pos[1]], [1.5, -1.0]);
+        assert!(
+            (r.pos[2] - (1.0 - 0.5 * TOUCHDOWN_SPEED)).abs() < 1e-9,
+            "{r:?}"
+        );
+        let mut t = t2 + Picos::from_ms(6000);
+        let cut = CUT_HEIGHT_M;
+        assert_eq!(track(hl.aim(t, cut, -0.2)).pos[2], cut);
+        for _ in 0..LANDED_ITERATIONS - 1 {
+            t += Picos::from_ms(32);
+            assert!(hl.aim(t, cut, 0.0).is_some());
+        }
+        assert_eq!(hl.aim(t + Picos::from_ms(32), cut, 0.0), None);
         assert_eq!(hl.state, State::Idle);
         // Short or non-finite commands are ignored.
         hl.command(&takeoff(1.0, 2.0)[..8], t2, [0.0; 4]);
         hl.command(&takeoff(f32::NAN, 2.0), t2, [0.0; 4]);
+        assert_eq!(hl.state, State::Idle);
+    }
+
+    #[test]
+    fn a_landing_descends_slowly_and_stops_the_motors_just_above_the_floor() {
+        let mut hl = HighLevel::default();
+        let t0 = Picos::from_ms(1000);
+        let ms = |s: f64| t0 + Picos::from_ms((s * 1000.0).round() as u64);
+        // From 0.45 m in 0.1 s: at TOUCHDOWN_SPEED (2 s to the cut height).
+        hl.command(&land(0.0, 0.1), t0, [1.0, 2.0, 0.45, 0.0]);
+        let r = track(hl.aim(ms(1.0), 0.3, -0.2));
+        assert_eq!(r.pos, [1.0, 2.0, 0.45 - TOUCHDOWN_SPEED]);
+        // 0.2 m above the cut height it slows down: 1/s x the height left.
+        let z = track(hl.aim(ms(1.1), 0.25, -0.2)).pos[2];
+        assert!((z - 0.23).abs() < 1e-9, "{z}");
+        let z = track(hl.aim(ms(1.2), 0.24, -0.2)).pos[2];
+        assert!(
+            (z - (0.23 - 0.1 * APPROACH_RATE * (0.23 - CUT_HEIGHT_M))).abs() < 1e-9,
+            "{z}"
+        );
+        assert_eq!(track(hl.aim(ms(2.5), 0.1, -0.2)).pos[2], CUT_HEIGHT_M);
+        // Passing through the cut height, or bouncing, is not hovering there.
+        let cut = CUT_HEIGHT_M;
+        for (z, vz) in [(cut, -0.2), (cut, 0.0), (cut, 0.1), (cut, 0.0), (cut, 0.01)] {
+            assert!(hl.aim(ms(2.6), z, vz).is_some());
+        }
+        assert_eq!(hl.aim(ms(2.7), cut, 0.0), None);
+        // A slower landing keeps its own mean speed (0.4 m in 8 s).
+        hl.command(&land(0.0, 8.0), t0, [1.0, 2.0, 0.45, 0.0]);
+        assert!((track(hl.aim(ms(4.0), 0.3, -0.05)).pos[2] - 0.25).abs() < 1e-9);
+        // Never there: the motors stop TOUCHDOWN_TIMEOUT_S after the descent.
+        hl.command(&land(0.0, 0.1), t0, [1.0, 2.0, 0.45, 0.0]);
+        assert!(hl
+            .aim(ms(2.0 + TOUCHDOWN_TIMEOUT_S - 0.01), 0.3, 0.0)
+            .is_some());
+        assert_eq!(hl.aim(ms(2.0 + TOUCHDOWN_TIMEOUT_S), 0.3, 0.0), None);
+        // Bad arguments are ignored.
+        hl.command(&land(f32::NAN, 1.0), t0, [1.0, 2.0, 0.45, 0.0]);
+        hl.command(&land(0.0, -1.0), t0, [1.0, 2.0, 0.45, 0.0]);
         assert_eq!(hl.state, State::Idle);
     }
 }

@@ -17,7 +17,7 @@
 //! | 0 console | [`console`] | the console's lines |
 //! | 2 param | [`param`] | TOC v2, read, write |
 //! | 3 commander | [`commander`] | roll/pitch/yaw-rate/thrust |
-//! | 4 mem | here | `GET_NUMBER_OF_MEMORIES` → 0 |
+//! | 4 mem | [`mem`] | the decks' 1-wire memories (number, details, read) |
 //! | 5 log | [`log`] | TOC v2, blocks, periodic data |
 //! | 6 localization | [`localization`] | external position / pose (and packed), fused into the flow estimate |
 //! | 7 generic set-points | [`commander`] | stop, velocity world, z distance, hover, position, notify stop |
@@ -31,6 +31,7 @@ pub mod high_level;
 pub mod link;
 pub mod localization;
 pub mod log;
+pub mod mem;
 pub mod packet;
 pub mod param;
 pub mod telemetry;
@@ -152,6 +153,8 @@ pub struct CrtpServer {
     pacer: Pacer,
     log: log::Log,
     params: Option<Params>,
+    /// The decks' memories (port 4), with the params from the first sensors.
+    mems: Option<mem::Memories>,
     commander: Commander,
     hl: HighLevel,
     pub telemetry: Telemetry,
@@ -193,6 +196,7 @@ impl CrtpServer {
             recorder,
             pacer: Pacer::new(pace),
             params: None,
+            mems: None,
             commander: Commander::default(),
             hl: HighLevel::default(),
             telemetry: Telemetry::default(),
@@ -253,19 +257,15 @@ impl CrtpServer {
         t.ranges.copy_from_slice(&est[7..13]);
         t.roll = s.roll;
         t.pitch = s.pitch;
-        let ai = self.cfg.ai_deck;
-        let radar = self.radar;
-        self.params.get_or_insert_with(|| {
-            Params::new(
-                Decks {
-                    flow2: s.flow_vx.is_some(),
-                    multiranger: s.range_up.is_some(),
-                    ai,
-                },
-                gains,
-                radar,
-            )
-        });
+        if self.params.is_none() {
+            let decks = Decks {
+                flow2: s.flow_vx.is_some(),
+                multiranger: s.range_up.is_some(),
+                ai: self.cfg.ai_deck,
+            };
+            self.mems = Some(mem::Memories::new(&decks));
+            self.params = Some(Params::new(decks, gains, self.radar));
+        }
     }
 
     fn pose(&self) -> [f64; 4] {
@@ -334,9 +334,15 @@ impl CrtpServer {
                 Some(2) => Some([&[2u8][..], DEVICE_TYPE].concat()),
                 _ => None,
             },
-            // GET_NUMBER_OF_MEMORIES: no memories (no EEPROM, decks' 1-wire
-            // memories or trajectory memory are modelled).
-            (PORT_MEM, 0) if d.first() == Some(&1) => Some(vec![1, 0]),
+            (PORT_MEM, ch) => {
+                let mems = self.mems.as_ref().expect("observed before serving");
+                match ch {
+                    mem::CHAN_INFO => mems.info(d),
+                    mem::CHAN_READ => mems.read(d),
+                    mem::CHAN_WRITE => mems.write(d),
+                    _ => None,
+                }
+            }
             (PORT_LOG, log::CHAN_TOC) => self.log.toc(d),
             (PORT_LOG, log::CHAN_CONTROL) => self.log.control(d, now),
             (PORT_PARAM, param::CHAN_TOC) => params.toc(d),
@@ -507,7 +513,7 @@ impl CrtpServer {
                 }
                 Setpoint::Position { x, y, z, yaw } => self.track([x, y, z], yaw),
             },
-            Watched::None => match self.hl.reference(now) {
+            Watched::None => match self.hl.aim(now, t.pos[2], t.vel[2]) {
                 Some(r) => self.track(r.pos, r.yaw),
                 None => Demand::Off,
             },
