@@ -47,7 +47,8 @@ cfvenv=target/cfclient-venv
 if [ ! -x "$cfvenv/bin/cfclient" ]; then
   python3 -m venv "$cfvenv"
   "$cfvenv/bin/python" -m pip install -q --upgrade pip
-  "$cfvenv/bin/python" -m pip install -q cfclient
+  # The version docs/CFLIB.md was measured with.
+  "$cfvenv/bin/python" -m pip install -q "cfclient==2026.8.1"
 fi
 export CFCLIENT="$PWD/$cfvenv/bin/cfclient"
 
