@@ -121,6 +121,29 @@ def read_labels(directory):
     return rows
 
 
+def read_gates(directory, files):
+    """gates.csv (every gate in front of the camera and not occluded, with
+    the labels' strict verdict; docs/NN.md) as one list per image of `files`
+    (labels.csv's order): dicts with u, v, distance_m, off_normal_deg,
+    in_image, visible (bools) and corners (8 floats, or None when a corner
+    lies behind the camera)."""
+    index = {f: i for i, f in enumerate(files)}
+    out = [[] for _ in files]
+    with open(os.path.join(directory, "gates.csv"), newline="") as f:
+        for r in csv.DictReader(f):
+            i = index.get(r["file"])
+            if i is None:
+                continue
+            out[i].append({
+                "u": float(r["u"]), "v": float(r["v"]),
+                "distance_m": float(r["distance_m"]),
+                "off_normal_deg": float(r["off_normal_deg"]),
+                "in_image": r["in_image"] == "1", "visible": r["visible"] == "1",
+                "corners": [float(x) for x in r["corners"].split()] if r["corners"] else None,
+            })
+    return out
+
+
 def load_dataset(directory, limit=None):
     """(inputs (n, 80, 80) uint8, labels) of a `cosim dataset` directory."""
     labels = read_labels(directory)[:limit]
