@@ -499,6 +499,35 @@ mod tests {
         assert_eq!(nearest_visible_gate(&cam, &w, pos, back), None);
     }
 
+    /// gates.csv's view of a gate: straight ahead 0° off its normal; turned
+    /// 80° listed but not visible (beyond the 70° rule), at 80°; hidden by
+    /// a box not listed at all.
+    #[test]
+    fn gates_in_view_lists_oblique_gates_with_their_angle() {
+        let mut w = one_gate();
+        let (pos, rot) = (DVec3::new(0.0, 0.0, 0.99), DQuat::IDENTITY);
+        let mut cam = Camera::new(&w, &scene_boxes(&w));
+        cam.render(pos, rot);
+        let g = gates_in_view(&cam, &w, pos, rot);
+        assert_eq!(g.len(), 1);
+        assert!(g[0].visible && g[0].in_image && g[0].off_normal_rad.abs() < 1e-9);
+        assert_eq!(nearest_visible(&g).map(|l| l.index), Some(0));
+        w.gates[0].yaw = Finite(80f64.to_radians());
+        let mut cam = Camera::new(&w, &scene_boxes(&w));
+        cam.render(pos, rot);
+        let g = gates_in_view(&cam, &w, pos, rot);
+        assert_eq!(g.len(), 1);
+        assert!(!g[0].visible && g[0].in_image);
+        assert!(
+            (g[0].off_normal_rad.to_degrees() - 80.0).abs() < 0.5,
+            "{g:?}"
+        );
+        assert_eq!(nearest_visible(&g), None);
+        let row = gates_csv_row("x.pgm", &g[0]);
+        assert!(row.starts_with("x.pgm,0,160.000,"), "{row}");
+        assert!(row.contains(",1,0,"), "{row}");
+    }
+
     /// A box between the camera and the gate hides it.
     #[test]
     fn an_occluded_gate_is_not_visible() {
@@ -516,5 +545,6 @@ mod tests {
         let (pos, rot) = (DVec3::new(0.0, 0.0, 0.99), DQuat::IDENTITY);
         cam.render(pos, rot);
         assert_eq!(nearest_visible_gate(&cam, &w, pos, rot), None);
+        assert!(gates_in_view(&cam, &w, pos, rot).is_empty());
     }
 }
