@@ -7,6 +7,8 @@ ReLU (four of stride 2) down to a 5x5 grid, then a 1x1 head: 12 channels per
 grid cell (one cell = 16x16 input pixels = 64x64 camera pixels):
 
   0     objectness logit: "the nearest visible gate's centre is in this cell"
+        (train.py --gates: "a visible gate's centre is in this cell", and
+        the decoding reports the nearest such cell, docs/NN.md)
   1, 2  centre - cell centre, (u, v), in cells (64 px)
   3     distance / 8 m
   4-11  the opening's corners - cell centre, (u0 v0 u1 v1 u2 v2 u3 v3), in cells

@@ -10,6 +10,11 @@ where the shapes match, so a new shape can reuse an older network's first
 layers; --max-seconds ends the schedule early on a time budget (the
 checkpoint's meta records the steps done).
 
+With --gates the targets come from each directory's gates.csv: objectness
+on the cell of every visible gate (--ambiguous: gates near the labelling
+rules' lines left out of it), for the "nearest" decoding whose threshold
+choose_threshold.py then picks on a validation set.
+
 With --bn every ReLU convolution is trained with batch normalisation (batch
 statistics); after training the statistics are re-estimated over 4096
 training images and folded into the convolution's weights and bias, so the
