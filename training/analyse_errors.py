@@ -28,7 +28,7 @@ def main():
     small, labels = netdef.load_dataset(a.data)
     ck = export.load_checkpoint(a.checkpoint)
     head = int8_ref.float_forward(ck, netdef.to_int8(small).astype(np.float64) / 128)
-    pred = evaluate.decode_float(head)
+    pred = evaluate.decode_float(head, export.decode_rule(ck, "float"))
     rows = []  # (distance, edge distance px, detected, centre error, distance error)
     for p, r in zip(pred, labels):
         if r["visible"]:

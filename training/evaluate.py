@@ -20,18 +20,21 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import netdef  # noqa: E402
 
 
-def decode_float(head):
+def decode_float(head, rule=None):
     """Float head (n, 5, 5, 12) -> list of (visible, u, v, distance_m) in
-    camera pixels, with the int8 decoding's rule (first maximum in raster
-    order, visible when its logit > 0)."""
+    camera pixels, with the int8 decoding's rule (int8_ref.pick_cell; `rule`
+    in float units, export.decode_rule(ckpt, "float"); None: the first
+    maximum in raster order, visible when its logit > 0)."""
+    import int8_ref
+
     out = []
     for h in head:
-        flat = h[..., 0].ravel()
-        best = int(np.argmax(flat))
+        flat = h.reshape(-1, netdef.HEAD_CHANNELS)
+        best, visible = int8_ref.pick_cell(flat[:, 0], flat[:, 3], rule)
         gy, gx = divmod(best, netdef.GRID)
         cu, cv = netdef.cell_centre(gx, gy)
         c = h[gy, gx]
-        out.append((bool(flat[best] > 0), cu + c[1] * netdef.CELL_PX,
+        out.append((visible, cu + c[1] * netdef.CELL_PX,
                     cv + c[2] * netdef.CELL_PX, c[3] * netdef.DIST_SCALE_M))
     return out
 
@@ -71,10 +74,11 @@ def main():
     x = netdef.to_int8(small)
     head = int8_ref.float_forward(ckpt, x.astype(np.float64) / 128.0)
     q = export.quantize(ckpt)
-    res = int8_ref.infer_batch(q, x)
+    res = int8_ref.infer_batch(q, x, export.decode_rule(ckpt))
     int8_preds = [(r["visible"], r["u_q4"] / 16, r["v_q4"] / 16, r["distance_mm"] / 1000) for r in res]
     print(json.dumps({"data": a.data, "macs": int(sum(netdef.macs())), "params": netdef.params(),
-                      "float": metrics(decode_float(head), labels),
+                      "decode": json.loads(str(ckpt["decode"])) if "decode" in ckpt else "best cell > 0",
+                      "float": metrics(decode_float(head, export.decode_rule(ckpt, "float")), labels),
                       "int8": metrics(int8_preds, labels)}, indent=1))
 
 

@@ -18,7 +18,12 @@ against it bit for bit.
    the int16 range. No pooling layers.
 3. Output decoding, from the head's int16 grid h[5][5][12]:
    best = the first maximum of h[..][..][0] in raster order (row 0 first);
-   visible = h[best][0] > 0; with (gx, gy) the best cell and
+   visible = h[best][0] > 0. With a checkpoint's "nearest" rule
+   (export.decode_rule: threshold T, maximum distance D): the candidates
+   are the cells with h[..][..][0] > T and h[..][..][3] <= D; best = the
+   one with the smallest h[..][..][3] (the first in raster order on a
+   tie), visible = 1; without a candidate, best as above, visible = 0.
+   With (gx, gy) the best cell and
    (cu, cv) = (64 gx + 32, 64 gy + 32) its centre in camera pixels:
    u_q4 = 16 cu + h[best][1], v_q4 = 16 cv + h[best][2] (1/16 px),
    distance_mm = h[best][3], corner k: (16 cu + h[best][4 + 2k],
@@ -70,16 +75,33 @@ def head_int8(q, x):
     return x
 
 
-def decode(head):
-    """One image's int16 head (5, 5, 12) -> its integer outputs."""
-    obj = head[..., 0].astype(np.int64).ravel()
+def pick_cell(obj, dist, rule):
+    """(best cell's raster index, visible) from the grid's objectness and
+    distance channels (flat, any numeric type; step 3 above): without a rule
+    the first maximum of the objectness, visible when > 0; with the
+    "nearest" rule (export.decode_rule) the nearest of the cells whose
+    objectness > threshold and distance <= max_distance, else the first
+    maximum, not visible. The float decoding uses it too, in float units."""
+    if rule is not None:
+        cand = (obj > rule["threshold"]) & (dist <= rule["max_distance"])
+        if cand.any():
+            d = np.where(cand, dist, np.inf)
+            return int(np.argmin(d)), True  # numpy: the first minimum
     best = int(np.argmax(obj))  # numpy: the first maximum
+    return best, rule is None and bool(obj[best] > 0)
+
+
+def decode(head, rule=None):
+    """One image's int16 head (5, 5, 12) -> its integer outputs. `rule`:
+    export.decode_rule's int8 rule, or None (the best cell's objectness > 0)."""
+    flat = head.reshape(-1, netdef.HEAD_CHANNELS).astype(np.int64)
+    best, visible = pick_cell(flat[:, 0], flat[:, 3], rule)
     gy, gx = divmod(best, netdef.GRID)
-    h = head[gy, gx].astype(np.int64)
+    h = flat[best]
     cu = 16 * (netdef.CELL_PX * gx + netdef.CELL_PX // 2)
     cv = 16 * (netdef.CELL_PX * gy + netdef.CELL_PX // 2)
     return {
-        "visible": bool(h[0] > 0),
+        "visible": bool(visible),
         "score": int(h[0]),
         "cell": [gx, gy],
         "u_q4": int(cu + h[1]),
@@ -89,20 +111,21 @@ def decode(head):
     }
 
 
-def infer_batch(q, x, batch=256):
+def heads_batch(q, x, batch=256):
+    """int8 inputs (n, 80, 80, 1) -> the int16 heads (n, 5, 5, 12)."""
+    return np.concatenate([head_int8(q, x[s:s + batch]) for s in range(0, len(x), batch)])
+
+
+def infer_batch(q, x, rule=None, batch=256):
     """int8 inputs (n, 80, 80, 1) -> list of decoded outputs."""
-    out = []
-    for s in range(0, len(x), batch):
-        for h in head_int8(q, x[s:s + batch]):
-            out.append(decode(h))
-    return out
+    return [decode(h, rule) for h in heads_batch(q, x, batch)]
 
 
-def infer_image(q, image):
+def infer_image(q, image, rule=None):
     """A 320x320 uint8 camera image -> (its int8 input, head, decoded outputs)."""
     x = netdef.to_int8(netdef.downsample(image[None]))
     head = head_int8(q, x)[0]
-    return x[0], head, decode(head)
+    return x[0], head, decode(head, rule)
 
 
 def float_forward(ckpt, x):
@@ -118,9 +141,10 @@ def float_forward(ckpt, x):
 def main():
     import export
 
-    q = export.quantize(export.load_checkpoint(export.DEFAULT_CHECKPOINT))
+    ckpt = export.load_checkpoint(export.DEFAULT_CHECKPOINT)
+    q, rule = export.quantize(ckpt), export.decode_rule(ckpt)
     for path in sys.argv[1:]:
-        _, _, out = infer_image(q, netdef.read_pgm(path))
+        _, _, out = infer_image(q, netdef.read_pgm(path), rule)
         print(path, json.dumps(out))
 
 

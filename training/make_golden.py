@@ -30,7 +30,7 @@ def sha(a):
     return hashlib.sha256(np.ascontiguousarray(a).astype(a.dtype.newbyteorder("<")).tobytes()).hexdigest()
 
 
-def golden_entry(q, path):
+def golden_entry(q, rule, path):
     image = netdef.read_pgm(path)
     x = netdef.to_int8(netdef.downsample(image[None]))
     layers, a = [], x
@@ -43,17 +43,18 @@ def golden_entry(q, path):
         "input_sha256": sha(x[0]),
         "layer_sha256": layers,
         "head": head.ravel().astype(int).tolist(),
-        "outputs": int8_ref.decode(head),
+        "outputs": int8_ref.decode(head, rule),
     }
 
 
 def golden(checkpoint=export.DEFAULT_CHECKPOINT):
-    q = export.quantize(export.load_checkpoint(checkpoint))
+    ckpt = export.load_checkpoint(checkpoint)
+    q, rule = export.quantize(ckpt), export.decode_rule(ckpt)
     files = [r["file"] for r in netdef.read_labels(GOLDEN)]
     with open(checkpoint, "rb") as f:
         ck = hashlib.sha256(f.read()).hexdigest()
     return {"checkpoint_sha256": ck,
-            "images": [golden_entry(q, os.path.join(GOLDEN, f)) for f in files]}
+            "images": [golden_entry(q, rule, os.path.join(GOLDEN, f)) for f in files]}
 
 
 def main():

@@ -7,6 +7,8 @@ ReLU (four of stride 2) down to a 5x5 grid, then a 1x1 head: 12 channels per
 grid cell (one cell = 16x16 input pixels = 64x64 camera pixels):
 
   0     objectness logit: "the nearest visible gate's centre is in this cell"
+        (train.py --gates: "a visible gate's centre is in this cell", and
+        the decoding reports the nearest such cell, docs/NN.md)
   1, 2  centre - cell centre, (u, v), in cells (64 px)
   3     distance / 8 m
   4-11  the opening's corners - cell centre, (u0 v0 u1 v1 u2 v2 u3 v3), in cells
@@ -119,6 +121,29 @@ def read_labels(directory):
                 row["corners"] = [float(x) for x in r["corners"].split()]
             rows.append(row)
     return rows
+
+
+def read_gates(directory, files):
+    """gates.csv (every gate in front of the camera and not occluded, with
+    the labels' strict verdict; docs/NN.md) as one list per image of `files`
+    (labels.csv's order): dicts with u, v, distance_m, off_normal_deg,
+    in_image, visible (bools) and corners (8 floats, or None when a corner
+    lies behind the camera)."""
+    index = {f: i for i, f in enumerate(files)}
+    out = [[] for _ in files]
+    with open(os.path.join(directory, "gates.csv"), newline="") as f:
+        for r in csv.DictReader(f):
+            i = index.get(r["file"])
+            if i is None:
+                continue
+            out[i].append({
+                "u": float(r["u"]), "v": float(r["v"]),
+                "distance_m": float(r["distance_m"]),
+                "off_normal_deg": float(r["off_normal_deg"]),
+                "in_image": r["in_image"] == "1", "visible": r["visible"] == "1",
+                "corners": [float(x) for x in r["corners"].split()] if r["corners"] else None,
+            })
+    return out
 
 
 def load_dataset(directory, limit=None):

@@ -10,6 +10,11 @@ where the shapes match, so a new shape can reuse an older network's first
 layers; --max-seconds ends the schedule early on a time budget (the
 checkpoint's meta records the steps done).
 
+With --gates the targets come from each directory's gates.csv: objectness
+on the cell of every visible gate (--ambiguous: gates near the labelling
+rules' lines left out of it), for the "nearest" decoding whose threshold
+choose_threshold.py then picks on a validation set.
+
 With --bn every ReLU convolution is trained with batch normalisation (batch
 statistics); after training the statistics are re-estimated over 4096
 training images and folded into the convolution's weights and bias, so the
@@ -34,6 +39,96 @@ import netdef  # noqa: E402
 import evaluate  # noqa: E402
 
 
+def mirrored(u, c):
+    """A centre's u and the corners (u0 v0 .. u3 v3) of the image mirrored
+    left-right: TL <-> TR, BR <-> BL."""
+    m = [(netdef.CAMERA - c[2 * k], c[2 * k + 1]) for k in range(4)]
+    m = [m[1], m[0], m[3], m[2]]
+    return netdef.CAMERA - u, [x for p in m for x in p]
+
+
+def cell_of(u, v):
+    """The grid cell of a camera pixel, clamped to the grid (a centre just
+    outside the image belongs to the edge's cell)."""
+    G = netdef.GRID
+    return (min(max(int(np.floor(u / netdef.CELL_PX)), 0), G - 1),
+            min(max(int(np.floor(v / netdef.CELL_PX)), 0), G - 1))
+
+
+def regression(u, v, c, distance_m, x, y):
+    """The regression target of a gate in cell (x, y), relative to its centre."""
+    cu, cv = netdef.cell_centre(x, y)
+    rel = [(c[2 * k] - cu, c[2 * k + 1] - cv) for k in range(4)]
+    return [(u - cu) / netdef.CELL_PX, (v - cv) / netdef.CELL_PX,
+            distance_m / netdef.DIST_SCALE_M] + [q / netdef.CELL_PX for p in rel for q in p]
+
+
+# The labelling rules' lines (world-server/src/dataset.rs: 8 m, the centre
+# inside the image, 70 deg off the normal) and how near them a gate is
+# "ambiguous" for --gates training: left out of the objectness loss (a
+# "don't care" region), as the rules' yes/no there is arbitrary for a small
+# CNN (docs/NN.md: the misses and false positives gather at these lines).
+AMBIGUOUS_RANGE_M = (7.5, 8.5)
+AMBIGUOUS_EDGE_PX = (6.0, 12.0)  # inside, outside the image's edge
+AMBIGUOUS_OFF_NORMAL_DEG = (65.0, 75.0)
+
+
+def ambiguous(g):
+    """A gate near one of the rules' lines (and within the others' slack)."""
+    u, v, C = g["u"], g["v"], netdef.CAMERA
+    inside = min(u, v, C - u, C - v)  # < 0 outside the image
+    if g["corners"] is None or inside < -AMBIGUOUS_EDGE_PX[1]:
+        return False
+    if g["distance_m"] > AMBIGUOUS_RANGE_M[1] or g["off_normal_deg"] > AMBIGUOUS_OFF_NORMAL_DEG[1]:
+        return False
+    return (g["distance_m"] > AMBIGUOUS_RANGE_M[0] or inside < AMBIGUOUS_EDGE_PX[0]
+            or g["off_normal_deg"] > AMBIGUOUS_OFF_NORMAL_DEG[0])
+
+
+def targets_all_gates(gates, mirror, ignore_neighbours, use_ambiguous):
+    """--gates targets from gates.csv: objectness (n, 5, 5), its weight
+    (n, 5, 5), regression (n, 5, 5, 11) and its mask (n, 5, 5).
+
+    Objectness is 1 on the cell of EVERY strictly visible gate (a local
+    question: "a visible gate's centre is here"); the regression of a gate
+    (visible or ambiguous) is trained in its cell and the 8 neighbours, the
+    nearer gate winning a cell two gates compete for. Weight 0 (ignored):
+    the positives' neighbours (with ignore_neighbours) and, with
+    use_ambiguous, the cells of gates near the rules' lines; a positive cell
+    always counts. The decoding (evaluate.decode_nearest) reports the
+    nearest of the cells above a threshold."""
+    n, G = len(gates), netdef.GRID
+    obj = np.zeros((n, G, G), np.float32)
+    wobj = np.ones((n, G, G), np.float32)
+    reg = np.zeros((n, G, G, 11), np.float32)
+    mask = np.zeros((n, G, G), np.float32)
+    for i, gs in enumerate(gates):
+        positives = []
+        # Farthest first, so the nearer gate's regression overwrites.
+        for g in sorted(gs, key=lambda g: -g["distance_m"]):
+            amb = use_ambiguous and ambiguous(g)
+            if not (g["visible"] or amb) or g["corners"] is None:
+                continue
+            u, v, c = g["u"], g["v"], g["corners"]
+            if mirror:
+                u, c = mirrored(u, c)
+            gx, gy = cell_of(u, v)
+            if g["visible"] and not amb:
+                positives.append((gx, gy))
+            else:
+                wobj[i, gy, gx] = 0.0
+            for y in range(max(gy - 1, 0), min(gy + 2, G)):
+                for x in range(max(gx - 1, 0), min(gx + 2, G)):
+                    reg[i, y, x] = regression(u, v, c, g["distance_m"], x, y)
+                    mask[i, y, x] = 1.0
+                    if ignore_neighbours:
+                        wobj[i, y, x] = 0.0
+        for gx, gy in positives:
+            obj[i, gy, gx] = 1.0
+            wobj[i, gy, gx] = 1.0
+    return obj, wobj, reg, mask
+
+
 def targets(labels, mirror):
     """Objectness (n, 5, 5), regression (n, 5, 5, 11) and its mask (n, 5, 5).
 
@@ -50,21 +145,13 @@ def targets(labels, mirror):
             continue
         u, v, c = r["u"], r["v"], list(r["corners"])
         if mirror:
-            u = netdef.CAMERA - u
-            m = [(netdef.CAMERA - c[2 * k], c[2 * k + 1]) for k in range(4)]
-            # TL <-> TR, BR <-> BL
-            m = [m[1], m[0], m[3], m[2]]
-            c = [x for p in m for x in p]
+            u, c = mirrored(u, c)
         gx = min(int(u // netdef.CELL_PX), G - 1)
         gy = min(int(v // netdef.CELL_PX), G - 1)
         obj[i, gy, gx] = 1.0
         for y in range(max(gy - 1, 0), min(gy + 2, G)):
             for x in range(max(gx - 1, 0), min(gx + 2, G)):
-                cu, cv = netdef.cell_centre(x, y)
-                rel = [(c[2 * k] - cu, c[2 * k + 1] - cv) for k in range(4)]
-                reg[i, y, x] = [(u - cu) / netdef.CELL_PX, (v - cv) / netdef.CELL_PX,
-                                r["distance_m"] / netdef.DIST_SCALE_M] + [
-                    q / netdef.CELL_PX for p in rel for q in p]
+                reg[i, y, x] = regression(u, v, c, r["distance_m"], x, y)
                 mask[i, y, x] = 1.0
     return obj, reg, mask
 
@@ -116,15 +203,14 @@ def smooth_l1(d, beta=0.02):
     return jnp.where(a < beta, 0.5 * a * a / beta, a - 0.5 * beta)
 
 
-def loss_fn(params, x, obj, reg, mask, ignore=0.0):
-    """BCE of the objectness over the cells plus the weighted smooth-L1 of the
-    regression over the positive 3x3 cells. With ignore = 1 the centre cell's
-    8 neighbours are left out of the objectness (neither pushed up nor down):
-    a gate near a cell border may then raise both cells instead of splitting
-    its probability between them (each below 0.5, a miss at the decoding's
-    threshold of logit 0)."""
+def loss_fn(params, x, obj, w_obj, reg, mask):
+    """BCE of the objectness over the cells (weighted by w_obj: 0 leaves a
+    cell out) plus the weighted smooth-L1 of the regression over the masked
+    cells. The labels' targets leave the centre cell's 8 neighbours out with
+    --ignore-neighbours (neither pushed up nor down): a gate near a cell
+    border may then raise both cells instead of splitting its probability
+    between them (each below 0.5, a miss at the decoding's threshold)."""
     out = forward(params, x)
-    w_obj = 1.0 - ignore * (mask - obj)
     bce = (optax.sigmoid_binary_cross_entropy(out[..., 0], obj) * w_obj).sum(axis=(1, 2))
     w = jnp.array([1.0, 1.0, 0.5] + [0.25] * 8)
     r = (smooth_l1(out[..., 1:] - reg) * w).sum(-1) * mask
@@ -231,17 +317,29 @@ def main():
                     help="stop the schedule early after this much training time (a shared machine's budget)")
     ap.add_argument("--ignore-neighbours", action="store_true",
                     help="leave the centre cell's 8 neighbours out of the objectness loss")
+    ap.add_argument("--gates", action="store_true",
+                    help="targets from gates.csv: objectness on every visible gate's cell")
+    ap.add_argument("--ambiguous", action="store_true",
+                    help="with --gates: leave gates near the labelling rules' lines out of the objectness")
     a = ap.parse_args()
-    ignore = 1.0 if a.ignore_neighbours else 0.0
     t0 = time.time()
     parts = [load_inputs(d) for d in a.data]
     small = np.concatenate([p[0][:a.limit] for p in parts])
     labels = [r for p in parts for r in p[1][:a.limit]]
     n = len(labels)
     # Samples 0..n-1 the images, n..2n-1 the same mirrored (labels mirrored).
-    o1, r1, m1 = targets(labels, False)
-    o2, r2, m2 = targets(labels, True)
-    obj, reg, mask = (np.concatenate(p) for p in ((o1, o2), (r1, r2), (m1, m2)))
+    if a.gates:
+        gates = [g for d, p in zip(a.data, parts)
+                 for g in netdef.read_gates(d, [r["file"] for r in p[1][:a.limit]])]
+        t = [targets_all_gates(gates, m, a.ignore_neighbours, a.ambiguous) for m in (False, True)]
+        obj, wobj, reg, mask = (np.concatenate(p) for p in zip(*t))
+        print(f"objectness: {obj.sum() / 2:.0f} positive cells, "
+              f"{(wobj == 0).sum() / 2:.0f} ignored", flush=True)
+    else:
+        o1, r1, m1 = targets(labels, False)
+        o2, r2, m2 = targets(labels, True)
+        obj, reg, mask = (np.concatenate(p) for p in ((o1, o2), (r1, r2), (m1, m2)))
+        wobj = 1.0 - (1.0 if a.ignore_neighbours else 0.0) * (mask - obj)
     print(f"loaded {n} images (x2 mirrored) in {time.time() - t0:.1f} s", flush=True)
 
     key = jax.random.PRNGKey(a.seed)
@@ -258,8 +356,8 @@ def main():
     state = opt.init(params)
 
     @jax.jit
-    def step(params, state, xb, ob, rb, mb):
-        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, rb, mb, ignore)
+    def step(params, state, xb, ob, wb, rb, mb):
+        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, wb, rb, mb)
         upd, state = opt.update(g, state, params)
         return optax.apply_updates(params, upd), state, loss
 
@@ -274,7 +372,7 @@ def main():
                 break
             idx = np.sort(perm[s * a.batch:(s + 1) * a.batch])
             xb = batch_inputs(small, idx, n, rng, a.gain, a.offset)
-            params, state, loss = step(params, state, xb, obj[idx], reg[idx], mask[idx])
+            params, state, loss = step(params, state, xb, obj[idx], wobj[idx], reg[idx], mask[idx])
             total += float(loss)
             done += 1
             if s % 100 == 0:
@@ -310,7 +408,8 @@ def main():
     ckpt["act_max"] = act_max
     meta = {"command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
             "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn,
-            "ignore_neighbours": a.ignore_neighbours, "train_seconds": round(train_s, 1),
+            "ignore_neighbours": a.ignore_neighbours, "gates": a.gates,
+            "ambiguous": a.ambiguous, "train_seconds": round(train_s, 1),
             "steps": done, "scheduled_steps": total_steps,
             "jax": jax.__version__, "optax": optax.__version__}
     ckpt["meta"] = np.array(json.dumps(meta))

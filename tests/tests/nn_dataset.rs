@@ -31,6 +31,66 @@ fn diagonals_cross(c: &[f64]) -> (f64, f64) {
     (p0.0 + t * d1.0, p0.1 + t * d1.1)
 }
 
+/// gates.csv lists every gate in front of the camera; its nearest strictly
+/// visible gate of each image is labels.csv's row, field for field; the
+/// visible ones keep the labels' rules; some images see several gates, and
+/// some gates are listed but not visible.
+fn gates_csv_agrees_with_labels(dir: &Path) {
+    let mut gates = csv::Reader::from_path(dir.join("gates.csv")).unwrap();
+    assert_eq!(
+        gates.headers().unwrap(),
+        vec![
+            "file",
+            "gate",
+            "u",
+            "v",
+            "distance_m",
+            "off_normal_deg",
+            "in_image",
+            "visible",
+            "corners"
+        ]
+    );
+    let mut by_file = std::collections::BTreeMap::<String, Vec<csv::StringRecord>>::new();
+    for row in gates.records() {
+        let row = row.unwrap();
+        by_file.entry(row[0].to_string()).or_default().push(row);
+    }
+    let (mut several, mut not_visible) = (0, 0);
+    let mut labels = csv::Reader::from_path(dir.join("labels.csv")).unwrap();
+    for label in labels.records() {
+        let label = label.unwrap();
+        let rows = by_file.remove(&label[0]).unwrap_or_default();
+        let num = |r: &csv::StringRecord, k: usize| r[k].parse::<f64>().unwrap();
+        let mut nearest: Option<&csv::StringRecord> = None;
+        for r in &rows {
+            if &r[7] == "1" {
+                assert_eq!(&r[6], "1", "{r:?}");
+                assert!(num(r, 4) <= world_server::dataset::MAX_RANGE_M, "{r:?}");
+                assert!(num(r, 5) <= 70.0 + 1e-3, "{r:?}");
+                assert_eq!(r[8].split(' ').count(), 8, "{r:?}");
+                if nearest.is_none_or(|n| num(r, 4) < num(n, 4)) {
+                    nearest = Some(r);
+                }
+            } else {
+                not_visible += 1;
+            }
+        }
+        several += usize::from(rows.iter().filter(|r| &r[7] == "1").count() > 1);
+        match nearest {
+            None => assert_eq!(&label[1], "0", "{label:?} but gates.csv: {rows:?}"),
+            Some(n) => {
+                assert_eq!(&label[1], "1");
+                for (l, g) in [(2, 2), (3, 3), (4, 4), (5, 8)] {
+                    assert_eq!(&label[l], &n[g], "{label:?} vs {n:?}");
+                }
+            }
+        }
+    }
+    assert!(by_file.is_empty(), "gates.csv names other files");
+    assert!(several > 0 && not_visible > 0, "{several} {not_visible}");
+}
+
 #[test]
 fn dataset_is_seeded_and_its_labels_are_projected_gates() {
     let bins = Bins::new();
@@ -46,6 +106,7 @@ fn dataset_is_seeded_and_its_labels_are_projected_gates() {
     dataset(&bins, &world, "60", "8", &c);
     let mut files: Vec<String> = (0..60).map(|i| format!("img_{i:06}.pgm")).collect();
     files.push("labels.csv".into());
+    files.push("gates.csv".into());
     files.push("dataset.json".into());
     assert_same_files(&a, &b, &files, "same seed");
     let read = |d: &Path, f: &str| std::fs::read(d.join(f)).unwrap();
@@ -96,6 +157,7 @@ fn dataset_is_seeded_and_its_labels_are_projected_gates() {
         );
     }
     assert!(visible >= 20, "only {visible} of 60 images see a gate");
+    gates_csv_agrees_with_labels(&a);
 
     for (args, want) in [
         (

@@ -17,6 +17,7 @@ import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
+import evaluate  # noqa: E402
 import export  # noqa: E402
 import int8_ref  # noqa: E402
 import make_golden  # noqa: E402
@@ -25,7 +26,8 @@ import netdef  # noqa: E402
 
 def test_committed_c_weights_are_the_export_of_the_checkpoint():
     ckpt = export.load_checkpoint(export.DEFAULT_CHECKPOINT)
-    h, c = export.c_sources(export.quantize(ckpt), json.loads(str(ckpt["meta"])))
+    h, c = export.c_sources(export.quantize(ckpt), json.loads(str(ckpt["meta"])),
+                            export.decode_rule(ckpt))
     for name, want in (("weights.h", h), ("weights.c", c)):
         with open(os.path.join(export.DEFAULT_OUT, name)) as f:
             assert f.read() == want, f"{name} differs: run python3 training/export.py"
@@ -72,18 +74,22 @@ def test_downsampling_rounds_the_block_mean():
 
 
 def test_int8_agrees_with_float_on_the_golden_images():
+    """Where both decodings report a gate clearly (the float objectness
+    half a logit above the threshold), they place it within 4 px."""
     ckpt = export.load_checkpoint(export.DEFAULT_CHECKPOINT)
-    q = export.quantize(ckpt)
+    q, rule = export.quantize(ckpt), export.decode_rule(ckpt)
+    rule_f = export.decode_rule(ckpt, "float")
+    threshold = 0.0 if rule_f is None else rule_f["threshold"]
+    compared = 0
     for r in netdef.read_labels(make_golden.GOLDEN):
         image = netdef.read_pgm(os.path.join(make_golden.GOLDEN, r["file"]))
-        x, head, out = int8_ref.infer_image(q, image)
-        f = int8_ref.float_forward(ckpt, x[None].astype(np.float64) / 128.0)[0]
-        best = np.unravel_index(np.argmax(f[..., 0]), f.shape[:2])
-        if out["visible"] and f[best][0] > 0.5:
-            assert tuple(out["cell"][::-1]) == tuple(int(i) for i in best)
-            cu, cv = netdef.cell_centre(best[1], best[0])
-            fu, fv = cu + f[best][1] * netdef.CELL_PX, cv + f[best][2] * netdef.CELL_PX
+        x, head, out = int8_ref.infer_image(q, image, rule)
+        f = int8_ref.float_forward(ckpt, x[None].astype(np.float64) / 128.0)
+        visible, fu, fv, _ = evaluate.decode_float(f, rule_f)[0]
+        if out["visible"] and visible and f[0, ..., 0].max() > threshold + 0.5:
             assert abs(out["u_q4"] / 16 - fu) < 4 and abs(out["v_q4"] / 16 - fv) < 4
+            compared += 1
+    assert compared >= 3
 
 
 def test_folding_batch_norm_keeps_the_network():
@@ -108,3 +114,71 @@ def test_folding_batch_norm_keeps_the_network():
     assert all(set(layer) == {"w", "b"} for layer in folded.values())
     got = np.asarray(train.forward(folded, x))
     assert np.abs(got - want).max() < 1e-4 * np.abs(want).max()
+
+
+def test_nearest_decoding_takes_the_nearest_cell_above_the_threshold():
+    """The "nearest" rule as decode.c and nn_selftest.c: candidates strictly
+    above the threshold and within the distance limit, the nearest wins, the
+    first in raster order on a tie; none: not visible, the first maximum."""
+    G, C = netdef.GRID, netdef.HEAD_CHANNELS
+    rule = {"threshold": 100, "max_distance": 8000}
+    head = np.zeros((G, G, C), np.int16)
+    head[..., 0] = 100  # at the threshold: not a candidate (distance 0)
+    cell = lambda i: head[i // G, i % G]  # noqa: E731
+    cell(7)[[0, 3]] = (300, 4321)  # the most certain, farther
+    cell(18)[[0, 1, 3]] = (101, -16, 3000)  # nearer: wins
+    cell(20)[[0, 3]] = (101, 3000)  # as near, later
+    cell(3)[[0, 3]] = (400, 8001)  # beyond the limit
+    out = int8_ref.decode(head, rule)
+    assert out["visible"] and out["cell"] == [18 % G, 18 // G] and out["distance_mm"] == 3000
+    assert out["u_q4"] == 16 * (netdef.CELL_PX * (18 % G) + netdef.CELL_PX // 2) - 16
+    for i in (3, 7, 18, 20):
+        cell(i)[0] = 100
+    out = int8_ref.decode(head, rule)
+    assert not out["visible"] and out["cell"] == [0, 0]
+    # The float decoding takes the same cell with the rule in float units.
+    f = head.astype(np.float64)
+    f[..., 0] /= 64
+    f[..., 3] /= 8000
+    f[18 // G, 18 % G, 0] = 101 / 64
+    vis, _, _, d = evaluate.decode_float(f[None], {"threshold": 100 / 64, "max_distance": 1.0})[0]
+    assert vis and abs(d - 3000 / 8000 * netdef.DIST_SCALE_M) < 1e-12
+
+
+def test_export_writes_a_decoding_rule_only_when_the_checkpoint_has_one():
+    ckpt = export.load_checkpoint(export.DEFAULT_CHECKPOINT)
+    q, meta = export.quantize(ckpt), json.loads(str(ckpt["meta"]))
+    plain, _ = export.c_sources(q, meta, None)
+    ruled, _ = export.c_sources(q, meta, {"threshold": 96, "max_distance": 8000})
+    assert "NN_DECODE" not in plain
+    assert "#define NN_DECODE_THRESHOLD (96)" in ruled
+    assert "#define NN_DECODE_MAX_DISTANCE_MM (8000)" in ruled
+    ckpt["decode"] = np.array(json.dumps({"rule": "nearest", "threshold_q": 96,
+                                          "max_distance_mm": 8000}))
+    assert export.decode_rule(ckpt) == {"threshold": 96, "max_distance": 8000}
+    assert export.decode_rule(ckpt, "float")["threshold"] == 1.5
+
+
+def test_every_visible_gate_is_a_positive_and_the_nearer_gate_wins_a_cell():
+    """train.targets_all_gates (needs JAX; skipped where only numpy is)."""
+    pytest.importorskip("jax")
+    import train
+
+    def gate(u, v, d, visible=True, off=10.0):
+        c = [u - 10, v - 10, u + 10, v - 10, u + 10, v + 10, u - 10, v + 10]
+        return {"u": u, "v": v, "distance_m": d, "off_normal_deg": off,
+                "in_image": True, "visible": visible, "corners": c}
+
+    near, far = gate(100, 100, 3.0), gate(140, 100, 6.0)  # cells (1, 1), (2, 1)
+    edge = gate(316, 200, 4.0)  # 4 px from the edge: ambiguous
+    hidden = gate(40, 300, 5.0, visible=False, off=80.0)  # too oblique: a negative
+    obj, w, reg, mask = train.targets_all_gates([[far, near, edge, hidden]], False, True, True)
+    assert obj[0, 1, 1] == 1 and obj[0, 1, 2] == 1 and obj.sum() == 2
+    assert w[0, 1, 1] == 1 and w[0, 1, 2] == 1  # positives count
+    assert w[0, 0, 0] == 0  # a positive's neighbour
+    assert w[0, 3, 4] == 0 and obj[0, 3, 4] == 0  # the ambiguous gate's cell
+    assert w[0, 4, 0] == 1 and obj[0, 4, 0] == 0  # the oblique gate: a negative
+    # Cell (2, 1) neighbours both gates' cells: the nearer one's regression.
+    assert abs(reg[0, 1, 2, 2] - 3.0 / netdef.DIST_SCALE_M) < 1e-6
+    assert abs(reg[0, 1, 3, 2] - 6.0 / netdef.DIST_SCALE_M) < 1e-6
+    assert mask[0, 4, 0] == 0

@@ -9,8 +9,9 @@
 //! and S give the same bytes.
 //!
 //! Output (in DIR): `img_NNNNNN.pgm` (binary PGM, `P5 320 320 255`, row-major,
-//! top row first: 15 header bytes then 102,400 pixels), `labels.csv` (below)
-//! and `dataset.json` (the parameters).
+//! top row first: 15 header bytes then 102,400 pixels), `labels.csv` (below),
+//! `gates.csv` (every gate in front of the camera, [`GateView`]) and
+//! `dataset.json` (the parameters).
 //!
 //! Labels (`file, gate_visible, u, v, distance_m, corners`): the nearest
 //! *visible* gate, where visible means (all four):
@@ -170,6 +171,10 @@ pub fn write_dataset(
     let mut rows =
         std::io::BufWriter::new(std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?);
     writeln!(rows, "file,gate_visible,u,v,distance_m,corners").map_err(io_err(&csv_path))?;
+    let gates_path = out.join("gates.csv");
+    let mut gate_rows =
+        std::io::BufWriter::new(std::fs::File::create(&gates_path).map_err(io_err(&gates_path))?);
+    writeln!(gate_rows, "{GATES_CSV_HEADER}").map_err(io_err(&gates_path))?;
     let mut rng = ChaCha8Rng::seed_from_u64(spec.seed);
     let mut labels = Vec::with_capacity(spec.count);
     let mut pgm = Vec::with_capacity(16 + CAMERA_WIDTH * CAMERA_HEIGHT);
@@ -183,14 +188,19 @@ pub fn write_dataset(
         pgm.extend_from_slice(camera.image());
         let path = out.join(&file);
         std::fs::write(&path, &pgm).map_err(io_err(&path))?;
+        let gates = gates_in_view(&camera, &s.world, s.position, s.rotation);
+        for g in &gates {
+            writeln!(gate_rows, "{}", gates_csv_row(&file, g)).map_err(io_err(&gates_path))?;
+        }
         let label = Label {
+            gate: nearest_visible(&gates),
             file,
-            gate: nearest_visible_gate(&camera, &s.world, s.position, s.rotation),
         };
         writeln!(rows, "{}", csv_row(&label)).map_err(io_err(&csv_path))?;
         labels.push(label);
     }
     rows.flush().map_err(io_err(&csv_path))?;
+    gate_rows.flush().map_err(io_err(&gates_path))?;
     Ok(labels)
 }
 
@@ -198,54 +208,72 @@ pub fn write_dataset(
 pub fn csv_row(l: &Label) -> String {
     match &l.gate {
         None => format!("{},0,,,,", l.file),
-        Some(g) => {
-            let mut corners = String::new();
-            for (k, (u, v)) in g.corners.iter().enumerate() {
-                let sep = if k == 0 { "" } else { " " };
-                write!(corners, "{sep}{u:.3} {v:.3}").expect("to a String");
-            }
-            format!(
-                "{},1,{:.3},{:.3},{:.4},{corners}",
-                l.file, g.u, g.v, g.distance_m
-            )
-        }
+        Some(g) => format!(
+            "{},1,{:.3},{:.3},{:.4},{}",
+            l.file,
+            g.u,
+            g.v,
+            g.distance_m,
+            corners_field(&g.corners)
+        ),
     }
 }
 
-/// The nearest gate that is visible in the image just rendered by `camera`
-/// (the module's rules).
-pub fn nearest_visible_gate(
+/// A gate in front of the camera, as `gates.csv` lists it: every gate whose
+/// opening's centre is in front of the camera and, when it projects inside
+/// the image, not covered by something nearer (outside the image the
+/// renderer's depth cannot tell, so those are listed). `visible` is the
+/// module's strict verdict (the labels' rules); the rest lets a trainer
+/// see the gates near the rules' lines (the range, the image's edge, the
+/// angle off the normal), which a strict yes/no labels arbitrarily.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GateView {
+    /// Index of the gate in the world file.
+    pub index: usize,
+    pub u: f64,
+    pub v: f64,
+    pub distance_m: f64,
+    /// The angle between the ray to the centre and the gate's normal (either
+    /// side), 0 to 90°.
+    pub off_normal_rad: f64,
+    /// The centre projects inside the image.
+    pub in_image: bool,
+    /// The inner corners (as [`GateLabel::corners`]); `None` when one lies
+    /// behind the camera (the gate is too close to label its corners).
+    pub corners: Option<[(f64, f64); 4]>,
+    /// Visible by the module's rules (the labels' verdict).
+    pub visible: bool,
+}
+
+/// Every gate in front of the camera that is not occluded (see [`GateView`]),
+/// in the world file's order, for the image just rendered by `camera`.
+pub fn gates_in_view(
     camera: &Camera,
     world: &WorldDesc,
     position: DVec3,
     rotation: DQuat,
-) -> Option<GateLabel> {
+) -> Vec<GateView> {
     let eye = Camera::eye(position, rotation);
     let (w, h) = (camera.width(), camera.height());
     let right = rotation * -DVec3::Y;
-    let mut best: Option<GateLabel> = None;
+    let mut out = Vec::new();
     for (index, g) in world.gates.iter().enumerate() {
         let c = DVec3::from_array(g.centre.0);
         let distance_m = (c - eye).length();
-        if distance_m > MAX_RANGE_M || best.is_some_and(|b| b.distance_m <= distance_m) {
-            continue;
-        }
         let Some((u, v, depth)) = camera.project(position, rotation, c) else {
             continue;
         };
-        if !(0.0..w as f64).contains(&u) || !(0.0..h as f64).contains(&v) {
-            continue;
+        let in_image = (0.0..w as f64).contains(&u) && (0.0..h as f64).contains(&v);
+        if in_image {
+            let pixel = (v as usize) * w + u as usize;
+            let seen = camera.inv_depth()[pixel] as f64;
+            if seen > (1.0 + OCCLUSION_TOLERANCE) / depth {
+                continue;
+            }
         }
         let (sin, cos) = g.yaw.0.sin_cos();
         let normal = DVec3::new(cos, sin, 0.0);
-        if ((c - eye).normalize().dot(normal)).abs() < MAX_OBLIQUITY_RAD.cos() {
-            continue;
-        }
-        let pixel = (v as usize) * w + u as usize;
-        let seen = camera.inv_depth()[pixel] as f64;
-        if seen > (1.0 + OCCLUSION_TOLERANCE) / depth {
-            continue;
-        }
+        let facing = ((c - eye).normalize().dot(normal)).abs();
         // The opening's horizontal axis, pointing to the image's right.
         let mut across = DVec3::new(-sin, cos, 0.0);
         if across.dot(right) < 0.0 {
@@ -261,25 +289,90 @@ pub fn nearest_visible_gate(
                 )
                 .map(|(u, v, _)| (u, v))
         };
-        // A corner behind the camera while the centre is in front: the gate
-        // is too close to label its corners; skip it (rare, < 1 m).
-        let (Some(c0), Some(c1), Some(c2), Some(c3)) = (
+        let corners = match (
             corner(-1.0, 1.0),
             corner(1.0, 1.0),
             corner(1.0, -1.0),
             corner(-1.0, -1.0),
-        ) else {
-            continue;
+        ) {
+            (Some(c0), Some(c1), Some(c2), Some(c3)) => Some([c0, c1, c2, c3]),
+            _ => None,
         };
-        best = Some(GateLabel {
+        out.push(GateView {
             index,
             u,
             v,
             distance_m,
-            corners: [c0, c1, c2, c3],
+            off_normal_rad: facing.min(1.0).acos(),
+            in_image,
+            corners,
+            visible: distance_m <= MAX_RANGE_M
+                && in_image
+                && facing >= MAX_OBLIQUITY_RAD.cos()
+                && corners.is_some(),
         });
     }
-    best
+    out
+}
+
+/// The nearest of the visible gates `gates_in_view` found (the first in
+/// the world file's order on a tie): the image's label.
+pub fn nearest_visible(gates: &[GateView]) -> Option<GateLabel> {
+    let mut best: Option<&GateView> = None;
+    for g in gates.iter().filter(|g| g.visible) {
+        if best.is_none_or(|b| g.distance_m < b.distance_m) {
+            best = Some(g);
+        }
+    }
+    best.map(|g| GateLabel {
+        index: g.index,
+        u: g.u,
+        v: g.v,
+        distance_m: g.distance_m,
+        corners: g.corners.expect("a visible gate has its corners"),
+    })
+}
+
+/// The nearest gate that is visible in the image just rendered by `camera`
+/// (the module's rules).
+pub fn nearest_visible_gate(
+    camera: &Camera,
+    world: &WorldDesc,
+    position: DVec3,
+    rotation: DQuat,
+) -> Option<GateLabel> {
+    nearest_visible(&gates_in_view(camera, world, position, rotation))
+}
+
+/// `u0 v0 u1 v1 u2 v2 u3 v3` with 3 decimals.
+fn corners_field(corners: &[(f64, f64); 4]) -> String {
+    let mut s = String::new();
+    for (k, (u, v)) in corners.iter().enumerate() {
+        let sep = if k == 0 { "" } else { " " };
+        write!(s, "{sep}{u:.3} {v:.3}").expect("to a String");
+    }
+    s
+}
+
+/// `gates.csv`'s header.
+pub const GATES_CSV_HEADER: &str =
+    "file,gate,u,v,distance_m,off_normal_deg,in_image,visible,corners";
+
+/// One `gates.csv` row (no newline): pixels with 3 decimals, metres with 4
+/// (as `labels.csv`), the angle in degrees with 3; `corners` empty when one
+/// lies behind the camera.
+pub fn gates_csv_row(file: &str, g: &GateView) -> String {
+    format!(
+        "{file},{},{:.3},{:.3},{:.4},{:.3},{},{},{}",
+        g.index,
+        g.u,
+        g.v,
+        g.distance_m,
+        g.off_normal_rad.to_degrees(),
+        u8::from(g.in_image),
+        u8::from(g.visible),
+        g.corners.as_ref().map(corners_field).unwrap_or_default()
+    )
 }
 
 /// Draws one scene and pose; `None` if no free pose was found in 1000 tries.
@@ -406,6 +499,35 @@ mod tests {
         assert_eq!(nearest_visible_gate(&cam, &w, pos, back), None);
     }
 
+    /// gates.csv's view of a gate: straight ahead 0° off its normal; turned
+    /// 80° listed but not visible (beyond the 70° rule), at 80°; hidden by
+    /// a box not listed at all.
+    #[test]
+    fn gates_in_view_lists_oblique_gates_with_their_angle() {
+        let mut w = one_gate();
+        let (pos, rot) = (DVec3::new(0.0, 0.0, 0.99), DQuat::IDENTITY);
+        let mut cam = Camera::new(&w, &scene_boxes(&w));
+        cam.render(pos, rot);
+        let g = gates_in_view(&cam, &w, pos, rot);
+        assert_eq!(g.len(), 1);
+        assert!(g[0].visible && g[0].in_image && g[0].off_normal_rad.abs() < 1e-9);
+        assert_eq!(nearest_visible(&g).map(|l| l.index), Some(0));
+        w.gates[0].yaw = Finite(80f64.to_radians());
+        let mut cam = Camera::new(&w, &scene_boxes(&w));
+        cam.render(pos, rot);
+        let g = gates_in_view(&cam, &w, pos, rot);
+        assert_eq!(g.len(), 1);
+        assert!(!g[0].visible && g[0].in_image);
+        assert!(
+            (g[0].off_normal_rad.to_degrees() - 80.0).abs() < 0.5,
+            "{g:?}"
+        );
+        assert_eq!(nearest_visible(&g), None);
+        let row = gates_csv_row("x.pgm", &g[0]);
+        assert!(row.starts_with("x.pgm,0,160.000,"), "{row}");
+        assert!(row.contains(",1,0,"), "{row}");
+    }
+
     /// A box between the camera and the gate hides it.
     #[test]
     fn an_occluded_gate_is_not_visible() {
@@ -423,5 +545,6 @@ mod tests {
         let (pos, rot) = (DVec3::new(0.0, 0.0, 0.99), DQuat::IDENTITY);
         cam.render(pos, rot);
         assert_eq!(nearest_visible_gate(&cam, &w, pos, rot), None);
+        assert!(gates_in_view(&cam, &w, pos, rot).is_empty());
     }
 }

@@ -55,6 +55,45 @@ static void requantization(void)
     check("round 2.5", (uint32_t)nn_requant_fast(5 << 14, 1, 15, -100, 100), 3);
 }
 
+#ifdef NN_DECODE_THRESHOLD
+/* The nearest rule (weights.h): candidates above the threshold and within
+ * the distance limit; the nearest wins, the first on a tie. */
+static void decoding(void)
+{
+    static int16_t head[NN_GRID * NN_GRID * NN_HEAD_CHANNELS];
+    const int16_t t = NN_DECODE_THRESHOLD;
+    nn_output_t o;
+    memset(head, 0, sizeof head);
+    /* At the threshold is not above it: none of these (distance 0) counts. */
+    for (int i = 0; i < NN_GRID * NN_GRID; i++)
+        head[i * NN_HEAD_CHANNELS] = t;
+    head[7 * NN_HEAD_CHANNELS] = t + 200; /* the most certain, farther */
+    head[7 * NN_HEAD_CHANNELS + 3] = 4321;
+    head[18 * NN_HEAD_CHANNELS] = t + 1; /* nearer: wins */
+    head[18 * NN_HEAD_CHANNELS + 3] = 3000;
+    head[18 * NN_HEAD_CHANNELS + 1] = -16;
+    head[20 * NN_HEAD_CHANNELS] = t + 1; /* as near, later in raster order */
+    head[20 * NN_HEAD_CHANNELS + 3] = 3000;
+    if (NN_DECODE_MAX_DISTANCE_MM < 32767) {
+        head[3 * NN_HEAD_CHANNELS] = t + 300; /* beyond the distance limit */
+        head[3 * NN_HEAD_CHANNELS + 3] = NN_DECODE_MAX_DISTANCE_MM + 1;
+    }
+    nn_decode(head, &o);
+    check("decode visible", (uint32_t)o.visible, 1);
+    check("decode nearest cell x", (uint32_t)o.cell_x, 18 % NN_GRID);
+    check("decode nearest cell y", (uint32_t)o.cell_y, 18 / NN_GRID);
+    check("decode u", (uint32_t)o.u_q4, 16 * (NN_CELL_PX * (18 % NN_GRID) + NN_CELL_PX / 2) - 16);
+    check("decode distance", (uint32_t)o.distance_mm, 3000);
+    head[7 * NN_HEAD_CHANNELS] = t;
+    head[18 * NN_HEAD_CHANNELS] = t;
+    head[20 * NN_HEAD_CHANNELS] = t;
+    head[3 * NN_HEAD_CHANNELS] = t;
+    head[9 * NN_HEAD_CHANNELS] = t; /* ties: the first maximum, cell 0 */
+    nn_decode(head, &o);
+    check("decode not visible at the threshold", (uint32_t)o.visible, 0);
+    check("decode best cell without a candidate", (uint32_t)(o.cell_x + o.cell_y), 0);
+}
+#else
 static void decoding(void)
 {
     static int16_t head[NN_GRID * NN_GRID * NN_HEAD_CHANNELS];
@@ -78,6 +117,7 @@ static void decoding(void)
     nn_decode(head, &o);
     check("decode not visible at 0", (uint32_t)o.visible, 0);
 }
+#endif
 
 static uint8_t frame[NN_CAMERA * NN_CAMERA] __attribute__((aligned(4)));
 static int8_t input[NN_INPUT_PADDED_BYTES] __attribute__((aligned(4)));
