@@ -7,42 +7,19 @@
 
 mod iss_util;
 
-use sim_core::cluster::{Cluster, ClusterConfig};
-use sim_core::iss::run_elf::build_memory;
-use sim_core::iss::{load_elf, CoreStats, Cpu, CpuConfig, NoDevices};
-use sim_core::units::{Hertz, Picos};
-
-use iss_util::Console;
+use sim_core::iss::{Backend, CoreStats, NoDevices};
+use sim_core::units::Picos;
 
 /// What a run leaves: the stop, the FC's registers and statistics, the
 /// console, the cluster's reports and DMA totals, and each core's own
 /// statistics (`skipped_instructions` apart, returned beside).
 fn run(name: &str, idle_skip: bool) -> (String, u64) {
-    let bytes = std::fs::read(iss_util::firmware(name)).unwrap();
-    let elf = load_elf(&bytes).unwrap();
-    let mut mem = build_memory(&[], elf.lowest_address()).unwrap();
-    elf.load_into(&mut mem).unwrap();
-    let mut cluster = Cluster::new(
-        ClusterConfig {
-            clock: Hertz(175_000_000),
-            idle_skip,
-            ..ClusterConfig::default()
-        },
-        &mut mem,
-    )
-    .unwrap();
-    let console = Console::default();
-    let c2 = console.clone();
-    cluster.set_console(move || Box::new(c2.clone()));
-    let mut cpu = Cpu::new(Cluster::fc_config(CpuConfig {
-        idle_skip,
-        ..CpuConfig::default()
-    }));
-    Cluster::attach_fc(&mut cpu);
-    cpu.set_console(Box::new(console.clone()));
-    cpu.set_pc(elf.entry);
-    cpu.set_tohost(elf.symbol("tohost"));
-    cpu.set_instruction_limit(Some(3_000_000));
+    let iss_util::ClusterRun {
+        mut cpu,
+        mut mem,
+        mut cluster,
+        console,
+    } = iss_util::cluster_run(name, Backend::DEFAULT, idle_skip, 3_000_000);
     let stop = cluster.run_until(&mut cpu, &mut mem, &mut NoDevices, Picos::MAX);
     cpu.flush_console().unwrap();
     cluster.flush_console().unwrap();
