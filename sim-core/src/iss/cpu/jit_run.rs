@@ -95,7 +95,7 @@ impl Cpu {
         } else {
             extra
         };
-        let stall = (mem.insts[first].reads() & self.load_mask != 0) as u64;
+        let stall = self.entry_stall(&mem.insts, first);
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
         // Where the worst case does not fit, the careful variant (a

@@ -595,31 +595,34 @@ impl Block<'_> {
 }
 
 /// The byte dot products (`cv.sdotsp.b`, `cv.sdotusp.b`, `cv.sdotup.b`,
-/// `cv.dotsp.b`) inline: the four bytes of each operand widened to 32 bits
-/// (signed or not, as `xcv::simd` has them), multiplied lane by lane, the
-/// lanes summed, added to rd (modulo 2^32) for the `sdot` forms. Each
-/// product fits in 17 bits, so the 32-bit lanes are exact, as the
-/// interpreter's `i32` sums are.
+/// `cv.dotsp.b`) inline: the four bytes of each operand widened to 16 bits
+/// (signed or not, as `xcv::simd` has them; 0..255 is a positive `i16`),
+/// `pmaddwd` multiplies the lanes into 32-bit products and adds them in
+/// pairs, the two pair sums are added, and the result is added to rd
+/// (modulo 2^32) for the `sdot` forms. Every product and sum fits in 32
+/// bits, so this is the interpreter's `i32` sum. (`pmaddwd` is one
+/// micro-op where `pmulld` and two `phaddd` are eight.)
 fn dot_b(a: &mut Asm, i: &Inst) {
     let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
-    match i.op {
-        op::CV_SDOTUP_B => dynasm!(a ; .arch x64
-            ; pmovzxbd xmm0, DWORD [r12 + rs1]
-            ; pmovzxbd xmm1, DWORD [r12 + rs2]
-        ),
-        op::CV_SDOTUSP_B => dynasm!(a ; .arch x64
-            ; pmovzxbd xmm0, DWORD [r12 + rs1]
-            ; pmovsxbd xmm1, DWORD [r12 + rs2]
-        ),
-        _ => dynasm!(a ; .arch x64
-            ; pmovsxbd xmm0, DWORD [r12 + rs1]
-            ; pmovsxbd xmm1, DWORD [r12 + rs2]
-        ),
+    dynasm!(a ; .arch x64
+        ; movd xmm0, [r12 + rs1]
+        ; movd xmm1, [r12 + rs2]
+    );
+    // rs1 unsigned for sdotup and sdotusp, rs2 unsigned for sdotup only.
+    if matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B) {
+        dynasm!(a ; .arch x64 ; pmovzxbw xmm0, xmm0);
+    } else {
+        dynasm!(a ; .arch x64 ; pmovsxbw xmm0, xmm0);
+    }
+    if i.op == op::CV_SDOTUP_B {
+        dynasm!(a ; .arch x64 ; pmovzxbw xmm1, xmm1);
+    } else {
+        dynasm!(a ; .arch x64 ; pmovsxbw xmm1, xmm1);
     }
     dynasm!(a ; .arch x64
-        ; pmulld xmm0, xmm1
-        ; phaddd xmm0, xmm0
-        ; phaddd xmm0, xmm0
+        ; pmaddwd xmm0, xmm1
+        ; pshufd xmm1, xmm0, 1
+        ; paddd xmm0, xmm1
         ; movd eax, xmm0
     );
     if i.op != op::CV_DOTSP_B {
