@@ -113,6 +113,10 @@ pub(crate) struct Ctx {
     /// ([`Tcdm::raw_parts`]), for the inline grant (null: no arbitration).
     pub l1_granted: *mut u64,
     pub l1_accesses: *mut u64,
+    /// L1 accesses granted inline during the run, which the core adds to
+    /// the port's count (`*l1_accesses`) afterwards (a stalled access is
+    /// counted by the arbiter itself).
+    pub l1_grants: u64,
     /// The idle detector wants to see short backward branches (a device
     /// was read since the last one, `PollTracker::touched`): a taken one
     /// leaves at its target with its pc in [`Ctx::poll_from`] (else 0).
@@ -157,7 +161,7 @@ pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;
 pub(crate) const POLL_FROM: i32 = offset_of!(Ctx, poll_from) as i32;
 pub(crate) const L1_EXTRA: i32 = offset_of!(Ctx, l1_extra) as i32;
 pub(crate) const L1_GRANTED: i32 = offset_of!(Ctx, l1_granted) as i32;
-pub(crate) const L1_ACCESSES: i32 = offset_of!(Ctx, l1_accesses) as i32;
+pub(crate) const L1_GRANTS: i32 = offset_of!(Ctx, l1_grants) as i32;
 pub(crate) const JUMPS: i32 = offset_of!(Ctx, jumps) as i32;
 pub(crate) const EXIT_PC: i32 = offset_of!(Ctx, exit_pc) as i32;
 pub(crate) const LOAD_MASK: i32 = offset_of!(Ctx, load_mask) as i32;

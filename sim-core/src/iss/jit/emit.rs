@@ -438,6 +438,8 @@ impl Block<'_> {
                         self.exits[k]
                     },
                     slow: a.new_dynamic_label(),
+                    busy: a.new_dynamic_label(),
+                    join: a.new_dynamic_label(),
                     back,
                     issue: self.prefix[k + 1] - 1,
                     rest: self.rest[k + 1],

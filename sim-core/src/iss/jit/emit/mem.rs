@@ -21,6 +21,10 @@ pub(super) struct L1Site {
     /// and where both rejoin the block.
     pub other: dynasmrt::DynamicLabel,
     pub slow: dynasmrt::DynamicLabel,
+    /// The bank grant's out-of-line call of the arbiter (`busy`), and
+    /// where it rejoins.
+    pub busy: dynasmrt::DynamicLabel,
+    pub join: dynasmrt::DynamicLabel,
     pub back: dynasmrt::DynamicLabel,
     /// The access's issue cycle, relative to `r13` before it: the last
     /// cycle of its cost, as the interpreter's `Run::extra` and the
@@ -85,7 +89,7 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
         return;
     }
     in_region(a, i, site, (L1_BASE, L1_SIZE, L1_CODE_LO, L1_CODE_HI));
-    grant(a, site.issue, site.recheck);
+    grant(a, site);
     dynasm!(a ; .arch x64 ; mov r8, [rbx + L1_PTR]);
     access(a, i, 8);
     if site.recheck {
@@ -133,11 +137,13 @@ fn recheck(a: &mut Asm, site: &L1Site) {
     fits(a, nmem, site.after);
 }
 
-/// The out-of-line parts of an L1-path access (after the block): at
-/// `site.other` the fast region's access (else leave just before it),
+/// The out-of-line parts of an L1-path access (after the block): the
+/// grant's call of the arbiter (`busy`), at `site.other` the fast
+/// region's access (else leave just before it),
 /// and at `site.slow` the deadline test after an access that cost more
 /// than counted; both rejoin at `site.back`.
 pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
+    busy(a, site);
     dynasm!(a ; .arch x64 ; =>site.other);
     let fast = L1Site {
         other: site.exit,
@@ -166,25 +172,23 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
 /// stall; without arbitration (the FC), the L1's latency alone. With
 /// `flag`, `edi` says afterwards whether the access may have cost more
 /// than [`Ctx::worst_extra`]: after a stall 1, else [`Ctx::l1_recheck`].
-fn grant(a: &mut Asm, issue: u64, flag: bool) {
+/// The taken case is out of line (`busy`).
+fn grant(a: &mut Asm, site: &L1Site) {
     // A slice is 16 bytes (`Tcdm::raw_parts`), a bank WORDS slices.
     const BANK_BITS: i32 = (BANKS as i32 - 1) << 2;
     const BANK_SHIFT: i8 = (WORDS * 16).trailing_zeros() as i8 - 2;
     const SLOT_BITS: i32 = (WORDS as i32 - 1) << 4;
-    let (no_arb, fresh, done, busy, join) = (
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
+    let (no_arb, fresh, done) = (
         a.new_dynamic_label(),
         a.new_dynamic_label(),
         a.new_dynamic_label(),
     );
-    let f = l1_access as extern "sysv64" fn(*mut Ctx, u32, u64) -> u64 as usize as i64;
     dynasm!(a ; .arch x64
         ; mov r9, [rbx + L1_GRANTED]
         ; test r9, r9
         ; jz =>no_arb
         // rdx = cycle, r10 = its slice's tag, r11 = its bit.
-        ; lea rdx, [r13 + issue as i32]
+        ; lea rdx, [r13 + site.issue as i32]
         ; mov r10, rdx
         ; shr r10, 6
         ; xor r11d, r11d
@@ -204,25 +208,33 @@ fn grant(a: &mut Asm, issue: u64, flag: bool) {
         ; cmp [r9], r10
         ; jne =>fresh
         ; test [r9 + 8], r11
-        ; jnz =>busy
+        ; jnz =>site.busy
         ; or [r9 + 8], r11
         ; jmp =>done
         ; =>fresh
         ; mov [r9], r10
         ; mov [r9 + 8], r11
         ; =>done
-        ; mov r9, [rbx + L1_ACCESSES]
-        ; add QWORD [r9], 1
+        // The port's count, added to the arbiter's by the core after the
+        // run (`Ctx::l1_grants`).
+        ; add QWORD [rbx + L1_GRANTS], 1
         ; =>no_arb
         ; add r13, [rbx + L1_EXTRA]
     );
-    if flag {
+    if site.recheck {
         dynasm!(a ; .arch x64 ; mov edi, [rbx + L1_RECHECK]);
     }
+    dynasm!(a ; .arch x64 ; =>site.join);
+}
+
+/// The grant's taken-cycle case, out of line: the arbiter itself
+/// ([`l1_access`], which finds the stall and counts the access), then
+/// back to `site.join` (with `edi` = 1 for the deadline test, `grant`).
+fn busy(a: &mut Asm, site: &L1Site) {
+    let f = l1_access as extern "sysv64" fn(*mut Ctx, u32, u64) -> u64 as usize as i64;
     dynasm!(a ; .arch x64
-        ; jmp =>join
-        // Two pushes keep `rsp` 16-aligned for the call.
-        ; =>busy
+        // Two pushes keep `rsp` 16-aligned for the call; `rdx` = the cycle.
+        ; =>site.busy
         ; push rax
         ; push rcx
         ; mov rdi, rbx
@@ -233,10 +245,10 @@ fn grant(a: &mut Asm, issue: u64, flag: bool) {
         ; pop rcx
         ; pop rax
     );
-    if flag {
+    if site.recheck {
         dynasm!(a ; .arch x64 ; mov edi, 1);
     }
-    dynasm!(a ; .arch x64 ; =>join);
+    dynasm!(a ; .arch x64 ; jmp =>site.join);
 }
 
 /// A store's checks besides the bounds (`rcx` = offset in the region, `rdx`
