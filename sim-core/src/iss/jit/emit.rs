@@ -547,8 +547,13 @@ impl Block<'_> {
     /// Taken branches: their cost plus the taken extra, then chain.
     fn taken_sides(&mut self, a: &mut Asm) {
         let b = self.b;
-        for k in 0..self.n {
-            let Some(l) = self.taken[k] else { continue };
+        let taken: Vec<_> = self
+            .taken
+            .iter()
+            .enumerate()
+            .filter_map(|(k, l)| Some((k, (*l)?)))
+            .collect();
+        for (k, l) in taken {
             dynasm!(a ; =>l);
             account(
                 a,
