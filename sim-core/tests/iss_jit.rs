@@ -9,12 +9,8 @@
 
 mod iss_util;
 
-use sim_core::cluster::{Cluster, ClusterConfig};
-use sim_core::iss::run_elf::build_memory;
-use sim_core::iss::{load_elf, Backend, Cpu, CpuConfig, Memory, NoDevices, StopReason};
-use sim_core::units::{Hertz, Picos};
-
-use iss_util::Console;
+use sim_core::iss::{Backend, Cpu, CpuConfig, Memory, NoDevices, StopReason};
+use sim_core::units::Picos;
 
 /// Everything observable at the end of a firmware run.
 #[derive(Debug, PartialEq)]
@@ -49,31 +45,12 @@ fn ram_hash(mem: &Memory) -> u64 {
 /// beside the FC), for at most `limit` FC instructions, in slices of
 /// `slice` of simulated time.
 fn run_firmware(name: &str, iss: Backend, limit: u64, slice: Option<Picos>) -> Outcome {
-    let bytes = std::fs::read(iss_util::firmware(name)).unwrap();
-    let elf = load_elf(&bytes).unwrap();
-    let mut mem = build_memory(&[], elf.lowest_address()).unwrap();
-    elf.load_into(&mut mem).unwrap();
-    let mut cluster = Cluster::new(
-        ClusterConfig {
-            clock: Hertz(175_000_000),
-            iss,
-            ..ClusterConfig::default()
-        },
-        &mut mem,
-    )
-    .unwrap();
-    let console = Console::default();
-    let c2 = console.clone();
-    cluster.set_console(move || Box::new(c2.clone()));
-    let mut cpu = Cpu::new(Cluster::fc_config(CpuConfig {
-        iss,
-        ..CpuConfig::default()
-    }));
-    Cluster::attach_fc(&mut cpu);
-    cpu.set_console(Box::new(console.clone()));
-    cpu.set_pc(elf.entry);
-    cpu.set_tohost(elf.symbol("tohost"));
-    cpu.set_instruction_limit(Some(limit));
+    let iss_util::ClusterRun {
+        mut cpu,
+        mut mem,
+        mut cluster,
+        console,
+    } = iss_util::cluster_run(name, iss, true, limit);
     let stop = match slice {
         None => cluster.run_until(&mut cpu, &mut mem, &mut NoDevices, Picos::MAX),
         Some(dt) => {

@@ -336,6 +336,36 @@ impl Mmio for CoreBus<'_> {
             .access(self.core, addr, size, Some(v), now)
             .map(|_| ())
     }
+    /// A core's read of CTRL's plain registers (not the FC's event
+    /// counter, which a core cannot read, nor the event unit or the DMA,
+    /// whose reads act) holds until another agent may act: the FC or
+    /// another runnable core at its time, or a DMA completion. Cores that
+    /// sleep in the event unit wake only on what those do, and a read is
+    /// only made once every other agent is later (`Shared::synced`). So
+    /// a core polling the mailbox (`master_loop`) while the FC works skips
+    /// to the FC's time instead of reading it every few cycles.
+    fn stable_until(&self, addr: u32, size: AccessSize, now: Picos) -> Picos {
+        use ctrl::{BOOT_ADDR, FREQ_HZ, MAILBOX, NB_CORES, POWER, RUNNING};
+        let off = addr.wrapping_sub(WINDOW_BASE);
+        let plain = matches!(
+            off,
+            POWER | NB_CORES | FREQ_HZ | BOOT_ADDR | RUNNING | MAILBOX
+        );
+        if size != AccessSize::Word || !plain {
+            return now;
+        }
+        let sh = &*self.sh;
+        let others = (0..sh.n)
+            .filter(|&j| j != self.core && sh.state[j] == CoreState::Running)
+            .map(|j| sh.eff_time(j, sh.time[j]))
+            .chain([
+                sh.eff_time(FC, sh.fc_time),
+                sh.dma.next_completion().unwrap_or(Picos::MAX),
+            ])
+            .min()
+            .unwrap_or(Picos::MAX);
+        others.max(now)
+    }
     fn take_stop_request(&mut self) -> bool {
         std::mem::take(&mut self.sh.stop)
     }
@@ -505,6 +535,12 @@ impl Cluster {
             }
         }
         reports
+    }
+
+    /// Each core's own ISS statistics (polling and skipped instructions
+    /// included, which [`Cluster::report`] leaves out).
+    pub fn core_stats(&self) -> Vec<crate::iss::CoreStats> {
+        self.cores.iter().map(|c| c.stats()).collect()
     }
 
     /// Each core's figures so far.

@@ -87,3 +87,55 @@ pub fn random_code(raw: &[u32], opcodes: &[usize]) -> Vec<u32> {
         })
         .collect()
 }
+
+/// A committed firmware set up as `sim-core run-elf` runs it: the FC with
+/// the cluster beside it (8 cores at 175 MHz), one console for both, at
+/// most `limit` FC instructions.
+pub struct ClusterRun {
+    pub cpu: Cpu,
+    pub mem: Memory,
+    pub cluster: sim_core::cluster::Cluster,
+    pub console: Console,
+}
+
+pub fn cluster_run(
+    name: &str,
+    iss: sim_core::iss::Backend,
+    idle_skip: bool,
+    limit: u64,
+) -> ClusterRun {
+    use sim_core::cluster::{Cluster, ClusterConfig};
+    let bytes = std::fs::read(firmware(name)).unwrap();
+    let elf = load_elf(&bytes).unwrap();
+    let mut mem = build_memory(&[], elf.lowest_address()).unwrap();
+    elf.load_into(&mut mem).unwrap();
+    let mut cluster = Cluster::new(
+        ClusterConfig {
+            clock: sim_core::units::Hertz(175_000_000),
+            iss,
+            idle_skip,
+            ..ClusterConfig::default()
+        },
+        &mut mem,
+    )
+    .unwrap();
+    let console = Console::default();
+    let c2 = console.clone();
+    cluster.set_console(move || Box::new(c2.clone()));
+    let mut cpu = Cpu::new(Cluster::fc_config(CpuConfig {
+        iss,
+        idle_skip,
+        ..CpuConfig::default()
+    }));
+    Cluster::attach_fc(&mut cpu);
+    cpu.set_console(Box::new(console.clone()));
+    cpu.set_pc(elf.entry);
+    cpu.set_tohost(elf.symbol("tohost"));
+    cpu.set_instruction_limit(Some(limit));
+    ClusterRun {
+        cpu,
+        mem,
+        cluster,
+        console,
+    }
+}

@@ -95,12 +95,21 @@ impl Cpu {
         } else {
             extra
         };
-        let stall = (mem.insts[first].reads() & self.load_mask != 0) as u64;
+        let stall = self.entry_stall(&mem.insts, first);
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
-        if cycles.saturating_add(e.worst_case(extra, worst_extra)) >= self.deadline {
+        // Where the worst case does not fit, the careful variant (a
+        // cluster core's translation) runs to the deadline itself: the
+        // interpreter's test for this first instruction, `entry <
+        // deadline`, is `run_block`'s loop condition.
+        let code = if cycles.saturating_add(e.worst_case(extra, worst_extra)) < self.deadline {
+            e.code
+        } else if e.careful != 0 {
+            debug_assert!(entry < self.deadline);
+            e.code + e.careful as u64
+        } else {
             return Translated::TooLong;
-        }
+        };
         let mut ctx = Ctx {
             regs: self.regs.as_mut_ptr(),
             fast_ptr: r.data.as_mut_ptr(),
@@ -111,6 +120,7 @@ impl Cpu {
             tohost: self.tohost.map_or(NO_TOHOST, |t| t as u64),
             deadline: self.deadline,
             extra,
+            l1_recheck: (t.l1_extra > worst_extra) as u64,
             worst_extra,
             l1_ptr,
             l1_base: t.l1.0 as u64,
@@ -122,6 +132,7 @@ impl Cpu {
             l1_port: t.l1_port.unwrap_or(0) as u64,
             l1_granted,
             l1_accesses,
+            l1_grants: 0,
             poll_armed: self.poll.touched as u64,
             poll_from: 0,
             jumps: 0,
@@ -137,7 +148,12 @@ impl Cpu {
         // the arbiter outlive the call and nothing else touches them
         // meanwhile (`&mut self`, `&mut mem`); the table is the cache's own, not resized during a run;
         // `e.code` was just returned by this cache.
-        unsafe { jit.run(&mut ctx, e.code, cycles) };
+        unsafe { jit.run(&mut ctx, code, cycles) };
+        if !ctx.l1_accesses.is_null() {
+            // SAFETY: the arbiter's counter (`Tcdm::raw_parts`), which
+            // `mem` still holds, unaliased (`&mut mem`).
+            unsafe { *ctx.l1_accesses += ctx.l1_grants };
+        }
         self.cycles = ctx.cycles;
         self.pc = ctx.exit_pc as u32;
         self.instret += ctx.retired;

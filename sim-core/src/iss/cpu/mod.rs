@@ -455,6 +455,15 @@ impl Cpu {
         }
     }
 
+    /// Whether the block at `insts[first]` starts with a load-use
+    /// stall behind the instruction before it (1 or 0). Nothing in the
+    /// load shadow (a transfer, a non-load) is the common case and needs
+    /// no look at the block (a cache miss per cluster quantum otherwise).
+    #[inline(always)]
+    fn entry_stall(&self, insts: &[Inst], first: usize) -> u64 {
+        (self.load_mask != 0 && insts[first].reads() & self.load_mask != 0) as u64
+    }
+
     /// Stop the inner loop after the current instruction.
     #[inline(always)]
     fn break_block(&mut self) {
@@ -509,7 +518,7 @@ impl Cpu {
         run.poll_armed = self.poll.touched || self.poll.active;
         // The one load-use stall a block cannot know: behind whatever
         // instruction ran before it.
-        let stall = (mem.insts[first].reads() & self.load_mask != 0) as u64;
+        let stall = self.entry_stall(&mem.insts, first);
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
         let flow = exec::run(&mut run, &mut self.regs, first, entry, cycles, deadline);

@@ -27,6 +27,12 @@ pub(super) struct PollTracker {
     /// `Cpu::jumps` at the start of the iteration: a verified iteration
     /// took exactly one control transfer, its closing backward branch.
     start_jumps: u64,
+    /// This core's L1 accesses at the start of the iteration (its port's
+    /// count in the bank arbiter; 0 without one): iterations that granted
+    /// L1 banks are counted as polling but never skipped, since a skipped
+    /// grant would leave the arbiter's state, and so the other cores'
+    /// stalls, different.
+    start_l1: u64,
     reads: [PollRead; MAX_POLL_READS],
     n_reads: usize,
     /// A read this iteration that idle skipping cannot reason about
@@ -86,13 +92,15 @@ impl Cpu {
             let body_len = p.body_len;
             self.stats.poll_cycles += iter_cycles;
             self.stats.poll_instructions += body_len;
-            if self.cfg.idle_skip {
+            let l1 = self.l1_accesses(mem);
+            if self.cfg.idle_skip && l1 == self.poll.start_l1 {
                 self.skip_iterations(dev, iter_cycles, body_len);
             }
             let p = &mut self.poll;
             p.start_cycles = self.cycles;
             p.start_instret = self.instret;
             p.start_jumps = self.jumps;
+            p.start_l1 = l1;
         } else {
             let arm = self.poll.touched
                 && self.poll.rejected != (branch, target)
@@ -102,6 +110,7 @@ impl Cpu {
             } else {
                 None
             };
+            let l1 = self.l1_accesses(mem);
             let p = &mut self.poll;
             match body {
                 Some(len) => {
@@ -113,6 +122,7 @@ impl Cpu {
                     p.start_cycles = self.cycles;
                     p.start_instret = self.instret;
                     p.start_jumps = self.jumps;
+                    p.start_l1 = l1;
                 }
                 None => {
                     if arm {
@@ -126,6 +136,15 @@ impl Cpu {
         p.touched = false;
         p.n_reads = 0;
         p.unskippable = false;
+    }
+
+    /// This core's L1 accesses so far (its port's count in the bank
+    /// arbiter; 0 for a core without one).
+    fn l1_accesses(&self, mem: &Memory) -> u64 {
+        match (self.mem_timing.l1_port, mem.tcdm.as_ref()) {
+            (Some(port), Some(t)) => t.stats[port as usize % crate::cluster::tcdm::PORTS].accesses,
+            _ => 0,
+        }
     }
 
     /// Skip whole iterations of a verified polling loop: as many as fit

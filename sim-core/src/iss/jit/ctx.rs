@@ -16,6 +16,9 @@ use std::mem::offset_of;
 
 /// A translated block as the dispatcher sees it (16 bytes, one per
 /// halfword of a RAM region; `code == 0`: none).
+///
+/// The layout is the table's (`mod.rs`'s `pack`): `code`, then `worst`,
+/// `nmem` and `careful` in one little-endian word.
 #[derive(Debug, Clone, Copy, Default)]
 #[repr(C)]
 pub(crate) struct Entry {
@@ -27,8 +30,17 @@ pub(crate) struct Entry {
     pub worst: u32,
     /// Loads and stores in it, each of which may cost [`Ctx::worst_extra`]
     /// more (an L1 bank's stall aside: translated code checks the deadline
-    /// again after each L1 access).
-    pub nmem: u32,
+    /// again after each L1 access); [`L1_PATH`] is its flag bit.
+    pub nmem: u16,
+    /// Offset from `code` of the careful variant's entry past its first
+    /// deadline test (0: none), for a core whose deadline is nearer than
+    /// the block's worst case: the block's instructions, each preceded by
+    /// the interpreter's own test (`cycles >= deadline`: leave before it),
+    /// so translated code runs right up to a cluster quantum's end instead
+    /// of handing its last blocks to the interpreter (`emit::translate`).
+    /// The core enters there only when its cycles are below the deadline,
+    /// which is the interpreter's test for a block's first instruction.
+    pub careful: u16,
 }
 
 /// Set in [`Entry::nmem`] for a translation with the L1 path (made for a
@@ -36,7 +48,7 @@ pub(crate) struct Entry {
 /// access at [`Ctx::worst_extra`] and re-checks after each; the others
 /// count [`Ctx::extra`] (their L1 accesses leave). The FC's code has no
 /// L1 path, so it stays as compact as without a cluster.
-pub(crate) const L1_PATH: u32 = 1 << 31;
+pub(crate) const L1_PATH: u16 = 1 << 15;
 
 impl Entry {
     /// The most cycles the block can take (apart from an L1 bank's stall,
@@ -73,6 +85,12 @@ pub(crate) struct Ctx {
     pub deadline: u64,
     /// Extra cycles of every fast-region access (a cluster core's L2).
     pub extra: u64,
+    /// 1 when an L1 access granted at once may cost more than
+    /// [`Ctx::worst_extra`] (its extra is above the fast region's), so the
+    /// checked code must test the deadline again after it; else 0 (a
+    /// cluster core: its L1 is the cheaper region) and only a bank's stall
+    /// makes it test again.
+    pub l1_recheck: u64,
     /// The most extra cycles of an access apart from an L1 bank's stall:
     /// the larger of [`Ctx::extra`] and [`Ctx::l1_extra`] (the worst-case
     /// checks count it per load or store).
@@ -95,6 +113,10 @@ pub(crate) struct Ctx {
     /// ([`Tcdm::raw_parts`]), for the inline grant (null: no arbitration).
     pub l1_granted: *mut u64,
     pub l1_accesses: *mut u64,
+    /// L1 accesses granted inline during the run, which the core adds to
+    /// the port's count (`*l1_accesses`) afterwards (a stalled access is
+    /// counted by the arbiter itself).
+    pub l1_grants: u64,
     /// The idle detector wants to see short backward branches (a device
     /// was read since the last one, `PollTracker::touched`): a taken one
     /// leaves at its target with its pc in [`Ctx::poll_from`] (else 0).
@@ -128,6 +150,7 @@ pub(crate) const CODE_HI: i32 = offset_of!(Ctx, code_hi) as i32;
 pub(crate) const TOHOST: i32 = offset_of!(Ctx, tohost) as i32;
 pub(crate) const DEADLINE: i32 = offset_of!(Ctx, deadline) as i32;
 pub(crate) const EXTRA: i32 = offset_of!(Ctx, extra) as i32;
+pub(crate) const L1_RECHECK: i32 = offset_of!(Ctx, l1_recheck) as i32;
 pub(crate) const WORST_EXTRA: i32 = offset_of!(Ctx, worst_extra) as i32;
 pub(crate) const L1_PTR: i32 = offset_of!(Ctx, l1_ptr) as i32;
 pub(crate) const L1_BASE: i32 = offset_of!(Ctx, l1_base) as i32;
@@ -138,7 +161,7 @@ pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;
 pub(crate) const POLL_FROM: i32 = offset_of!(Ctx, poll_from) as i32;
 pub(crate) const L1_EXTRA: i32 = offset_of!(Ctx, l1_extra) as i32;
 pub(crate) const L1_GRANTED: i32 = offset_of!(Ctx, l1_granted) as i32;
-pub(crate) const L1_ACCESSES: i32 = offset_of!(Ctx, l1_accesses) as i32;
+pub(crate) const L1_GRANTS: i32 = offset_of!(Ctx, l1_grants) as i32;
 pub(crate) const JUMPS: i32 = offset_of!(Ctx, jumps) as i32;
 pub(crate) const EXIT_PC: i32 = offset_of!(Ctx, exit_pc) as i32;
 pub(crate) const LOAD_MASK: i32 = offset_of!(Ctx, load_mask) as i32;

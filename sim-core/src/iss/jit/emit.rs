@@ -18,16 +18,18 @@
 //! interpreter's issue cycle (`grant`).
 
 use dynasmrt::x64::X64Relocation;
-use dynasmrt::{dynasm, DynasmApi, DynasmLabelApi, VecAssembler};
+use dynasmrt::{dynasm, DynamicLabel, DynasmApi, DynasmLabelApi, VecAssembler};
 
 use super::super::block::Inst;
 use super::super::cpu::MAX_POLL_LOOP_BYTES;
 use super::super::decode::op;
 use super::super::timing::BRANCH_TAKEN_EXTRA;
-use super::super::xcv::mem::{base_op, mode, Mode};
+use super::super::xcv::mem::base_op;
 use super::ctx::*;
-use super::helpers::{helper, is_div, l1_access, MAX_DIV_EXTRA};
-use crate::cluster::tcdm::{BANKS, WORDS};
+use super::helpers::{helper, is_div, MAX_DIV_EXTRA};
+use mem::{mem_op, out_of_line, L1Site};
+
+mod mem;
 
 type Asm = VecAssembler<X64Relocation>;
 
@@ -69,7 +71,8 @@ fn reg(r: u8) -> i32 {
 pub(crate) struct Translation {
     pub code: Vec<u8>,
     pub worst: u32,
-    pub nmem: u32,
+    pub nmem: u16,
+    pub careful: u16,
     /// Jumps to the dispatcher for a static target not translated yet:
     /// `(target pc, offset of the jump's rel32 in code)`, to be pointed at
     /// the target's code once it exists.
@@ -80,7 +83,7 @@ pub(crate) struct Translation {
 /// to be placed at host address `at`. `known` gives the translated block
 /// at a guest pc, for direct jumps, and `first_reads` the registers the
 /// first instruction of the cached block at a pc reads; `l1`: the memory has a cluster L1,
-/// whose accesses get a path of their own (`l1_op`; the cluster cores'
+/// whose accesses get a path of their own (`mem::mem_op`; the cluster cores'
 /// translations, marked [`L1_PATH`] in `nmem`). `None` when its first
 /// instruction is not covered.
 ///
@@ -126,23 +129,48 @@ pub(crate) fn translate(
     // The byte dot products inline need SSE4.1 (`pmovsxbd`, `pmulld`);
     // without, the helpers do them.
     let sse41 = std::arch::is_x86_feature_detected!("sse4.1");
+    let nmem = u16::try_from(nmem).ok().filter(|&m| m < L1_PATH)?;
     let mut a = Asm::new(at);
     let start = a.new_dynamic_label();
-    let exits: Vec<_> = (0..=n).map(|_| a.new_dynamic_label()).collect();
-    // Which exits something jumps to (only those are emitted: unused stubs
-    // would only dilute the host's instruction cache).
-    let mut used = vec![false; n + 1];
-    let mut taken: Vec<(usize, dynasmrt::DynamicLabel)> = Vec::new();
-    let mut patches = Vec::new();
-    // The loads and stores' other-region paths, emitted after the block.
-    let mut l1_sites: Vec<(Inst, L1Site)> = Vec::new();
+    // A cluster core's translation has a careful variant (`Entry::careful`):
+    // its label before each instruction's deadline test, and the core's
+    // entry past the first.
+    let careful = l1.then(|| {
+        let labels: Vec<_> = (0..n).map(|_| a.new_dynamic_label()).collect();
+        (labels, a.new_dynamic_label())
+    });
+    let mut blk = Block {
+        b,
+        n,
+        at,
+        stubs,
+        known,
+        first_reads,
+        l1,
+        sse41,
+        start,
+        exits: (0..=n).map(|_| a.new_dynamic_label()).collect(),
+        used: vec![false; n + 1],
+        prefix,
+        jumps,
+        rest,
+        careful_at: careful.as_ref().map(|c| c.0.clone()),
+        careful_go: careful.as_ref().map(|c| c.1),
+        taken: vec![None; n],
+        tail: None,
+        patches: Vec::new(),
+    };
     // The checked entry: enter only if the worst case ends before the
-    // deadline, else leave at the block's start (reached by a transfer:
-    // nothing in the load shadow).
-    let fail = a.new_dynamic_label();
+    // deadline; else run the careful variant when there is one (which
+    // leaves at once at the deadline), or leave at the block's start
+    // (reached by a transfer: nothing in the load shadow).
+    let fail = match &blk.careful_at {
+        Some(c) => c[0],
+        None => a.new_dynamic_label(),
+    };
     dynasm!(a ; .arch x64 ; =>start ; lea rcx, [r13 + worst as i32]);
     if l1 {
-        fits(&mut a, nmem, fail);
+        fits(&mut a, nmem as u32, fail);
     } else if nmem != 0 {
         // Without the L1 path only fast-region accesses stay (`rbp` each).
         dynasm!(a ; .arch x64 ; imul rdx, rbp, nmem as i32 ; add rcx, rdx);
@@ -150,10 +178,152 @@ pub(crate) fn translate(
     } else {
         dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE] ; jae =>fail);
     }
+    blk.body(&mut a, false);
+    if blk.careful_at.is_some() {
+        blk.body(&mut a, true);
+    } else {
+        dynasm!(a ; .arch x64 ; =>fail ; mov eax, b[0].pc as i32);
+        jmp_abs(&mut a, at, stubs.leave);
+    }
+    // Exits just before instruction k (the interpreter's `leave`): the
+    // load-use state is that of the instruction before, or none after a
+    // transfer (the core fixes the entry block's k = 0 case).
+    for (k, l) in blk.exits.iter().enumerate().filter(|&(k, _)| blk.used[k]) {
+        dynasm!(a ; =>*l);
+        account(&mut a, blk.prefix[k], k as u64, blk.jumps[k]);
+        let mask = if k > 0 { b[k - 1].load_mask() } else { 0 };
+        let pc = b.get(k).map_or(0, |i| i.pc);
+        dynasm!(a
+            ; mov DWORD [rbx + EXIT_PC], pc as i32
+            ; mov DWORD [rbx + EXIT_PC + 4], 0
+            ; mov DWORD [rbx + LOAD_MASK], mask as i32
+            ; mov DWORD [rbx + LOAD_MASK + 4], 0
+        );
+        jmp_abs(&mut a, at, stubs.exit);
+    }
+    // The careful entry's offset (0, none, if it does not fit the table's
+    // 16 bits: then the core interprets near the deadline, as before).
+    let careful = blk.careful_go.map_or(0, |go| {
+        let off = a
+            .labels()
+            .resolve_dynamic(go)
+            .expect("careful entry placed")
+            .0;
+        u16::try_from(off).unwrap_or(0)
+    });
+    let code = a.finalize().ok()?;
+    Some(Translation {
+        code,
+        worst,
+        nmem: nmem | if l1 { L1_PATH } else { 0 },
+        careful,
+        patches: blk.patches,
+    })
+}
 
-    for (k, i) in b[..n].iter().enumerate() {
+/// One block being translated: what both of its variants share.
+struct Block<'a> {
+    b: &'a [Inst],
+    /// Its covered instructions.
+    n: usize,
+    at: usize,
+    stubs: Stubs,
+    known: &'a dyn Fn(u32) -> Option<Entry>,
+    first_reads: &'a dyn Fn(u32) -> Option<u32>,
+    l1: bool,
+    sse41: bool,
+    /// The checked entry (for loops to itself).
+    start: DynamicLabel,
+    /// The exits just before each instruction (and after the last), and
+    /// which of them something jumps to (only those are emitted: unused
+    /// stubs would only dilute the host's instruction cache).
+    exits: Vec<DynamicLabel>,
+    used: Vec<bool>,
+    /// Static cycles and jumps before each instruction; the worst case of
+    /// instructions k.. and their loads and stores.
+    prefix: Vec<u64>,
+    jumps: Vec<u64>,
+    rest: Vec<(u64, u32)>,
+    /// The careful variant: before each instruction's deadline test, and
+    /// past the first one (the core's entry).
+    careful_at: Option<Vec<DynamicLabel>>,
+    careful_go: Option<DynamicLabel>,
+    /// The taken side of the branch at k, shared by both variants (the
+    /// same accounting and chaining).
+    taken: Vec<Option<DynamicLabel>>,
+    /// The block's closing transfer (jal, jalr, or running out into the
+    /// next block) in the checked variant, which the careful one jumps to
+    /// after its deadline test: `(k, label before its template)`.
+    tail: Option<(usize, DynamicLabel)>,
+    patches: Vec<(u32, usize)>,
+}
+
+impl Block<'_> {
+    /// One variant of the block's instructions: the checked one (entered
+    /// when the worst case fits; L1 accesses test the deadline again after
+    /// themselves, going on in the careful variant when the rest might not
+    /// fit), or the careful one (`careful`: the interpreter's test before
+    /// every instruction, `cycles >= deadline` leaving just before it,
+    /// where `cycles` = `r13` + the static prefix is exact: every dynamic
+    /// cost is in `r13` by then).
+    fn body(&mut self, a: &mut Asm, careful: bool) {
+        let (b, n) = (self.b, self.n);
+        // The loads and stores' other-region paths, emitted after the body.
+        let mut l1_sites: Vec<(Inst, L1Site)> = Vec::new();
+        for (k, i) in b[..n].iter().enumerate() {
+            if careful {
+                let here = self.careful_at.as_ref().expect("careful variant")[k];
+                dynasm!(a ; .arch x64 ; =>here);
+                self.used[k] = true;
+                if k == 0 {
+                    // After a transfer (the core enters past this test,
+                    // having made it itself before any entry stall).
+                    dynasm!(a ; .arch x64 ; cmp r13, [rbx + DEADLINE] ; jae =>self.exits[0]);
+                    let go = self.careful_go.expect("careful entry");
+                    dynasm!(a ; .arch x64 ; =>go);
+                } else {
+                    dynasm!(a ; .arch x64
+                        ; lea rcx, [r13 + self.prefix[k] as i32]
+                        ; cmp rcx, [rbx + DEADLINE]
+                        ; jae =>self.exits[k]
+                    );
+                }
+                if let Some((t, l)) = self.tail.filter(|&(t, _)| t == k) {
+                    // The closing transfer, as the checked variant has it.
+                    debug_assert_eq!(t + 1, n);
+                    dynasm!(a ; .arch x64 ; jmp =>l);
+                    break;
+                }
+            }
+            if self.inst(a, k, i, careful, &mut l1_sites) {
+                break;
+            }
+            if k + 1 == n {
+                // The next instruction is not covered: leave before it.
+                self.used[n] = true;
+                dynasm!(a ; jmp =>self.exits[n]);
+            }
+        }
+        if !careful {
+            self.taken_sides(a);
+        }
+        for (i, site) in &l1_sites {
+            out_of_line(a, i, site);
+        }
+    }
+
+    /// Instruction k's template; true when it closes the block.
+    fn inst(
+        &mut self,
+        a: &mut Asm,
+        k: usize,
+        i: &Inst,
+        careful: bool,
+        l1_sites: &mut Vec<(Inst, L1Site)>,
+    ) -> bool {
         let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
         let imm = i.imm as i32;
+        let (at, stubs) = (self.at, self.stubs);
         match i.op {
             op::NOP | op::FENCE | op::FENCE_I => {}
             op::LUI => dynasm!(a ; mov DWORD [r12 + rd], imm),
@@ -225,8 +395,8 @@ pub(crate) fn translate(
                 }
                 dynasm!(a ; imul rax, rcx ; shr rax, 32 ; mov [r12 + rd], eax);
             }
-            op::CV_SDOTSP_B | op::CV_SDOTUSP_B | op::CV_SDOTUP_B | op::CV_DOTSP_B if sse41 => {
-                dot_b(&mut a, i)
+            op::CV_SDOTSP_B | op::CV_SDOTUSP_B | op::CV_SDOTUP_B | op::CV_DOTSP_B if self.sse41 => {
+                dot_b(a, i)
             }
             o if helper(o).is_some() => {
                 let f = helper(o).expect("helper") as usize as i64;
@@ -246,25 +416,45 @@ pub(crate) fn translate(
                 }
             }
             o if is_mem(o) => {
-                used[k] = true;
-                used[k + 1] |= l1;
+                self.used[k] = true;
+                // The checked variant, on a memory with an L1, tests the
+                // deadline again after the access (`recheck`) and goes on
+                // in the careful variant (or leaves) when the rest might
+                // not fit; the careful variant tests before every
+                // instruction anyway.
+                let recheck = self.l1 && !careful;
+                let after = match &self.careful_at {
+                    Some(c) if k + 1 < self.n => c[k + 1],
+                    _ => {
+                        self.used[k + 1] |= recheck;
+                        self.exits[k + 1]
+                    }
+                };
                 let back = a.new_dynamic_label();
                 let site = L1Site {
-                    other: if l1 { a.new_dynamic_label() } else { exits[k] },
+                    other: if self.l1 {
+                        a.new_dynamic_label()
+                    } else {
+                        self.exits[k]
+                    },
+                    slow: a.new_dynamic_label(),
+                    busy: a.new_dynamic_label(),
+                    join: a.new_dynamic_label(),
                     back,
-                    issue: prefix[k + 1] - 1,
-                    rest: rest[k + 1],
-                    exit: exits[k],
-                    after: exits[k + 1],
+                    issue: self.prefix[k + 1] - 1,
+                    rest: self.rest[k + 1],
+                    recheck,
+                    exit: self.exits[k],
+                    after,
                 };
-                mem_op(&mut a, i, &site, l1);
+                mem_op(a, i, &site, self.l1);
                 dynasm!(a ; .arch x64 ; =>back);
-                if l1 {
+                if self.l1 {
                     l1_sites.push((*i, site));
                 }
             }
             op::BEQ | op::BNE | op::BLT | op::BGE | op::BLTU | op::BGEU => {
-                let l = a.new_dynamic_label();
+                let l = self.taken_label(a, k);
                 if i.rs2 == 0 {
                     dynasm!(a ; cmp DWORD [r12 + rs1], 0);
                 } else {
@@ -278,10 +468,9 @@ pub(crate) fn translate(
                     op::BLTU => dynasm!(a ; jb =>l),
                     _ => dynasm!(a ; jae =>l),
                 }
-                taken.push((k, l));
             }
             op::CV_BEQIMM | op::CV_BNEIMM => {
-                let l = a.new_dynamic_label();
+                let l = self.taken_label(a, k);
                 let imm5 = ((i.rd as i32) << 27) >> 27;
                 dynasm!(a ; cmp DWORD [r12 + rs1], imm5);
                 if i.op == op::CV_BEQIMM {
@@ -289,7 +478,6 @@ pub(crate) fn translate(
                 } else {
                     dynasm!(a ; jne =>l);
                 }
-                taken.push((k, l));
             }
             op::JUMP => {
                 if i.rd != 0 {
@@ -298,6 +486,7 @@ pub(crate) fn translate(
                 }
             }
             op::JAL | op::JALR => {
+                self.mark_tail(a, k);
                 if i.op == op::JALR {
                     dynasm!(a ; mov eax, [r12 + rs1] ; add eax, imm ; and eax, -2);
                 }
@@ -305,148 +494,142 @@ pub(crate) fn translate(
                     let link = i.pc.wrapping_add(i.len as u32) as i32;
                     dynasm!(a ; mov DWORD [r12 + rd], link);
                 }
-                account(&mut a, prefix[k + 1], k as u64 + 1, jumps[k] + 1);
+                account(a, self.prefix[k + 1], k as u64 + 1, self.jumps[k] + 1);
                 if i.op == op::JAL {
-                    chain(
-                        &mut a,
-                        at,
-                        i.imm,
-                        stubs,
-                        known,
-                        (b[0].pc, start),
-                        &mut patches,
-                    );
+                    self.chain(a, i.imm);
                 } else {
-                    jmp_abs(&mut a, at, stubs.dispatch);
+                    jmp_abs(a, at, stubs.dispatch);
                 }
-                break;
+                return true;
             }
             op::END => {
+                self.mark_tail(a, k);
                 // The block ran out (`imm` = the next pc): go on into the
                 // next block as the core would, when the next block's
                 // first instruction is known not to stall on the last
                 // one's load (the entry stall the core would add), else
                 // leave and let the core do it. Not a transfer: no jump.
+                let b = self.b;
                 let stall = k == 0 || {
                     let m = b[k - 1].load_mask();
-                    m != 0 && first_reads(i.imm).is_none_or(|r| r & m != 0)
+                    m != 0 && (self.first_reads)(i.imm).is_none_or(|r| r & m != 0)
                 };
                 if stall {
-                    used[k] = true;
-                    dynasm!(a ; jmp =>exits[k]);
+                    self.used[k] = true;
+                    dynasm!(a ; jmp =>self.exits[k]);
                 } else {
-                    account(&mut a, prefix[k], k as u64, jumps[k]);
-                    chain(
-                        &mut a,
-                        at,
-                        i.imm,
-                        stubs,
-                        known,
-                        (b[0].pc, start),
-                        &mut patches,
-                    );
+                    account(a, self.prefix[k], k as u64, self.jumps[k]);
+                    self.chain(a, i.imm);
                 }
-                break;
+                return true;
             }
             _ => unreachable!("covered op without a template"),
         }
-        if k + 1 == n {
-            // The next instruction is not covered: leave before it.
-            used[n] = true;
-            dynasm!(a ; jmp =>exits[n]);
+        false
+    }
+
+    /// The label of the branch at k's taken side (made once, shared by the
+    /// variants).
+    fn taken_label(&mut self, a: &mut Asm, k: usize) -> DynamicLabel {
+        *self.taken[k].get_or_insert_with(|| a.new_dynamic_label())
+    }
+
+    /// Mark the checked variant's closing transfer at k (the careful
+    /// variant jumps there).
+    fn mark_tail(&mut self, a: &mut Asm, k: usize) {
+        if self.tail.is_none() {
+            let l = a.new_dynamic_label();
+            dynasm!(a ; .arch x64 ; =>l);
+            self.tail = Some((k, l));
         }
     }
 
-    // Taken branches: their cost plus the taken extra, then chain.
-    for (k, l) in taken {
-        dynasm!(a ; =>l);
-        account(
-            &mut a,
-            prefix[k + 1] + BRANCH_TAKEN_EXTRA,
-            k as u64 + 1,
-            jumps[k] + 1,
-        );
-        // A short backward branch closes a loop the idle detector wants to
-        // see after a device read (`exec::transfer`, `Cpu::poll_slow`):
-        // leave at its target, telling the core where it came from.
-        let (from, to) = (b[k].pc, b[k].imm);
-        if to < from && from - to <= MAX_POLL_LOOP_BYTES {
-            let go = a.new_dynamic_label();
-            dynasm!(a ; .arch x64
-                ; cmp BYTE [rbx + POLL_ARMED], 0
-                ; je =>go
-                ; mov DWORD [rbx + POLL_FROM], from as i32
-                ; mov eax, to as i32
+    /// Taken branches: their cost plus the taken extra, then chain.
+    fn taken_sides(&mut self, a: &mut Asm) {
+        let b = self.b;
+        let taken: Vec<_> = self
+            .taken
+            .iter()
+            .enumerate()
+            .filter_map(|(k, l)| Some((k, (*l)?)))
+            .collect();
+        for (k, l) in taken {
+            dynasm!(a ; =>l);
+            account(
+                a,
+                self.prefix[k + 1] + BRANCH_TAKEN_EXTRA,
+                k as u64 + 1,
+                self.jumps[k] + 1,
             );
-            jmp_abs(&mut a, at, stubs.leave);
-            dynasm!(a ; .arch x64 ; =>go);
+            // A short backward branch closes a loop the idle detector wants
+            // to see after a device read (`exec::transfer`,
+            // `Cpu::poll_slow`): leave at its target, telling the core
+            // where it came from.
+            let (from, to) = (b[k].pc, b[k].imm);
+            if to < from && from - to <= MAX_POLL_LOOP_BYTES {
+                let go = a.new_dynamic_label();
+                dynasm!(a ; .arch x64
+                    ; cmp BYTE [rbx + POLL_ARMED], 0
+                    ; je =>go
+                    ; mov DWORD [rbx + POLL_FROM], from as i32
+                    ; mov eax, to as i32
+                );
+                jmp_abs(a, self.at, self.stubs.leave);
+                dynasm!(a ; .arch x64 ; =>go);
+            }
+            self.chain(a, b[k].imm);
         }
-        chain(
-            &mut a,
-            at,
-            b[k].imm,
-            stubs,
-            known,
-            (b[0].pc, start),
-            &mut patches,
-        );
     }
-    for (i, site) in &l1_sites {
-        l1_op(&mut a, i, site);
+
+    /// Go on at the static target `to`: straight into its translation's
+    /// checked entry when it is known (or this block's, for loops to
+    /// itself), else through the dispatcher, a jump `patches` records so
+    /// it can go straight there once the target is translated.
+    fn chain(&mut self, a: &mut Asm, to: u32) {
+        if to == self.b[0].pc {
+            dynasm!(a ; .arch x64 ; jmp =>self.start);
+            return;
+        }
+        dynasm!(a ; .arch x64 ; mov eax, to as i32);
+        match (self.known)(to) {
+            Some(e) => jmp_abs(a, self.at, e.code as usize),
+            None => {
+                self.patches.push((to, a.offset().0 + 1));
+                jmp_abs(a, self.at, self.stubs.dispatch);
+            }
+        }
     }
-    dynasm!(a ; .arch x64 ; =>fail ; mov eax, b[0].pc as i32);
-    jmp_abs(&mut a, at, stubs.leave);
-    // Exits just before instruction k (the interpreter's `leave`): the
-    // load-use state is that of the instruction before, or none after a
-    // transfer (the core fixes the entry block's k = 0 case).
-    for (k, l) in exits.iter().enumerate().filter(|&(k, _)| used[k]) {
-        dynasm!(a ; =>*l);
-        account(&mut a, prefix[k], k as u64, jumps[k]);
-        let mask = if k > 0 { b[k - 1].load_mask() } else { 0 };
-        let pc = b.get(k).map_or(0, |i| i.pc);
-        dynasm!(a
-            ; mov DWORD [rbx + EXIT_PC], pc as i32
-            ; mov DWORD [rbx + EXIT_PC + 4], 0
-            ; mov DWORD [rbx + LOAD_MASK], mask as i32
-            ; mov DWORD [rbx + LOAD_MASK + 4], 0
-        );
-        jmp_abs(&mut a, at, stubs.exit);
-    }
-    let code = a.finalize().ok()?;
-    Some(Translation {
-        code,
-        worst,
-        nmem: nmem | if l1 { L1_PATH } else { 0 },
-        patches,
-    })
 }
 
 /// The byte dot products (`cv.sdotsp.b`, `cv.sdotusp.b`, `cv.sdotup.b`,
-/// `cv.dotsp.b`) inline: the four bytes of each operand widened to 32 bits
-/// (signed or not, as `xcv::simd` has them), multiplied lane by lane, the
-/// lanes summed, added to rd (modulo 2^32) for the `sdot` forms. Each
-/// product fits in 17 bits, so the 32-bit lanes are exact, as the
-/// interpreter's `i32` sums are.
+/// `cv.dotsp.b`) inline: the four bytes of each operand widened to 16 bits
+/// (signed or not, as `xcv::simd` has them; 0..255 is a positive `i16`),
+/// `pmaddwd` multiplies the lanes into 32-bit products and adds them in
+/// pairs, the two pair sums are added, and the result is added to rd
+/// (modulo 2^32) for the `sdot` forms. Every product and sum fits in 32
+/// bits, so this is the interpreter's `i32` sum. (`pmaddwd` is one
+/// micro-op where `pmulld` and two `phaddd` are eight.)
 fn dot_b(a: &mut Asm, i: &Inst) {
     let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
-    match i.op {
-        op::CV_SDOTUP_B => dynasm!(a ; .arch x64
-            ; pmovzxbd xmm0, DWORD [r12 + rs1]
-            ; pmovzxbd xmm1, DWORD [r12 + rs2]
-        ),
-        op::CV_SDOTUSP_B => dynasm!(a ; .arch x64
-            ; pmovzxbd xmm0, DWORD [r12 + rs1]
-            ; pmovsxbd xmm1, DWORD [r12 + rs2]
-        ),
-        _ => dynasm!(a ; .arch x64
-            ; pmovsxbd xmm0, DWORD [r12 + rs1]
-            ; pmovsxbd xmm1, DWORD [r12 + rs2]
-        ),
+    dynasm!(a ; .arch x64
+        ; movd xmm0, [r12 + rs1]
+        ; movd xmm1, [r12 + rs2]
+    );
+    // rs1 unsigned for sdotup and sdotusp, rs2 unsigned for sdotup only.
+    if matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B) {
+        dynasm!(a ; .arch x64 ; pmovzxbw xmm0, xmm0);
+    } else {
+        dynasm!(a ; .arch x64 ; pmovsxbw xmm0, xmm0);
+    }
+    if i.op == op::CV_SDOTUP_B {
+        dynasm!(a ; .arch x64 ; pmovzxbw xmm1, xmm1);
+    } else {
+        dynasm!(a ; .arch x64 ; pmovsxbw xmm1, xmm1);
     }
     dynasm!(a ; .arch x64
-        ; pmulld xmm0, xmm1
-        ; phaddd xmm0, xmm0
-        ; phaddd xmm0, xmm0
+        ; pmaddwd xmm0, xmm1
+        ; pshufd xmm1, xmm0, 1
+        ; paddd xmm0, xmm1
         ; movd eax, xmm0
     );
     if i.op != op::CV_DOTSP_B {
@@ -484,286 +667,12 @@ fn account(a: &mut Asm, cycles: u64, retired: u64, jumps: u64) {
     }
 }
 
-/// Go on at the static target `to`: straight into its translation's
-/// checked entry when it is known (`me`: the block being translated, for
-/// loops to itself), else through the dispatcher, a jump `patches` records
-/// so it can go straight there once the target is translated.
-fn chain(
-    a: &mut Asm,
-    at: usize,
-    to: u32,
-    stubs: Stubs,
-    known: &dyn Fn(u32) -> Option<Entry>,
-    me: (u32, dynasmrt::DynamicLabel),
-    patches: &mut Vec<(u32, usize)>,
-) {
-    if to == me.0 {
-        dynasm!(a ; .arch x64 ; jmp =>me.1);
-        return;
-    }
-    dynasm!(a ; .arch x64 ; mov eax, to as i32);
-    match known(to) {
-        Some(e) => jmp_abs(a, at, e.code as usize),
-        None => {
-            patches.push((to, a.offset().0 + 1));
-            jmp_abs(a, at, stubs.dispatch);
-        }
-    }
-}
-
 /// Go on only if the worst case from here, `rcx` = the cycles before the
 /// access extras, plus `nmem` accesses at [`Ctx::worst_extra`] each, ends
 /// before the deadline; else jump to `fail`.
-fn fits(a: &mut Asm, nmem: u32, fail: dynasmrt::DynamicLabel) {
+fn fits(a: &mut Asm, nmem: u32, fail: DynamicLabel) {
     if nmem != 0 {
         dynasm!(a ; .arch x64 ; imul rdx, [rbx + WORST_EXTRA], nmem as i32 ; add rcx, rdx);
     }
     dynasm!(a ; .arch x64 ; cmp rcx, [rbx + DEADLINE] ; jae =>fail);
-}
-
-/// Where a load or store continues when its address is outside the fast
-/// region (the L1 of a cluster core, out of line after the block).
-struct L1Site {
-    /// The out-of-line path, and where it rejoins the block.
-    other: dynasmrt::DynamicLabel,
-    back: dynasmrt::DynamicLabel,
-    /// The access's issue cycle, relative to `r13` before it: the last
-    /// cycle of its cost, as the interpreter's `Run::extra` and the
-    /// general path's `Cpu::issue_cycle` have it.
-    issue: u64,
-    /// The worst case of the instructions after it (`translate`'s `rest`).
-    rest: (u64, u32),
-    /// Exits just before it and just after it.
-    exit: dynasmrt::DynamicLabel,
-    after: dynasmrt::DynamicLabel,
-}
-
-/// What a load or store does: its base op, size in bytes, whether a store,
-/// its addressing mode and the field of its register operand (rs2 for
-/// loads, rs3 = the rd field for stores).
-fn shape(i: &Inst) -> (u8, i32, bool, Mode, i32) {
-    let o = base_op(i.op).unwrap_or(i.op);
-    let store = (op::SB..=op::SW).contains(&o);
-    let n: i32 = match o {
-        op::LB | op::LBU | op::SB => 1,
-        op::LH | op::LHU | op::SH => 2,
-        _ => 4,
-    };
-    let opnd = if store { reg(i.rd) } else { reg(i.rs2) };
-    (o, n, store, mode(i.op), opnd)
-}
-
-/// A load or store (RV32I or XCV addressing) on the fast region; outside
-/// it, on to `site.other` (the L1 path, `l1_op`), which rejoins at
-/// `site.back` or leaves; near code or `tohost`, leave at `site.exit`
-/// (just before it).
-///
-/// With an L1 (`l1`) the checked entry counts each access at the cheaper of
-/// the two regions' extras ([`Ctx::worst_extra`]): a cluster core's L2
-/// accesses cost 10 cycles more than its L1 ones, and counting every
-/// access of an unrolled kernel at 10 left most of a 1024-cycle quantum
-/// to the interpreter. So the deadline is checked again after every access
-/// on either path, for the rest of the block (`recheck`).
-fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
-    let (_, n, store, m, opnd) = shape(i);
-    let rs1 = reg(i.rs1);
-    let imm = i.imm as i32;
-    // eax = address.
-    dynasm!(a ; .arch x64 ; mov eax, [r12 + rs1]);
-    match m {
-        Mode::Offset if imm != 0 => dynasm!(a ; .arch x64 ; add eax, imm),
-        Mode::RegReg => dynasm!(a ; .arch x64 ; add eax, [r12 + opnd]),
-        _ => {}
-    }
-    // rcx = offset in the fast region, rdx = its end; inside or elsewhere.
-    dynasm!(a ; .arch x64
-        ; mov ecx, eax
-        ; sub rcx, [rbx + FAST_BASE]
-        ; lea rdx, [rcx + n]
-        ; cmp rdx, [rbx + FAST_SIZE]
-        ; ja =>site.other
-    );
-    if store {
-        watched(a, CODE_LO, CODE_HI, site.exit);
-    }
-    access(a, i, 14);
-    dynasm!(a ; .arch x64 ; add r13, rbp);
-    if l1 {
-        // Only a core whose fast-region accesses cost extra (a cluster
-        // core's L2) can exceed the count: the FC's cost nothing more.
-        let skip = a.new_dynamic_label();
-        dynasm!(a ; .arch x64 ; test rbp, rbp ; jz =>skip);
-        recheck(a, site);
-        dynasm!(a ; .arch x64 ; =>skip);
-    }
-}
-
-/// After an access that may have cost more than [`Ctx::worst_extra`]: go
-/// on only if the rest of the block still fits before the deadline, else
-/// leave just after the access (the core goes on from there: only a pause
-/// at an instruction boundary, which changes nothing).
-fn recheck(a: &mut Asm, site: &L1Site) {
-    let (w, nmem) = site.rest;
-    dynasm!(a ; .arch x64 ; lea rcx, [r13 + w as i32]);
-    fits(a, nmem, site.after);
-}
-
-/// The out-of-line rest of a load or store outside the fast region
-/// (`eax` = address): in the L1, the access with its extra cycles from
-/// [`l1_access`] (the bank arbiter at the interpreter's issue cycle), and,
-/// since a bank's stall has no bound, the deadline check again for the
-/// rest of the block (`recheck`); anywhere else, leave just before it.
-fn l1_op(a: &mut Asm, i: &Inst, site: &L1Site) {
-    let (_, n, store, _, _) = shape(i);
-    dynasm!(a ; .arch x64
-        ; =>site.other
-        ; mov ecx, eax
-        ; sub rcx, [rbx + L1_BASE]
-        ; lea rdx, [rcx + n]
-        ; cmp rdx, [rbx + L1_SIZE]
-        ; ja =>site.exit
-    );
-    if store {
-        watched(a, L1_CODE_LO, L1_CODE_HI, site.exit);
-    }
-    grant(a, site.issue);
-    dynasm!(a ; .arch x64 ; mov r8, [rbx + L1_PTR]);
-    access(a, i, 8);
-    recheck(a, site);
-    dynasm!(a ; .arch x64 ; jmp =>site.back);
-}
-
-/// The L1's extra cycles of an access at `eax` issued at `r13 + issue`
-/// (keeps `rax`, `rcx`): inline, what `Tcdm::access` does when the cycle
-/// is free in the bank (the common case: the slice of the cycle's 64 is
-/// set, or a stale one restarted, and the port's count goes up); when it
-/// is taken, the arbiter itself through [`l1_access`], which finds the
-/// stall; without arbitration (the FC), the L1's latency alone.
-fn grant(a: &mut Asm, issue: u64) {
-    const SLOT_MASK: i32 = WORDS as i32 - 1;
-    const BANK_MASK: i32 = BANKS as i32 - 1;
-    const SLOT_SHIFT: i8 = WORDS.trailing_zeros() as i8;
-    let (no_arb, fresh, done, busy, join) = (
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-    );
-    let f = l1_access as extern "sysv64" fn(*mut Ctx, u32, u64) -> u64 as usize as i64;
-    dynasm!(a ; .arch x64
-        ; mov r9, [rbx + L1_GRANTED]
-        ; test r9, r9
-        ; jz =>no_arb
-        // rdx = cycle, r10 = its slice's tag, r11 = its bit.
-        ; lea rdx, [r13 + issue as i32]
-        ; mov r10, rdx
-        ; shr r10, 6
-        ; xor r11d, r11d
-        ; bts r11, rdx
-        // r9 += 16 · (bank · WORDS + tag % WORDS): the slice's slot.
-        ; mov esi, eax
-        ; shr esi, 2
-        ; and esi, BANK_MASK
-        ; shl esi, SLOT_SHIFT
-        ; mov edi, r10d
-        ; and edi, SLOT_MASK
-        ; add esi, edi
-        ; shl rsi, 4
-        ; add r9, rsi
-        ; cmp [r9], r10
-        ; jne =>fresh
-        ; test [r9 + 8], r11
-        ; jnz =>busy
-        ; or [r9 + 8], r11
-        ; jmp =>done
-        ; =>fresh
-        ; mov [r9], r10
-        ; mov [r9 + 8], r11
-        ; =>done
-        ; mov r9, [rbx + L1_ACCESSES]
-        ; add QWORD [r9], 1
-        ; =>no_arb
-        ; add r13, [rbx + L1_EXTRA]
-        ; jmp =>join
-        // Two pushes keep `rsp` 16-aligned for the call.
-        ; =>busy
-        ; push rax
-        ; push rcx
-        ; mov rdi, rbx
-        ; mov esi, eax
-        ; mov rax, QWORD f
-        ; call rax
-        ; add r13, rax
-        ; pop rcx
-        ; pop rax
-        ; =>join
-    );
-}
-
-/// A store's checks besides the bounds (`rcx` = offset in the region, `rdx`
-/// = its end): not near the region's cached code (off >= code_hi or end <=
-/// code_lo) and not on `tohost`, the interpreter's fast-path conditions;
-/// else leave at `exit`.
-fn watched(a: &mut Asm, lo: i32, hi: i32, exit: dynasmrt::DynamicLabel) {
-    let ok = a.new_dynamic_label();
-    dynasm!(a ; .arch x64
-        ; cmp rcx, [rbx + hi]
-        ; jae =>ok
-        ; cmp rdx, [rbx + lo]
-        ; ja =>exit
-        ; =>ok
-        ; mov esi, eax
-        ; sub rsi, [rbx + TOHOST]
-        ; cmp rsi, 8
-        ; jb =>exit
-    );
-}
-
-/// The access itself at host address `base + rcx` (`eax` = the guest
-/// address), the base register's write-back, the loaded value and the
-/// split cycle.
-fn access(a: &mut Asm, i: &Inst, base: u8) {
-    let (o, n, store, m, opnd) = shape(i);
-    let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
-    let imm = i.imm as i32;
-    if store {
-        dynasm!(a ; .arch x64 ; mov esi, [r12 + rs2]);
-        match n {
-            1 => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], sil),
-            2 => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], si),
-            _ => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], esi),
-        }
-    } else {
-        match o {
-            op::LB => dynasm!(a ; .arch x64 ; movsx edx, BYTE [Rq(base) + rcx]),
-            op::LBU => dynasm!(a ; .arch x64 ; movzx edx, BYTE [Rq(base) + rcx]),
-            op::LH => dynasm!(a ; .arch x64 ; movsx edx, WORD [Rq(base) + rcx]),
-            op::LHU => dynasm!(a ; .arch x64 ; movzx edx, WORD [Rq(base) + rcx]),
-            _ => dynasm!(a ; .arch x64 ; mov edx, [Rq(base) + rcx]),
-        }
-    }
-    // Base write-back (the loaded value wins if rd == rs1: written after).
-    if i.rs1 != 0 {
-        match m {
-            Mode::PostImm => dynasm!(a ; .arch x64 ; lea esi, [rax + imm] ; mov [r12 + rs1], esi),
-            Mode::PostReg => {
-                dynasm!(a ; .arch x64 ; mov esi, eax ; add esi, [r12 + opnd] ; mov [r12 + rs1], esi)
-            }
-            _ => {}
-        }
-    }
-    if !store && i.rd != 0 {
-        dynasm!(a ; .arch x64 ; mov [r12 + rd], edx);
-    }
-    // A split access (crosses a word boundary) costs one more cycle:
-    // ((addr & 3) + n + 3) >> 3 is 1 exactly when (addr & 3) + n > 4.
-    if n > 1 {
-        dynasm!(a ; .arch x64
-            ; and eax, 3
-            ; add eax, n + 3
-            ; shr eax, 3
-            ; add r13, rax
-        );
-    }
 }

@@ -51,6 +51,7 @@ const UNCOVERED: Entry = Entry {
     code: 0,
     worst: u32::MAX,
     nmem: 0,
+    careful: 0,
 };
 
 /// The translator's counters (`sim-core run-elf --stats`).
@@ -65,16 +66,20 @@ pub struct JitStats {
 }
 
 /// An [`Entry`] as the table stores it (the `#[repr(C)]` layout on a
-/// little-endian host: code, then worst and nmem in one word).
+/// little-endian host: code, then worst, nmem and careful in one word).
 fn pack(e: Entry) -> [u64; 2] {
-    [e.code, e.worst as u64 | (e.nmem as u64) << 32]
+    [
+        e.code,
+        e.worst as u64 | (e.nmem as u64) << 32 | (e.careful as u64) << 48,
+    ]
 }
 
 fn unpack(w: [u64; 2]) -> Entry {
     Entry {
         code: w[0],
         worst: w[1] as u32,
-        nmem: (w[1] >> 32) as u32,
+        nmem: (w[1] >> 32) as u16,
+        careful: (w[1] >> 48) as u16,
     }
 }
 
@@ -239,8 +244,9 @@ impl JitCache {
         }
         let len = super::block::block_len(&insts[first..]);
         let b = &insts[first..first + len];
-        // Room for the worst block (~100 host bytes per instruction).
-        if !self.buf.fits(64 * 1024) {
+        // Room for the worst block (~100 host bytes per instruction, twice
+        // with the careful variant).
+        if !self.buf.fits(128 * 1024) {
             self.flush();
             return self.entry(regions, insts, region, off, first, l1);
         }
@@ -281,6 +287,7 @@ impl JitCache {
             code,
             worst: t.worst,
             nmem: t.nmem,
+            careful: t.careful,
         };
         self.tables[region][off >> 1] = pack(e);
         self.translated += 1;

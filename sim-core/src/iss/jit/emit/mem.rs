@@ -1,0 +1,319 @@
+//! The load and store templates (RV32I and XCV addressing): the fast
+//! region inline, the cluster's L1 out of line with its bank grant
+//! (`cluster::tcdm`) at the interpreter's issue cycle.
+
+use dynasmrt::{dynasm, DynasmApi, DynasmLabelApi};
+
+use super::super::super::block::Inst;
+use super::super::super::decode::op;
+use super::super::super::xcv::mem::{base_op, mode, Mode};
+use super::super::ctx::*;
+use super::super::helpers::l1_access;
+use super::{fits, reg, Asm};
+use crate::cluster::tcdm::{BANKS, WORDS};
+
+/// A load or store's labels and static facts (`mem_op`).
+#[derive(Clone, Copy)]
+pub(super) struct L1Site {
+    /// The other region's path (out of line, after the block, on a
+    /// memory with an L1; else the exit before the access), the deadline
+    /// test after an access that cost more than counted (out of line),
+    /// and where both rejoin the block.
+    pub other: dynasmrt::DynamicLabel,
+    pub slow: dynasmrt::DynamicLabel,
+    /// The bank grant's out-of-line call of the arbiter (`busy`), and
+    /// where it rejoins.
+    pub busy: dynasmrt::DynamicLabel,
+    pub join: dynasmrt::DynamicLabel,
+    pub back: dynasmrt::DynamicLabel,
+    /// The access's issue cycle, relative to `r13` before it: the last
+    /// cycle of its cost, as the interpreter's `Run::extra` and the
+    /// general path's `Cpu::issue_cycle` have it.
+    pub issue: u64,
+    /// The worst case of the instructions after it (`translate`'s `rest`).
+    pub rest: (u64, u32),
+    /// Test the deadline again after the access when it may have cost
+    /// more than the checked entry counted (the checked variant on a
+    /// memory with an L1; the careful variant tests before every
+    /// instruction anyway).
+    pub recheck: bool,
+    /// Exits just before it, and where the checked variant goes on when
+    /// the rest might not fit after it (the careful variant just after
+    /// it, or the exit there).
+    pub exit: dynasmrt::DynamicLabel,
+    pub after: dynasmrt::DynamicLabel,
+}
+
+/// What a load or store does: its base op, size in bytes, whether a store,
+/// its addressing mode and the field of its register operand (rs2 for
+/// loads, rs3 = the rd field for stores).
+fn shape(i: &Inst) -> (u8, i32, bool, Mode, i32) {
+    let o = base_op(i.op).unwrap_or(i.op);
+    let store = (op::SB..=op::SW).contains(&o);
+    let n: i32 = match o {
+        op::LB | op::LBU | op::SB => 1,
+        op::LH | op::LHU | op::SH => 2,
+        _ => 4,
+    };
+    let opnd = if store { reg(i.rd) } else { reg(i.rs2) };
+    (o, n, store, mode(i.op), opnd)
+}
+
+/// A load or store (RV32I or XCV addressing). Without an L1 (`l1`
+/// false): on the fast region, leaving at `site.other` (= `site.exit`,
+/// just before it) elsewhere or near code or `tohost`. With one (a
+/// cluster core's translation, whose data is mostly in the L1 while its
+/// code, the fast region, is in L2): the L1 inline, the fast region out of
+/// line at `site.other` (`out_of_line`), which rejoins at `site.back`.
+///
+/// With an L1 the checked entry counts each access at the cheaper of the
+/// two regions' extras ([`Ctx::worst_extra`]): a cluster core's L2
+/// accesses cost 10 cycles more than its L1 ones, and counting every
+/// access of an unrolled kernel at 10 left most of a 1024-cycle quantum
+/// to the interpreter. So an access that cost more (an L2 one, or an L1
+/// one that stalled on its bank) tests the deadline again for the rest of
+/// the block (`recheck`).
+pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
+    let (_, _, _, m, opnd) = shape(i);
+    let rs1 = reg(i.rs1);
+    let imm = i.imm as i32;
+    // eax = address.
+    dynasm!(a ; .arch x64 ; mov eax, [r12 + rs1]);
+    match m {
+        Mode::Offset if imm != 0 => dynasm!(a ; .arch x64 ; add eax, imm),
+        Mode::RegReg => dynasm!(a ; .arch x64 ; add eax, [r12 + opnd]),
+        _ => {}
+    }
+    if !l1 {
+        fast_access(a, i, site);
+        return;
+    }
+    in_region(a, i, site, (L1_BASE, L1_SIZE, L1_CODE_LO, L1_CODE_HI));
+    grant(a, site);
+    dynasm!(a ; .arch x64 ; mov r8, [rbx + L1_PTR]);
+    access(a, i, 8);
+    if site.recheck {
+        // `edi` (from `grant`): whether this access may have cost more
+        // than the checked entry counted.
+        dynasm!(a ; .arch x64 ; test edi, edi ; jnz =>site.slow);
+    }
+}
+
+/// The fast region's access (`eax` = address): rcx = offset in it, rdx =
+/// its end; outside it, on to `site.other`; near code or `tohost`, leave
+/// at `site.exit`.
+fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site) {
+    in_region(a, i, site, (FAST_BASE, FAST_SIZE, CODE_LO, CODE_HI));
+    access(a, i, 14);
+    dynasm!(a ; .arch x64 ; add r13, rbp);
+}
+
+/// Whether the access at `eax` is inside the region whose base, size and
+/// cached-code bounds are the [`Ctx`] fields at `fields`: `rcx` = its
+/// offset there, `rdx` = its end; outside, on to `site.other`; a store
+/// near the region's code or on `tohost` leaves at `site.exit`.
+fn in_region(a: &mut Asm, i: &Inst, site: &L1Site, fields: (i32, i32, i32, i32)) {
+    let (_, n, store, _, _) = shape(i);
+    let (base, size, code_lo, code_hi) = fields;
+    dynasm!(a ; .arch x64
+        ; mov ecx, eax
+        ; sub rcx, [rbx + base]
+        ; lea rdx, [rcx + n]
+        ; cmp rdx, [rbx + size]
+        ; ja =>site.other
+    );
+    if store {
+        watched(a, code_lo, code_hi, site.exit);
+    }
+}
+
+/// After an access that may have cost more than [`Ctx::worst_extra`]: go
+/// on only if the rest of the block still fits before the deadline, else
+/// go on at `site.after` (the careful variant, or an exit just after the
+/// access: a pause at an instruction boundary, which changes nothing).
+fn recheck(a: &mut Asm, site: &L1Site) {
+    let (w, nmem) = site.rest;
+    dynasm!(a ; .arch x64 ; lea rcx, [r13 + w as i32]);
+    fits(a, nmem, site.after);
+}
+
+/// The out-of-line parts of an L1-path access (after the block): the
+/// grant's call of the arbiter (`busy`), at `site.other` the fast
+/// region's access (else leave just before it),
+/// and at `site.slow` the deadline test after an access that cost more
+/// than counted; both rejoin at `site.back`.
+pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
+    busy(a, site);
+    dynasm!(a ; .arch x64 ; =>site.other);
+    let fast = L1Site {
+        other: site.exit,
+        ..*site
+    };
+    fast_access(a, i, &fast);
+    if site.recheck {
+        // Only a core whose fast-region accesses cost extra (a cluster
+        // core's L2) can exceed the count: the FC's cost nothing more.
+        dynasm!(a ; .arch x64 ; test rbp, rbp ; jz =>site.back);
+        recheck(a, site);
+    }
+    dynasm!(a ; .arch x64 ; jmp =>site.back);
+    if site.recheck {
+        dynasm!(a ; .arch x64 ; =>site.slow);
+        recheck(a, site);
+        dynasm!(a ; .arch x64 ; jmp =>site.back);
+    }
+}
+
+/// The L1's extra cycles of an access at `eax` issued at `r13 + issue`
+/// (keeps `rax`, `rcx`): inline, what `Tcdm::access` does when the cycle
+/// is free in the bank (the common case: the slice of the cycle's 64 is
+/// set, or a stale one restarted, and the port's count goes up); when it
+/// is taken, the arbiter itself through [`l1_access`], which finds the
+/// stall; without arbitration (the FC), the L1's latency alone. With
+/// `flag`, `edi` says afterwards whether the access may have cost more
+/// than [`Ctx::worst_extra`]: after a stall 1, else [`Ctx::l1_recheck`].
+/// The taken case is out of line (`busy`).
+fn grant(a: &mut Asm, site: &L1Site) {
+    // A slice is 16 bytes (`Tcdm::raw_parts`), a bank WORDS slices.
+    const BANK_BITS: i32 = (BANKS as i32 - 1) << 2;
+    const BANK_SHIFT: i8 = (WORDS * 16).trailing_zeros() as i8 - 2;
+    const SLOT_BITS: i32 = (WORDS as i32 - 1) << 4;
+    let (no_arb, fresh, done) = (
+        a.new_dynamic_label(),
+        a.new_dynamic_label(),
+        a.new_dynamic_label(),
+    );
+    dynasm!(a ; .arch x64
+        ; mov r9, [rbx + L1_GRANTED]
+        ; test r9, r9
+        ; jz =>no_arb
+        // rdx = cycle, r10 = its slice's tag, r11 = its bit.
+        ; lea rdx, [r13 + site.issue as i32]
+        ; mov r10, rdx
+        ; shr r10, 6
+        ; xor r11d, r11d
+        ; bts r11, rdx
+        // r9 += 16 · (bank · WORDS + tag % WORDS), the slice's slot:
+        // bank = (addr >> 2) % BANKS, so 16 · WORDS · bank = (addr &
+        // BANK_BITS) << BANK_SHIFT; tag = cycle >> 6, so 16 · (tag %
+        // WORDS) = (cycle >> 2) & SLOT_BITS.
+        ; mov esi, eax
+        ; and esi, BANK_BITS
+        ; shl esi, BANK_SHIFT
+        ; mov edi, edx
+        ; shr edi, 2
+        ; and edi, SLOT_BITS
+        ; add esi, edi
+        ; add r9, rsi
+        ; cmp [r9], r10
+        ; jne =>fresh
+        ; test [r9 + 8], r11
+        ; jnz =>site.busy
+        ; or [r9 + 8], r11
+        ; jmp =>done
+        ; =>fresh
+        ; mov [r9], r10
+        ; mov [r9 + 8], r11
+        ; =>done
+        // The port's count, added to the arbiter's by the core after the
+        // run (`Ctx::l1_grants`).
+        ; add QWORD [rbx + L1_GRANTS], 1
+        ; =>no_arb
+        ; add r13, [rbx + L1_EXTRA]
+    );
+    if site.recheck {
+        dynasm!(a ; .arch x64 ; mov edi, [rbx + L1_RECHECK]);
+    }
+    dynasm!(a ; .arch x64 ; =>site.join);
+}
+
+/// The grant's taken-cycle case, out of line: the arbiter itself
+/// ([`l1_access`], which finds the stall and counts the access), then
+/// back to `site.join` (with `edi` = 1 for the deadline test, `grant`).
+fn busy(a: &mut Asm, site: &L1Site) {
+    let f = l1_access as extern "sysv64" fn(*mut Ctx, u32, u64) -> u64 as usize as i64;
+    dynasm!(a ; .arch x64
+        // Two pushes keep `rsp` 16-aligned for the call; `rdx` = the cycle.
+        ; =>site.busy
+        ; push rax
+        ; push rcx
+        ; mov rdi, rbx
+        ; mov esi, eax
+        ; mov rax, QWORD f
+        ; call rax
+        ; add r13, rax
+        ; pop rcx
+        ; pop rax
+    );
+    if site.recheck {
+        dynasm!(a ; .arch x64 ; mov edi, 1);
+    }
+    dynasm!(a ; .arch x64 ; jmp =>site.join);
+}
+
+/// A store's checks besides the bounds (`rcx` = offset in the region, `rdx`
+/// = its end): not near the region's cached code (off >= code_hi or end <=
+/// code_lo) and not on `tohost`, the interpreter's fast-path conditions;
+/// else leave at `exit`.
+fn watched(a: &mut Asm, lo: i32, hi: i32, exit: dynasmrt::DynamicLabel) {
+    let ok = a.new_dynamic_label();
+    dynasm!(a ; .arch x64
+        ; cmp rcx, [rbx + hi]
+        ; jae =>ok
+        ; cmp rdx, [rbx + lo]
+        ; ja =>exit
+        ; =>ok
+        ; mov esi, eax
+        ; sub rsi, [rbx + TOHOST]
+        ; cmp rsi, 8
+        ; jb =>exit
+    );
+}
+
+/// The access itself at host address `base + rcx` (`eax` = the guest
+/// address), the base register's write-back, the loaded value and the
+/// split cycle.
+fn access(a: &mut Asm, i: &Inst, base: u8) {
+    let (o, n, store, m, opnd) = shape(i);
+    let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
+    let imm = i.imm as i32;
+    if store {
+        dynasm!(a ; .arch x64 ; mov esi, [r12 + rs2]);
+        match n {
+            1 => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], sil),
+            2 => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], si),
+            _ => dynasm!(a ; .arch x64 ; mov [Rq(base) + rcx], esi),
+        }
+    } else {
+        match o {
+            op::LB => dynasm!(a ; .arch x64 ; movsx edx, BYTE [Rq(base) + rcx]),
+            op::LBU => dynasm!(a ; .arch x64 ; movzx edx, BYTE [Rq(base) + rcx]),
+            op::LH => dynasm!(a ; .arch x64 ; movsx edx, WORD [Rq(base) + rcx]),
+            op::LHU => dynasm!(a ; .arch x64 ; movzx edx, WORD [Rq(base) + rcx]),
+            _ => dynasm!(a ; .arch x64 ; mov edx, [Rq(base) + rcx]),
+        }
+    }
+    // Base write-back (the loaded value wins if rd == rs1: written after).
+    if i.rs1 != 0 {
+        match m {
+            Mode::PostImm => dynasm!(a ; .arch x64 ; lea esi, [rax + imm] ; mov [r12 + rs1], esi),
+            Mode::PostReg => {
+                dynasm!(a ; .arch x64 ; mov esi, eax ; add esi, [r12 + opnd] ; mov [r12 + rs1], esi)
+            }
+            _ => {}
+        }
+    }
+    if !store && i.rd != 0 {
+        dynasm!(a ; .arch x64 ; mov [r12 + rd], edx);
+    }
+    // A split access (crosses a word boundary) costs one more cycle:
+    // ((addr & 3) + n + 3) >> 3 is 1 exactly when (addr & 3) + n > 4.
+    if n > 1 {
+        dynasm!(a ; .arch x64
+            ; and eax, 3
+            ; add eax, n + 3
+            ; shr eax, 3
+            ; add r13, rax
+        );
+    }
+}
