@@ -68,9 +68,16 @@ class Group(threading.Thread):
     def safe(self, cf, radar: Radar, clock: Clock, cmd: Command) -> Command:
         """Exercise 2: the radar check before a command is sent."""
         other = radar.detected()
-        if other is None or radar.has_priority(other):
+        if other is None:
             return cmd
         proximity = radar.proximity()
+        if radar.has_priority(other):
+            # Ours, beyond the guide's rule: the drone with priority slows
+            # down in dangerous proximity too, so that the other has the
+            # time to land before it is reached (landing takes 2.5 s; at
+            # full speed two drones heading for the same station met at
+            # the airway's height).
+            return cmd.scaled(SLOW) if proximity == "danger" else cmd
         if proximity == "close":
             return cmd.scaled(SLOW)
         if proximity != "danger":
@@ -115,10 +122,22 @@ class Group(threading.Thread):
                         if target == HOME:
                             delivery.advance(int(clock.now * 1000))
                             break
-                        # Pick-up or drop-off: down to 0.2 m and back up.
+                        # Pick-up or drop-off: down to 0.2 m and back up,
+                        # never onto or into another drone (ours, beyond the
+                        # guide: the stations are shared). A drone without
+                        # priority lands where the radar finds it (exercise
+                        # 2), possibly at this station; one with priority
+                        # holds its height while another is in dangerous
+                        # proximity (it may be under it, landed or landing,
+                        # or above it).
+                        held = HEIGHT
                         for z in (0.2, HEIGHT):
                             for _ in clock.seconds(2.0):
-                                cf.commander.send_hover_setpoint(0.0, 0.0, 0.0, z)
+                                cmd = self.safe(cf, radar, clock, Command(0.0, 0.0, 0.0, z))
+                                if radar.proximity() == "danger":
+                                    cmd = Command(0.0, 0.0, 0.0, held)
+                                held = cmd.z
+                                cf.commander.send_hover_setpoint(*cmd)
                                 clock.tick()
                         delivery.advance(int(clock.now * 1000))
                         print(f"{self.name}: {delivery.status.value} at {clock.now:.0f} s", flush=True)

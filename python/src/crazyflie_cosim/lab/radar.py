@@ -50,15 +50,21 @@ class Radar:
     firmware has the radar: ``radar.*`` in its TOCs)."""
 
     def __init__(self, cf: Any, danger_dbm: float = DANGER_DBM, close_dbm: float = CLOSE_DBM,
-                 period_ms: int = 100):
+                 period_ms: int = 100, window_ms: int = 1000):
         if close_dbm > danger_dbm:
             raise ValueError("close_dbm must not exceed danger_dbm")
         self.cf = cf
         self.danger_dbm = danger_dbm
         self.close_dbm = close_dbm
         self.period_ms = period_ms
+        #: How long a drone heard counts (drone time): the firmware's log
+        #: gives the drone heard *last*, so with several neighbours it
+        #: alternates between them; the nearest one of this window is the
+        #: one the radar reports (ours; the seed has two drones in view).
+        self.window_ms = window_ms
         self.my_id: int | None = None
         self.echo = Echo(0, 0, 0.0)
+        self._recent: dict[int, Echo] = {}
         self.history: list[Echo] = []
         self.listeners: list[Callable[[Echo], None]] = []
         self._lock = threading.Lock()
@@ -103,18 +109,32 @@ class Radar:
         with self._lock:
             self.echo = e
             self.history.append(e)
+            if e.id:
+                self._recent[e.id] = e
         for fn in list(self.listeners):
             fn(e)
 
     # -- what the user asks ----------------------------------------------
-    def detected(self) -> int | None:
-        """The id of the drone heard last (None: nobody for 3 s)."""
+    def _nearest(self) -> Echo | None:
+        """The strongest echo among the drones heard within ``window_ms``
+        of the latest reading (None: nobody)."""
         with self._lock:
-            return self.echo.id or None
+            if not self.echo.id:
+                return None
+            now = self.echo.t_ms
+            live = [e for e in self._recent.values() if now - e.t_ms <= self.window_ms]
+            return max(live, key=lambda e: (e.rssi, -e.id), default=None)
+
+    def detected(self) -> int | None:
+        """The id of the nearest drone heard in the last ``window_ms`` (the
+        strongest RSSI; None: nobody heard for 3 s, the firmware's timeout)."""
+        e = self._nearest()
+        return e.id if e else None
 
     def rssi(self) -> float | None:
-        with self._lock:
-            return self.echo.rssi if self.echo.id else None
+        """The RSSI of that drone (dBm)."""
+        e = self._nearest()
+        return e.rssi if e else None
 
     def classify(self, rssi: float | None) -> str | None:
         if rssi is None:

@@ -558,8 +558,18 @@ impl RadioDevice {
                 self.spec.max_payload()
             )));
         }
+        if ctx.session.is_stopped() {
+            // The platform ended the world session by itself (the CRTP
+            // link closed, the battery's end): the firmware, which only
+            // looks at that between two transmissions, may start one more.
+            // It goes into a world that no longer listens: nothing is
+            // sent, no TX_DONE comes, the run is ending. (An error here
+            // failed 1 in 5 lab-delivery runs, by the wall clock's timing.)
+            tracing::debug!(device = %self.spec.name, "TX_START after the world session ended: not sent");
+            return Ok(());
+        }
         if !ctx.session.is_live() {
-            return Err(self.invalid("TX_START after STOP: the world session is over".into()));
+            return Err(self.invalid("TX_START before the world session opened".into()));
         }
         // p − p_d, but never before the drone's clock nor before the end of
         // this radio's previous transmission in world time (a flying
