@@ -327,6 +327,14 @@ impl<W: WorldLink> Mmio for Platform<W> {
         Ok(value)
     }
 
+    fn plain_window(&mut self) -> Option<(u32, &[u8])> {
+        // The camera's image registers: they change only at a capture or a
+        // store into them, both writes (`Camera::write`). A frame that
+        // cannot be joined (a bad image) is left to `read`, which reports it.
+        let base = PERIPHERAL_BASE + camera::IMAGE;
+        self.camera.image().ok().map(|image| (base, image))
+    }
+
     fn write(
         &mut self,
         addr: u32,

@@ -319,6 +319,11 @@ impl Mmio for FcBus<'_> {
     fn take_stop_request(&mut self) -> bool {
         self.dev.take_stop_request()
     }
+    fn plain_window(&mut self) -> Option<(u32, &[u8])> {
+        // The cluster's window is never plain (every access is a
+        // synchronisation point); the platform's may be.
+        self.dev.plain_window()
+    }
 }
 
 /// A cluster core's bus: the cluster window only.

@@ -62,6 +62,10 @@ pub(super) struct Run<'a> {
     /// costs nothing.
     timing: MemTiming,
     tcdm: Option<&'a mut Tcdm>,
+    /// Device registers that read like memory (`Mmio::plain_window`):
+    /// their base, their bytes, and the MMIO latency a read of them costs.
+    window: (u32, &'a [u8]),
+    window_latency: u64,
 }
 
 /// Direct access to one RAM region, for the loads and stores of the hot
@@ -153,7 +157,25 @@ impl<'a> Run<'a> {
             },
             timing: MemTiming::default(),
             tcdm: None,
+            window: (0, &[]),
+            window_latency: 0,
         }
+    }
+
+    /// Loads from these device registers run here rather than on the
+    /// general path: `latency` cycles each, as `Cpu::mmio_access` charges,
+    /// and, as there, no split cost (`Mmio::plain_window`).
+    pub fn set_window(&mut self, base: u32, bytes: &'a [u8], latency: u64) {
+        self.window = (base, bytes);
+        self.window_latency = latency;
+    }
+
+    /// A load of `n` bytes from the plain device window, if inside it.
+    #[inline(always)]
+    fn window_load(&self, addr: u32, n: u32) -> Option<u32> {
+        let off = addr.wrapping_sub(self.window.0) as usize;
+        let bytes = self.window.1.get(off..off.checked_add(n as usize)?)?;
+        Some(bytes.iter().rev().fold(0, |v, &b| (v << 8) | u32::from(b)))
     }
 
     /// The core's memory timing and the L1 arbiter (cluster cores).
@@ -434,7 +456,18 @@ macro_rules! loads {
                     regs[0] = 0;
                     next(r, regs, p, cycles, deadline)
                 }
-                None => general(r, p, cycles),
+                None => match r.window_load(addr, $size.bytes()) {
+                    Some(v) => {
+                        cycles += r.window_latency;
+                        if let Some(v) = wb {
+                            reg!(regs, inst.rs1) = v;
+                        }
+                        reg!(regs, inst.rd) = $conv(v);
+                        regs[0] = 0;
+                        next(r, regs, p, cycles, deadline)
+                    }
+                    None => general(r, p, cycles),
+                },
             }
         }
     )*};

@@ -150,6 +150,21 @@ pub trait Mmio {
     fn take_stop_request(&mut self) -> bool {
         false
     }
+
+    /// Registers that read like memory: `(base, bytes)`, where a load of
+    /// `n` bytes at `base + k` returns `bytes[k..k + n]` (little-endian)
+    /// with no side effect, whatever the time, and this until the next
+    /// write to any device (the only thing that may change them). The
+    /// block executor then loads from them in its hot loop, charging the
+    /// MMIO latency as the general path does, instead of leaving at every
+    /// access: a firmware copying the camera's frame makes 25,600 word
+    /// reads per frame (docs/ISS.md "Device windows"). Such reads are
+    /// memory reads, not device polls: the idle detector does not count
+    /// them. `None` (the default): every register goes through
+    /// [`Mmio::read`].
+    fn plain_window(&mut self) -> Option<(u32, &[u8])> {
+        None
+    }
 }
 
 /// A bus with no devices: every access faults. Used by `run-elf`.

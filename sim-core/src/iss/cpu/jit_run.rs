@@ -132,7 +132,6 @@ impl Cpu {
             l1_port: t.l1_port.unwrap_or(0) as u64,
             l1_granted,
             l1_accesses,
-            l1_grants: 0,
             poll_armed: self.poll.touched as u64,
             poll_from: 0,
             jumps: 0,
@@ -149,16 +148,17 @@ impl Cpu {
         // meanwhile (`&mut self`, `&mut mem`); the table is the cache's own, not resized during a run;
         // `e.code` was just returned by this cache.
         unsafe { jit.run(&mut ctx, code, cycles) };
+        let (retired, grants) = ctx.retired_grants();
         if !ctx.l1_accesses.is_null() {
             // SAFETY: the arbiter's counter (`Tcdm::raw_parts`), which
             // `mem` still holds, unaliased (`&mut mem`).
-            unsafe { *ctx.l1_accesses += ctx.l1_grants };
+            unsafe { *ctx.l1_accesses += grants };
         }
         self.cycles = ctx.cycles;
         self.pc = ctx.exit_pc as u32;
-        self.instret += ctx.retired;
+        self.instret += retired;
         self.jumps += ctx.jumps;
-        if ctx.retired == 0 {
+        if retired == 0 {
             // Left before the block's first instruction (an access the
             // fast path does not do): nothing happened, the interpreter
             // does this block.

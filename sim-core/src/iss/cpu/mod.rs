@@ -418,7 +418,7 @@ impl Cpu {
             let Some(first) = self.lookup(mem) else {
                 continue; // the fetch trapped (and ended the run slice)
             };
-            match self.exec_block(mem, first) {
+            match self.exec_block(mem, dev, first) {
                 Exit::Poll { from, to } => self.poll_slow(mem, dev, from, to),
                 Exit::General(inst) => self.step(mem, dev, inst),
                 Exit::Paused => {}
@@ -485,7 +485,7 @@ impl Cpu {
     /// general path: a load or store outside RAM, a store near cached code
     /// or to `tohost`, a system instruction. That one is handed back
     /// unexecuted, with the core's state as it was just before it.
-    fn exec_block(&mut self, mem: &mut Memory, first: usize) -> Exit {
+    fn exec_block(&mut self, mem: &mut Memory, dev: &mut dyn Mmio, first: usize) -> Exit {
         // The translator first (`jit_run.rs`), except in a loop the idle
         // detector is measuring (after a device read it runs too, and
         // reports short backward branches as the interpreter does).
@@ -513,6 +513,9 @@ impl Cpu {
         run.set_timing(self.mem_timing, mem.tcdm.as_mut());
         if self.code_size != 0 {
             run.set_code_region(self.code_idx);
+        }
+        if let Some((base, bytes)) = dev.plain_window() {
+            run.set_window(base, bytes, self.latency);
         }
         run.tohost = self.tohost;
         run.poll_armed = self.poll.touched || self.poll.active;

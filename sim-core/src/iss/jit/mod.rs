@@ -97,6 +97,11 @@ pub(crate) struct JitCache {
     /// Jumps waiting for a target to be translated: target pc → host
     /// addresses of their rel32 fields.
     pending: std::collections::HashMap<u32, Vec<usize>>,
+    /// `COSIM_PERF_MAP` set: every translation is listed in
+    /// `/tmp/perf-PID.map` (the format `perf report` reads for JIT code),
+    /// named by its guest pc, so a profile shows which guest code the
+    /// translated samples ran.
+    perf_map: Option<std::io::LineWriter<std::fs::File>>,
     /// Blocks translated and cache flushes so far (statistics).
     pub translated: u64,
     pub flushes: u64,
@@ -186,6 +191,16 @@ impl JitCache {
             pending: Default::default(),
             translated: 0,
             flushes: 0,
+            perf_map: std::env::var_os("COSIM_PERF_MAP").and_then(|_| {
+                let path = format!("/tmp/perf-{}.map", std::process::id());
+                std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(&path)
+                    .map_err(|e| tracing::warn!("cannot open {path}: {e}"))
+                    .ok()
+                    .map(std::io::LineWriter::new)
+            }),
         })
     }
 
@@ -274,6 +289,12 @@ impl JitCache {
             return None;
         };
         let code = self.buf.push(&t.code);
+        if let Some(m) = self.perf_map.as_mut() {
+            use std::io::Write;
+            let pc = regions[region].base.wrapping_add(off as u32);
+            // A profiling aid only: a failed write loses a name, nothing else.
+            let _ = writeln!(m, "{code:x} {:x} rv_{pc:08x}", t.code.len());
+        }
         for (to, off) in t.patches {
             self.pending.entry(to).or_default().push(code + off);
         }

@@ -25,6 +25,9 @@ pub(super) struct L1Site {
     /// where it rejoins.
     pub busy: dynasmrt::DynamicLabel,
     pub join: dynasmrt::DynamicLabel,
+    /// A stale slice's restart, and the grant's store and count.
+    pub fresh: dynasmrt::DynamicLabel,
+    pub granted: dynasmrt::DynamicLabel,
     pub back: dynasmrt::DynamicLabel,
     /// The access's issue cycle, relative to `r13` before it: the last
     /// cycle of its cost, as the interpreter's `Run::extra` and the
@@ -178,22 +181,16 @@ fn grant(a: &mut Asm, site: &L1Site) {
     const BANK_BITS: i32 = (BANKS as i32 - 1) << 2;
     const BANK_SHIFT: i8 = (WORDS * 16).trailing_zeros() as i8 - 2;
     const SLOT_BITS: i32 = (WORDS as i32 - 1) << 4;
-    let (no_arb, fresh, done) = (
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-    );
+    let no_arb = a.new_dynamic_label();
     dynasm!(a ; .arch x64
         ; mov r9, [rbx + L1_GRANTED]
         ; test r9, r9
         ; jz =>no_arb
-        // rdx = cycle, r10 = its slice's tag, r11 = its bit.
+        // rdx = cycle, r10 = its slice's tag.
         ; lea rdx, [r13 + site.issue as i32]
         ; mov r10, rdx
         ; shr r10, 6
-        ; xor r11d, r11d
-        ; bts r11, rdx
-        // r9 += 16 · (bank · WORDS + tag % WORDS), the slice's slot:
+        // rsi = 16 · (bank · WORDS + tag % WORDS), the slice's slot:
         // bank = (addr >> 2) % BANKS, so 16 · WORDS · bank = (addr &
         // BANK_BITS) << BANK_SHIFT; tag = cycle >> 6, so 16 · (tag %
         // WORDS) = (cycle >> 2) & SLOT_BITS.
@@ -204,20 +201,24 @@ fn grant(a: &mut Asm, site: &L1Site) {
         ; shr edi, 2
         ; and edi, SLOT_BITS
         ; add esi, edi
-        ; add r9, rsi
-        ; cmp [r9], r10
-        ; jne =>fresh
-        ; test [r9 + 8], r11
-        ; jnz =>site.busy
-        ; or [r9 + 8], r11
-        ; jmp =>done
-        ; =>fresh
-        ; mov [r9], r10
-        ; mov [r9 + 8], r11
-        ; =>done
-        // The port's count, added to the arbiter's by the core after the
-        // run (`Ctx::l1_grants`).
-        ; add QWORD [rbx + L1_GRANTS], 1
+        // The cycle's bit: `bts` leaves the old one in CF (taken: the
+        // arbiter finds the stall, `busy`). A stale slice (another tag)
+        // restarts with this tag and this bit alone, as `Tcdm::access`
+        // does (about every other access: kept inline).
+        ; cmp [r9 + rsi], r10
+        ; jne =>site.fresh
+        ; mov r11, [r9 + rsi + 8]
+        ; bts r11, rdx
+        ; jc =>site.busy
+        ; jmp =>site.granted
+        ; =>site.fresh
+        ; mov [r9 + rsi], r10
+        ; xor r11d, r11d
+        ; bts r11, rdx
+        ; =>site.granted
+        ; mov [r9 + rsi + 8], r11
+        // The port's count, in `r15`'s high bits (`GRANT_ONE`).
+        ; add r15, GRANT_ONE
         ; =>no_arb
         ; add r13, [rbx + L1_EXTRA]
     );
