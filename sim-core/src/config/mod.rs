@@ -2,6 +2,7 @@
 //! and the run configuration (the thesis's `simul_configs.hpp`, TOML,
 //! [`RunConfig`]). Every error names the file (or the key) and what is wrong.
 
+mod debug_level;
 mod platform;
 mod run;
 
