@@ -615,14 +615,20 @@ impl Cluster {
     ) -> StopReason {
         loop {
             self.sh.fc_time = fc.now();
-            // The earliest runnable agent.
-            let mut pick = (self.sh.eff_time(FC, self.sh.fc_time), 0usize, FC);
+            // The earliest runnable agent in `(time, rank)` order. A rank
+            // (two divisions) is computed only on a tie in time: once per
+            // agent per pass made this loop the scheduler's hottest line.
+            let mut pick = (self.sh.eff_time(FC, self.sh.fc_time), Some(0usize), FC);
             for i in 0..self.sh.n {
                 if self.sh.state[i] == CoreState::Running {
                     let t = self.sh.eff_time(i, self.sh.time[i]);
-                    let key = (t, self.sh.rank(i, t), i);
-                    if (key.0, key.1) < (pick.0, pick.1) {
-                        pick = key;
+                    let earlier = t < pick.0
+                        || t == pick.0 && {
+                            let r = self.sh.rank(i, t);
+                            r < *pick.1.get_or_insert_with(|| self.sh.rank(pick.2, t))
+                        };
+                    if earlier {
+                        pick = (t, None, i);
                     }
                 }
             }
