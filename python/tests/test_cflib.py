@@ -449,7 +449,10 @@ def test_deck_memories_list_the_drones_decks(lab):
             time.sleep(0.05)
         decks = {m.elements.get("Board name"): (m.vid, m.pid, m.size, m.valid) for m in mems}
         present = {k for k, v in scf.cf.param.values["deck"].items() if int(v) == 1}
+        # What cfclient's About box formats before it lists the decks.
+        firmware = {k: int(v) for k, v in scf.cf.param.values["firmware"].items()}
     lab_run.finish()
+    assert firmware == {"revision0": 0, "revision1": 0, "modified": 1}
     print(decks)
     # The firmware drivers' ids (flowdeck_v1v2.c, multiranger.c, aideck.c).
     ids = {"bcFlow2": 0x0F, "bcMultiranger": 0x0C, "bcAI": 0x12}

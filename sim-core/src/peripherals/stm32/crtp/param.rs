@@ -19,6 +19,8 @@ pub const CHAN_READ: u8 = 1;
 pub const CHAN_WRITE: u8 = 2;
 
 pub const PARAM_UINT8: u8 = 0x08;
+pub const PARAM_UINT16: u8 = 0x09;
+pub const PARAM_UINT32: u8 = 0x0A;
 pub const PARAM_FLOAT: u8 = 0x06;
 pub const PARAM_RONLY: u8 = 0x40;
 const ENOENT: u8 = 2;
@@ -60,6 +62,10 @@ pub enum Known {
     /// its P2P beacon, and the drone's own id (its radio's).
     RadarEnable,
     RadarId,
+    /// `firmware.revision0/1` and `firmware.modified` (the firmware's
+    /// `version.c`: its git revision and whether the tree was clean).
+    /// cfclient's About box formats them before it lists the decks.
+    Firmware,
 }
 
 /// The gains of [`PidGains`] served as parameters. The Webots controller
@@ -196,6 +202,14 @@ impl Params {
         ] {
             params.push(p(ro, "deck", name, Known::AbsentDeck, 0.0));
         }
+        // No Bitcraze build is running, so there is no revision to name:
+        // 0 and 0, and "modified" (cfclient shows "00 (MODIFIED)").
+        let fw = |ty: u8, name: &'static str, v: f64| {
+            p(ty | PARAM_RONLY, "firmware", name, Known::Firmware, v)
+        };
+        params.push(fw(PARAM_UINT32, "revision0", 0.0));
+        params.push(fw(PARAM_UINT16, "revision1", 0.0));
+        params.push(fw(PARAM_UINT8, "modified", 1.0));
         params.push(p(
             PARAM_FLOAT,
             "locSrv",
@@ -239,7 +253,9 @@ impl Params {
         if p.entry.ty & 0x0F == PARAM_FLOAT {
             (p.value as f32).to_le_bytes().to_vec()
         } else {
-            vec![p.value as u8]
+            // An integer of 1, 2, 4 or 8 bytes (`param.h`: bits 0..1).
+            let n = 1usize << (p.entry.ty & 0x03);
+            (p.value as i64).to_le_bytes()[..n].to_vec()
         }
     }
 
@@ -375,5 +391,24 @@ mod tests {
         w.extend(0.05f32.to_le_bytes());
         p.write(&w).unwrap();
         assert_eq!(p.get(Known::ExtPosStdDev), 0.05f32 as f64);
+    }
+
+    #[test]
+    fn the_firmware_revision_reads_in_its_types_width_and_is_read_only() {
+        let mut p = Params::new(Decks::default(), &PidGains::default(), None);
+        // The value after `[id u16, 0]`: 4, 2 and 1 bytes (`version.c`'s
+        // uint32, uint16, uint8).
+        for (name, value) in [
+            ("firmware.revision0", vec![0, 0, 0, 0]),
+            ("firmware.revision1", vec![0, 0]),
+            ("firmware.modified", vec![1]),
+        ] {
+            let id = toc::find(p.entries(), name).unwrap();
+            let answer = p.read(&id.to_le_bytes()).unwrap();
+            assert_eq!(answer[3..], value, "{name}");
+            let mut w = id.to_le_bytes().to_vec();
+            w.extend([7, 7, 7, 7]);
+            assert_eq!(p.write(&w), None, "{name} is read-only");
+        }
     }
 }
