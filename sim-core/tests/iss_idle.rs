@@ -226,9 +226,7 @@ mod exits {
     const EBREAK: u32 = 0x0010_0073;
     const NOP: u32 = 0x0000_0013;
 
-    fn i(imm: i32, rs1: u32, f3: u32, rd: u32, opc: u32) -> u32 {
-        ((imm as u32) & 0xfff) << 20 | rs1 << 15 | f3 << 12 | rd << 7 | opc
-    }
+    use crate::iss_util::encode::{self, i};
     fn addi(rd: u32, rs1: u32, imm: i32) -> u32 {
         i(imm, rs1, 0, rd, 0x13)
     }
@@ -251,31 +249,17 @@ mod exits {
         imm & 0xffff_f000 | rd << 7 | 0x37
     }
     fn sb(rs2: u32, rs1: u32, imm: i32) -> u32 {
-        let imm = imm as u32;
-        (imm >> 5 & 0x7f) << 25 | rs2 << 20 | rs1 << 15 | (imm & 0x1f) << 7 | 0x23
+        encode::s(imm, rs2, rs1, 0)
     }
     /// Conditional branch from word `at` to word `to` (funct3 `f3`).
     fn br(f3: u32, rs1: u32, rs2: u32, at: usize, to: usize) -> u32 {
-        let imm = (4 * (to as i32 - at as i32)) as u32;
-        (imm >> 12 & 1) << 31
-            | (imm >> 5 & 0x3f) << 25
-            | rs2 << 20
-            | rs1 << 15
-            | f3 << 12
-            | (imm >> 1 & 0xf) << 8
-            | (imm >> 11 & 1) << 7
-            | 0x63
+        encode::b(4 * (to as i32 - at as i32), rs2, rs1, f3)
     }
     const BEQ: u32 = 0;
     const BNE: u32 = 1;
     /// `jal x0` from word `at` to word `to`.
     fn j(at: usize, to: usize) -> u32 {
-        let imm = (4 * (to as i32 - at as i32)) as u32;
-        (imm >> 20 & 1) << 31
-            | (imm >> 1 & 0x3ff) << 21
-            | (imm >> 11 & 1) << 20
-            | (imm >> 12 & 0xff) << 12
-            | 0x6f
+        encode::jal(4 * (to as i32 - at as i32), 0)
     }
 
     /// A device in the STM32's style: a status byte at +3 (also the top

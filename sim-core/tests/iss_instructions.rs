@@ -5,45 +5,14 @@
 
 mod iss_util;
 
+use iss_util::encode::{b, csr, i, jal, r, s};
+
 use sim_core::iss::{cause, Cpu, CpuConfig, Memory, NoDevices, Privilege, StopReason};
 use sim_core::units::Picos;
 
 const BASE: u32 = 0x8000_0000;
 const HANDLER: u32 = BASE + 0x800;
 
-fn r(f7: u32, rs2: u32, rs1: u32, f3: u32, rd: u32, opc: u32) -> u32 {
-    f7 << 25 | rs2 << 20 | rs1 << 15 | f3 << 12 | rd << 7 | opc
-}
-fn i(imm: i32, rs1: u32, f3: u32, rd: u32, opc: u32) -> u32 {
-    ((imm as u32) & 0xfff) << 20 | rs1 << 15 | f3 << 12 | rd << 7 | opc
-}
-fn s(imm: i32, rs2: u32, rs1: u32, f3: u32) -> u32 {
-    let imm = imm as u32;
-    (imm >> 5 & 0x7f) << 25 | rs2 << 20 | rs1 << 15 | f3 << 12 | (imm & 0x1f) << 7 | 0x23
-}
-fn b(imm: i32, rs2: u32, rs1: u32, f3: u32) -> u32 {
-    let imm = imm as u32;
-    (imm >> 12 & 1) << 31
-        | (imm >> 5 & 0x3f) << 25
-        | rs2 << 20
-        | rs1 << 15
-        | f3 << 12
-        | (imm >> 1 & 0xf) << 8
-        | (imm >> 11 & 1) << 7
-        | 0x63
-}
-fn jal(imm: i32, rd: u32) -> u32 {
-    let imm = imm as u32;
-    (imm >> 20 & 1) << 31
-        | (imm >> 1 & 0x3ff) << 21
-        | (imm >> 11 & 1) << 20
-        | (imm >> 12 & 0xff) << 12
-        | rd << 7
-        | 0x6f
-}
-fn csr(f3: u32, rd: u32, rs1: u32, csr: u32) -> u32 {
-    csr << 20 | rs1 << 15 | f3 << 12 | rd << 7 | 0x73
-}
 const ECALL: u32 = 0x0000_0073;
 const EBREAK: u32 = 0x0010_0073;
 const MRET: u32 = 0x3020_0073;

@@ -9,6 +9,8 @@
 
 mod iss_util;
 
+use iss_util::encode::{b, csr, i, s};
+
 use sim_core::iss::{Backend, Cpu, CpuConfig, Memory, NoDevices, StopReason};
 use sim_core::units::Picos;
 
@@ -149,28 +151,6 @@ fn sliced_runs_stop_where_the_interpreter_stops() {
     }
 }
 
-// Encoders for the hand-written programs (from the ISA manual's formats).
-fn i_type(imm: i32, rs1: u32, f3: u32, rd: u32, opc: u32) -> u32 {
-    ((imm as u32) & 0xfff) << 20 | rs1 << 15 | f3 << 12 | rd << 7 | opc
-}
-fn s_type(imm: i32, rs2: u32, rs1: u32, f3: u32) -> u32 {
-    let imm = imm as u32;
-    (imm >> 5 & 0x7f) << 25 | rs2 << 20 | rs1 << 15 | f3 << 12 | (imm & 0x1f) << 7 | 0x23
-}
-fn b_type(imm: i32, rs2: u32, rs1: u32, f3: u32) -> u32 {
-    let imm = imm as u32;
-    (imm >> 12 & 1) << 31
-        | (imm >> 5 & 0x3f) << 25
-        | rs2 << 20
-        | rs1 << 15
-        | f3 << 12
-        | (imm >> 1 & 0xf) << 8
-        | (imm >> 11 & 1) << 7
-        | 0x63
-}
-fn csr(f3: u32, rd: u32, rs1: u32, csr: u32) -> u32 {
-    csr << 20 | rs1 << 15 | f3 << 12 | rd << 7 | 0x73
-}
 const FENCE_I: u32 = 0x0000_100f;
 const BASE: u32 = 0x8000_0000;
 
@@ -220,20 +200,20 @@ fn state(stop: StopReason, cpu: &Cpu, mem: &Memory) -> State {
 #[test]
 fn self_modifying_code_with_fence_i() {
     let prog = [
-        i_type(40, 0, 0, 7, 0x13), // 0: addi x7, x0, 40 (the counter)
-        0x8000_02b7,               // 1: lui x5, 0x80000
-        i_type(24, 5, 0, 5, 0x13), // 2: addi x5, x5, 24 (x5 = &insn 6)
-        i_type(0, 0, 0, 6, 0x13),  // 3: addi x6, x0, 0
-        i_type(0, 5, 2, 8, 0x03),  // 4: lw x8, 0(x5)
-        0x0010_04b7,               // 5: lui x9, 0x100 (1 << 20: imm + 1)
-        i_type(0, 6, 0, 6, 0x13),  // 6: addi x6, x6, 0 (patched)
-        0x0094_0433,               // 7: add x8, x8, x9
-        s_type(0, 8, 5, 2),        // 8: sw x8, 0(x5)
-        FENCE_I,                   // 9
-        i_type(-1, 7, 0, 7, 0x13), // 10: addi x7, x7, -1
-        b_type(-20, 0, 7, 1),      // 11: bne x7, x0, -20 (to 6)
-        csr(2, 10, 0, 0xb00),      // 12: csrr x10, mcycle
-        0x0000_006f,               // 13: j .
+        i(40, 0, 0, 7, 0x13), // 0: addi x7, x0, 40 (the counter)
+        0x8000_02b7,          // 1: lui x5, 0x80000
+        i(24, 5, 0, 5, 0x13), // 2: addi x5, x5, 24 (x5 = &insn 6)
+        i(0, 0, 0, 6, 0x13),  // 3: addi x6, x0, 0
+        i(0, 5, 2, 8, 0x03),  // 4: lw x8, 0(x5)
+        0x0010_04b7,          // 5: lui x9, 0x100 (1 << 20: imm + 1)
+        i(0, 6, 0, 6, 0x13),  // 6: addi x6, x6, 0 (patched)
+        0x0094_0433,          // 7: add x8, x8, x9
+        s(0, 8, 5, 2),        // 8: sw x8, 0(x5)
+        FENCE_I,              // 9
+        i(-1, 7, 0, 7, 0x13), // 10: addi x7, x7, -1
+        b(-20, 0, 7, 1),      // 11: bne x7, x0, -20 (to 6)
+        csr(2, 10, 0, 0xb00), // 12: csrr x10, mcycle
+        0x0000_006f,          // 13: j .
     ];
     let run = |iss| {
         let (mut cpu, mut mem) = setup(&prog, iss);

@@ -6,6 +6,10 @@
 //! offered or not, interpreted or translated, run whole or in slices.
 
 use sim_core::iss::StopReason;
+
+mod iss_util;
+
+use iss_util::encode::{b, i, lui, r, s};
 use sim_core::iss::{AccessSize, Backend, CoreStats, Cpu, CpuConfig, Memory, Mmio, MmioError};
 use sim_core::units::{Cycles, Picos};
 
@@ -59,55 +63,29 @@ impl Mmio for Frame {
     }
 }
 
-// Encoders (the ISA manual's formats).
-fn i_type(imm: i32, rs1: u32, f3: u32, rd: u32, opc: u32) -> u32 {
-    ((imm as u32) & 0xfff) << 20 | rs1 << 15 | f3 << 12 | rd << 7 | opc
-}
-fn r_type(f7: u32, rs2: u32, rs1: u32, f3: u32, rd: u32) -> u32 {
-    f7 << 25 | rs2 << 20 | rs1 << 15 | f3 << 12 | rd << 7 | 0x33
-}
-fn s_type(imm: i32, rs2: u32, rs1: u32, f3: u32) -> u32 {
-    let imm = imm as u32;
-    (imm >> 5 & 0x7f) << 25 | rs2 << 20 | rs1 << 15 | f3 << 12 | (imm & 0x1f) << 7 | 0x23
-}
-fn b_type(imm: i32, rs2: u32, rs1: u32, f3: u32) -> u32 {
-    let imm = imm as u32;
-    (imm >> 12 & 1) << 31
-        | (imm >> 5 & 0x3f) << 25
-        | rs2 << 20
-        | rs1 << 15
-        | f3 << 12
-        | (imm >> 1 & 0xf) << 8
-        | (imm >> 11 & 1) << 7
-        | 0x63
-}
-fn lui(rd: u32, imm20: u32) -> u32 {
-    imm20 << 12 | rd << 7 | 0x37
-}
-
 /// Copies 200 words of the frame into RAM with every load width, aligned
 /// and misaligned, with load-use stalls, then reads `mcycle` and spins.
 fn program() -> Vec<u32> {
     vec![
         lui(5, WINDOW >> 12),         // 0: x5 = the window
         lui(6, (RAM + 0x1000) >> 12), // 1: x6 = the copy in RAM
-        i_type(200, 0, 0, 7, 0x13),   // 2: x7 = 200
-        i_type(0, 5, 2, 8, 0x03),     // 3: lw x8, 0(x5)
-        s_type(0, 8, 6, 2),           // 4: sw x8, 0(x6)
-        i_type(1, 5, 1, 9, 0x03),     // 5: lh x9, 1(x5)
-        i_type(3, 5, 4, 10, 0x03),    // 6: lbu x10, 3(x5)
-        r_type(0, 9, 10, 0, 11),      // 7: add x11, x10, x9 (load-use)
-        i_type(2, 5, 2, 12, 0x03),    // 8: lw x12, 2(x5) (misaligned)
-        r_type(0, 12, 11, 0, 13),     // 9: add x13, x11, x12 (load-use)
-        s_type(4, 13, 6, 2),          // 10: sw x13, 4(x6)
-        i_type(3, 5, 5, 14, 0x03),    // 11: lhu x14, 3(x5) (split half)
-        i_type(2, 5, 0, 15, 0x03),    // 12: lb x15, 2(x5)
-        r_type(0, 15, 14, 4, 16),     // 13: xor x16, x14, x15
-        s_type(8, 16, 6, 2),          // 14: sw x16, 8(x6)
-        i_type(4, 5, 0, 5, 0x13),     // 15: addi x5, x5, 4
-        i_type(12, 6, 0, 6, 0x13),    // 16: addi x6, x6, 12
-        i_type(-1, 7, 0, 7, 0x13),    // 17: addi x7, x7, -1
-        b_type(-60, 0, 7, 1),         // 18: bne x7, x0, -60 (to 3)
+        i(200, 0, 0, 7, 0x13),        // 2: x7 = 200
+        i(0, 5, 2, 8, 0x03),          // 3: lw x8, 0(x5)
+        s(0, 8, 6, 2),                // 4: sw x8, 0(x6)
+        i(1, 5, 1, 9, 0x03),          // 5: lh x9, 1(x5)
+        i(3, 5, 4, 10, 0x03),         // 6: lbu x10, 3(x5)
+        r(0, 9, 10, 0, 11, 0x33),     // 7: add x11, x10, x9 (load-use)
+        i(2, 5, 2, 12, 0x03),         // 8: lw x12, 2(x5) (misaligned)
+        r(0, 12, 11, 0, 13, 0x33),    // 9: add x13, x11, x12 (load-use)
+        s(4, 13, 6, 2),               // 10: sw x13, 4(x6)
+        i(3, 5, 5, 14, 0x03),         // 11: lhu x14, 3(x5) (split half)
+        i(2, 5, 0, 15, 0x03),         // 12: lb x15, 2(x5)
+        r(0, 15, 14, 4, 16, 0x33),    // 13: xor x16, x14, x15
+        s(8, 16, 6, 2),               // 14: sw x16, 8(x6)
+        i(4, 5, 0, 5, 0x13),          // 15: addi x5, x5, 4
+        i(12, 6, 0, 6, 0x13),         // 16: addi x6, x6, 12
+        i(-1, 7, 0, 7, 0x13),         // 17: addi x7, x7, -1
+        b(-60, 0, 7, 1),              // 18: bne x7, x0, -60 (to 3)
         0xb000_2573,                  // 19: csrr x10, mcycle
         0x0000_006f,                  // 20: j .
     ]

@@ -1,6 +1,7 @@
 //! Helpers shared by the ISS integration tests.
 #![allow(dead_code)]
 
+pub mod encode;
 pub mod op_device;
 
 use std::io::Write;
