@@ -90,10 +90,10 @@ impl Tcdm {
     /// bank-major, and `port`'s `accesses` counter. Translated code does
     /// there exactly what [`Tcdm::access`] does when the cycle is free in
     /// its bank (and calls `access` when it is not).
-    pub(crate) fn raw_parts(&mut self, port: u8) -> (*mut u64, *mut u64) {
+    pub(crate) fn raw_parts(&mut self, port: u8) -> (*mut u64, *mut PortStats) {
         (
             self.granted.as_mut_ptr() as *mut u64,
-            &mut self.stats[port as usize % PORTS].accesses,
+            &mut self.stats[port as usize % PORTS],
         )
     }
 

@@ -71,7 +71,7 @@ impl Cpu {
             Some(r) => (r.data.as_mut_ptr(), r.size as u64, (r.code_lo, r.code_hi)),
             None => (std::ptr::null_mut(), 0, (0, 0)),
         };
-        let (tcdm, l1_granted, l1_accesses) = match (t.l1_port, mem.tcdm.as_mut()) {
+        let (tcdm, l1_granted, l1_port_stats) = match (t.l1_port, mem.tcdm.as_mut()) {
             (Some(port), Some(a)) => {
                 let (g, n) = a.raw_parts(port);
                 (a as *mut Tcdm, g, n)
@@ -131,7 +131,8 @@ impl Cpu {
             tcdm,
             l1_port: t.l1_port.unwrap_or(0) as u64,
             l1_granted,
-            l1_accesses,
+            l1_port_stats,
+            l1_stalls: 0,
             poll_armed: self.poll.touched as u64,
             poll_from: 0,
             jumps: 0,
@@ -149,10 +150,12 @@ impl Cpu {
         // `e.code` was just returned by this cache.
         unsafe { jit.run(&mut ctx, code, cycles) };
         let (retired, grants) = ctx.retired_grants();
-        if !ctx.l1_accesses.is_null() {
-            // SAFETY: the arbiter's counter (`Tcdm::raw_parts`), which
-            // `mem` still holds, unaliased (`&mut mem`).
-            unsafe { *ctx.l1_accesses += grants };
+        if !ctx.l1_port_stats.is_null() {
+            // SAFETY: the port's counts (`Tcdm::raw_parts`), which `mem`
+            // still holds, unaliased (`&mut mem`).
+            let s = unsafe { &mut *ctx.l1_port_stats };
+            s.accesses += grants;
+            s.stall_cycles += ctx.l1_stalls;
         }
         self.cycles = ctx.cycles;
         self.pc = ctx.exit_pc as u32;

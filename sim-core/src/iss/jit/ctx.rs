@@ -10,7 +10,7 @@
 //! - `r15`: instructions retired since the run began,
 //! - `rbp`: [`Ctx::extra`], the extra cycles of every fast-region access.
 
-use crate::cluster::tcdm::Tcdm;
+use crate::cluster::tcdm::{PortStats, Tcdm};
 
 use std::mem::offset_of;
 
@@ -109,10 +109,14 @@ pub(crate) struct Ctx {
     /// the FC's view of L1).
     pub tcdm: *mut Tcdm,
     pub l1_port: u64,
-    /// The arbiter's slices and this port's access counter
-    /// ([`Tcdm::raw_parts`]), for the inline grant (null: no arbitration).
+    /// The arbiter's slices and this port's counts ([`Tcdm::raw_parts`]),
+    /// for the inline grant (null: no arbitration).
     pub l1_granted: *mut u64,
-    pub l1_accesses: *mut u64,
+    pub l1_port_stats: *mut PortStats,
+    /// Stall cycles of the conflicts translated code resolved itself
+    /// (`emit::mem::busy`), which the core adds to the port's count
+    /// afterwards, as it does with the grants in `r15`.
+    pub l1_stalls: u64,
     /// The idle detector wants to see short backward branches (a device
     /// was read since the last one, `PollTracker::touched`): a taken one
     /// leaves at its target with its pc in [`Ctx::poll_from`] (else 0).
@@ -186,6 +190,7 @@ pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;
 pub(crate) const POLL_FROM: i32 = offset_of!(Ctx, poll_from) as i32;
 pub(crate) const L1_EXTRA: i32 = offset_of!(Ctx, l1_extra) as i32;
 pub(crate) const L1_GRANTED: i32 = offset_of!(Ctx, l1_granted) as i32;
+pub(crate) const L1_STALLS: i32 = offset_of!(Ctx, l1_stalls) as i32;
 pub(crate) const JUMPS: i32 = offset_of!(Ctx, jumps) as i32;
 pub(crate) const EXIT_PC: i32 = offset_of!(Ctx, exit_pc) as i32;
 pub(crate) const LOAD_MASK: i32 = offset_of!(Ctx, load_mask) as i32;
