@@ -40,8 +40,12 @@ M_MAX = 32767
 
 
 def load_checkpoint(path):
+    """The checkpoint's arrays; selects its network in netdef (one without a
+    `net` entry, like the committed one, is netdef's "base")."""
     with np.load(path) as z:
-        return {k: z[k] for k in z.files}
+        ckpt = {k: z[k] for k in z.files}
+    netdef.select(str(ckpt["net"]) if "net" in ckpt else "base")
+    return ckpt
 
 
 def decode_rule(ckpt, units="int8"):

@@ -13,6 +13,11 @@ grid cell (one cell = 16x16 input pixels = 64x64 camera pixels):
   3     distance / 8 m
   4-11  the opening's corners - cell centre, (u0 v0 u1 v1 u2 v2 u3 v3), in cells
 
+That is NETS["base"], the committed network; NETS["wide"] widens conv4-conv6
+(same input, grid and head channels, so decode.c and nn_race.c are
+unchanged). A checkpoint records its net and export.load_checkpoint
+selects it (select()), so every script follows the checkpoint's shape.
+
 Layout everywhere: activations HWC (channel fastest), weights
 [cout][kh][kw][cin] (the dot product runs over cin, 4 int8 per SIMD word).
 """
@@ -30,7 +35,7 @@ CELL_PX = CAMERA // GRID  # 64 camera pixels per grid cell
 DIST_SCALE_M = 8.0
 
 # name, kernel, stride, pad, cin, cout, relu
-LAYERS = [
+_BASE = [
     ("conv1", 3, 2, 1, 1, 8, True),
     ("conv2", 3, 2, 1, 8, 16, True),
     ("conv3", 3, 2, 1, 16, 32, True),
@@ -39,7 +44,33 @@ LAYERS = [
     ("conv6", 3, 1, 1, 64, 64, True),
     ("head", 1, 1, 0, 64, 12, False),
 ]
+NETS = {
+    # The committed network (3.36 MMAC).
+    "base": _BASE,
+    # Its conv1-conv3 with conv4-conv6 widened to use DESIGN.md §13's
+    # 5 MMAC (4.99 MMAC; docs/NN.md "A wider network"). conv6 keeps 64
+    # input channels so the firmware's 9 KiB weight slot still takes
+    # 16-channel tiles (576 bytes a channel), which keep 8 cores busy on 5x5.
+    "wide": _BASE[:3] + [
+        ("conv4", 3, 1, 1, 32, 48, True),
+        ("conv5", 3, 2, 1, 48, 64, True),
+        ("conv6", 3, 1, 1, 64, 128, True),
+        ("head", 1, 1, 0, 128, 12, False),
+    ],
+}
+NET = "base"
+LAYERS = NETS[NET]
 HEAD_CHANNELS = 12
+
+
+def select(name):
+    """Make `name` (a key of NETS) the network every function here and the
+    scripts describe; a checkpoint records its net (export.load_checkpoint
+    selects it), the committed one has none and is "base"."""
+    global NET, LAYERS
+    if name not in NETS:
+        raise ValueError(f"unknown network {name!r} (known: {', '.join(NETS)})")
+    NET, LAYERS = name, NETS[name]
 
 # The head's int16 output units (in the float head's units): objectness in
 # 1/64 logit, offsets in 1/16 camera pixel (1/(16 CELL_PX) cell), distance

@@ -3,12 +3,18 @@ CPU with JAX + optax, seeded; writes the float checkpoint (framework-neutral
 .npz) with the activation ranges for int8 quantization (docs/NN.md).
 
     python3 training/train.py --data DIR [DIR ...] --out training/checkpoint.npz \
-        [--epochs 12] [--seed 0] [--heldout DIR] [--bn] [--init NPZ] [--max-seconds S]
+        [--epochs 12] [--seed 0] [--heldout DIR] [--bn] [--init NPZ] [--max-seconds S] \
+        [--net base|wide]
+
+--net picks the shape (netdef.NETS; "base" is the committed network); a
+checkpoint of another shape records it, and export.py, evaluate.py and the
+others then describe that shape.
 
 --init starts from a checkpoint (or a --bn run's OUT-bn.npz), layer by layer
 where the shapes match, so a new shape can reuse an older network's first
-layers; --max-seconds ends the schedule early on a time budget (the
-checkpoint's meta records the steps done).
+layers, and embeds a narrower layer in a wider one (embed: the wide network
+starts as the narrow one's function); --max-seconds ends the schedule early
+on a time budget (the checkpoint's meta records the steps done).
 
 With --gates the targets come from each directory's gates.csv: objectness
 on the cell of every visible gate (--ambiguous: gates near the labelling
@@ -245,13 +251,31 @@ def raw_path(out):
     return os.path.splitext(out)[0] + "-bn.npz"
 
 
+def embed(fresh, stored):
+    """A wider layer holding a narrower one: the stored weights in the
+    leading input and output channels, the new output channels' weights
+    fresh, and the new input channels' weights into the stored outputs
+    zero (Net2Net-style widening, Chen et al. 2016, with zeros instead of
+    copies). Embedded in every layer of a widened network, the new channels
+    reach the head through zero weights only, so the widened network starts
+    as the stored one's function (batch norm's statistics of the stored
+    channels included) and training grows the new channels from there."""
+    _, _, cin, cout = stored.shape
+    out = np.array(fresh)
+    out[:, :, :, :cout] = 0.0
+    out[:, :, :cin, :cout] = stored
+    return out
+
+
 def load_init(path, params):
     """params with every layer that `path` holds in the same shape replaced
     by the stored one (a further cycle, or a new shape started from an older
-    network's matching layers); the others keep their fresh initialisation.
-    `path` is a checkpoint (OHWI weights) or a --bn run's unfolded network
-    (raw_path's file, HWIO and gamma)."""
-    out, loaded = {}, []
+    network's matching layers), and every layer it holds narrower (fewer
+    input or output channels, same kernel) embedded in the new one (embed;
+    the per-channel bias and gamma of the new channels fresh); the others
+    keep their fresh initialisation. `path` is a checkpoint (OHWI weights)
+    or a --bn run's unfolded network (raw_path's file, HWIO and gamma)."""
+    out, loaded, widened = {}, [], []
     with np.load(path) as z:
         raw = "conv1.gamma" in z.files
         for name, layer in params.items():
@@ -259,13 +283,24 @@ def load_init(path, params):
                 out[name] = layer
                 continue
             w = z[f"{name}.w"] if raw else np.transpose(z[f"{name}.w"], (1, 2, 3, 0))
-            if w.shape != layer["w"].shape:
+            shape = layer["w"].shape
+            if w.shape == shape:
+                out[name] = {k: (jnp.asarray(w) if k == "w" else jnp.asarray(z[f"{name}.{k}"]))
+                             if f"{name}.{k}" in z.files else v for k, v in layer.items()}
+                loaded.append(name)
+            elif w.shape[:2] == shape[:2] and w.shape[2] <= shape[2] and w.shape[3] <= shape[3]:
+                out[name] = {"w": jnp.asarray(embed(layer["w"], w))}
+                for k, v in layer.items():
+                    if k != "w":
+                        v = np.array(v)
+                        if f"{name}.{k}" in z.files:
+                            v[:w.shape[3]] = z[f"{name}.{k}"]
+                        out[name][k] = jnp.asarray(v)
+                widened.append(name)
+            else:
                 out[name] = layer
-                continue
-            out[name] = {k: (jnp.asarray(w) if k == "w" else jnp.asarray(z[f"{name}.{k}"]))
-                         if f"{name}.{k}" in z.files else v for k, v in layer.items()}
-            loaded.append(name)
-    print(f"from {path}: {', '.join(loaded) or 'no layer'}", flush=True)
+    print(f"from {path}: {', '.join(loaded) or 'no layer'}"
+          + (f"; widened: {', '.join(widened)}" if widened else ""), flush=True)
     return out
 
 
@@ -321,7 +356,10 @@ def main():
                     help="targets from gates.csv: objectness on every visible gate's cell")
     ap.add_argument("--ambiguous", action="store_true",
                     help="with --gates: leave gates near the labelling rules' lines out of the objectness")
+    ap.add_argument("--net", default="base", choices=sorted(netdef.NETS),
+                    help="the network's shape (netdef.NETS; the checkpoint records it)")
     a = ap.parse_args()
+    netdef.select(a.net)
     t0 = time.time()
     parts = [load_inputs(d) for d in a.data]
     small = np.concatenate([p[0][:a.limit] for p in parts])
@@ -406,7 +444,10 @@ def main():
         ckpt[f"{name}.w"] = np.transpose(w, (3, 0, 1, 2)).astype(np.float32)
         ckpt[f"{name}.b"] = np.asarray(params[name]["b"]).astype(np.float32)
     ckpt["act_max"] = act_max
-    meta = {"command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
+    if a.net != "base":
+        # The committed checkpoint has no entry: "base" (export.load_checkpoint).
+        ckpt["net"] = np.array(a.net)
+    meta = {"net": a.net, "command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
             "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn,
             "ignore_neighbours": a.ignore_neighbours, "gates": a.gates,
             "ambiguous": a.ambiguous, "train_seconds": round(train_s, 1),

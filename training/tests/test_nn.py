@@ -182,3 +182,67 @@ def test_every_visible_gate_is_a_positive_and_the_nearer_gate_wins_a_cell():
     assert abs(reg[0, 1, 2, 2] - 3.0 / netdef.DIST_SCALE_M) < 1e-6
     assert abs(reg[0, 1, 3, 2] - 6.0 / netdef.DIST_SCALE_M) < 1e-6
     assert mask[0, 4, 0] == 0
+
+
+@pytest.fixture
+def base_net():
+    """Tests that select another network leave netdef on the committed one."""
+    yield
+    netdef.select("base")
+
+
+def test_a_checkpoint_selects_its_network(tmp_path, base_net):
+    """export.load_checkpoint: no `net` entry is the committed "base"
+    network, `net` = "wide" makes every script (export, the int8 reference)
+    describe the wide one."""
+    netdef.select("wide")
+    export.load_checkpoint(export.DEFAULT_CHECKPOINT)
+    assert netdef.NET == "base" and sum(netdef.macs()) == 3_360_000
+    netdef.select("wide")
+    rng = np.random.default_rng(0)
+    ckpt = {f"{n}.{p}": rng.normal(0.0, 0.1, s).astype(np.float32)
+            for n, k, _, _, cin, cout, _ in netdef.LAYERS
+            for p, s in (("w", (cout, k, k, cin)), ("b", (cout,)))}
+    ckpt["act_max"] = np.ones(len(netdef.LAYERS) - 1)
+    ckpt["net"] = np.array("wide")
+    ckpt["meta"] = np.array(json.dumps({"command": "test"}))
+    np.savez(tmp_path / "wide.npz", **ckpt)
+    netdef.select("base")
+    loaded = export.load_checkpoint(str(tmp_path / "wide.npz"))
+    assert netdef.NET == "wide" and sum(netdef.macs()) == 4_992_000 <= 5_000_000
+    h, _ = export.c_sources(export.quantize(loaded), {"command": "test"})
+    assert "#define NN_MACS 4992000" in h and "#define NN_GRID 5" in h
+    head = int8_ref.head_int8(export.quantize(loaded), np.zeros((1, 80, 80, 1), np.int8))
+    assert head.shape == (1, netdef.GRID, netdef.GRID, netdef.HEAD_CHANNELS)
+    with pytest.raises(ValueError):
+        netdef.select("huge")
+
+
+def test_widening_keeps_the_network(tmp_path, base_net):
+    """train.load_init from a narrower network's unfolded checkpoint: the
+    wide network computes what the stored one does (the new channels reach
+    the head through zero weights), batch norm's batch statistics included
+    (needs JAX; skipped where only numpy is installed)."""
+    pytest.importorskip("jax")
+    import jax
+    import jax.numpy as jnp
+
+    import train
+
+    netdef.select("base")
+    params = train.init(jax.random.PRNGKey(0), bn=True)
+    rng = np.random.default_rng(1)
+    for layer in params.values():
+        layer["b"] = jnp.asarray(rng.normal(0.0, 0.3, layer["b"].shape), jnp.float32)
+        if "gamma" in layer:
+            layer["gamma"] = jnp.asarray(rng.uniform(0.5, 2.0, layer["gamma"].shape), jnp.float32)
+    np.savez(tmp_path / "base-bn.npz", **{f"{n}.{k}": np.asarray(v)
+                                         for n, layer in params.items() for k, v in layer.items()})
+    x = rng.normal(0.0, 0.5, (16, netdef.INPUT, netdef.INPUT, 1)).astype(np.float32)
+    want = np.asarray(train.forward(params, x))
+    netdef.select("wide")
+    wide = train.load_init(str(tmp_path / "base-bn.npz"), train.init(jax.random.PRNGKey(2), bn=True))
+    assert wide["conv6"]["w"].shape == (3, 3, 64, 128)
+    assert np.any(np.asarray(wide["conv6"]["w"])[..., 64:] != 0)  # new channels are not dead
+    got = np.asarray(train.forward(wide, x))
+    assert np.abs(got - want).max() < 1e-4 * np.abs(want).max()
