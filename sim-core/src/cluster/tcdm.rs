@@ -39,10 +39,7 @@ const _: () = assert!(WORDS.is_power_of_two() && BANKS.is_power_of_two());
 pub const PORTS: usize = 8;
 
 /// Per-port counts of the L1 (for `--stats` and the power model).
-/// `repr(C)`: the block translator counts grants in place
-/// ([`Tcdm::raw_parts`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-#[repr(C)]
 pub struct PortStats {
     pub accesses: u64,
     pub stall_cycles: u64,
@@ -87,9 +84,10 @@ impl Tcdm {
 
     /// For the block translator's inline grant (`iss/jit/emit.rs`): the
     /// slices, `BANKS × WINDOW/64` [`Slice`]s of `{tag: u64, bits: u64}`,
-    /// bank-major, and `port`'s `accesses` counter. Translated code does
-    /// there exactly what [`Tcdm::access`] does when the cycle is free in
-    /// its bank (and calls `access` when it is not).
+    /// bank-major, and `port`'s counts, to which the core adds what the
+    /// run granted and stalled. Translated code does in the slices exactly
+    /// what [`Tcdm::access`] does (and calls `access` when a conflict's
+    /// search leaves the slice).
     pub(crate) fn raw_parts(&mut self, port: u8) -> (*mut u64, *mut PortStats) {
         (
             self.granted.as_mut_ptr() as *mut u64,

@@ -440,8 +440,6 @@ impl Block<'_> {
                     slow: a.new_dynamic_label(),
                     busy: a.new_dynamic_label(),
                     join: a.new_dynamic_label(),
-                    fresh: a.new_dynamic_label(),
-                    granted: a.new_dynamic_label(),
                     back,
                     issue: self.prefix[k + 1] - 1,
                     rest: self.rest[k + 1],

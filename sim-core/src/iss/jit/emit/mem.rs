@@ -25,9 +25,6 @@ pub(super) struct L1Site {
     /// where it rejoins.
     pub busy: dynasmrt::DynamicLabel,
     pub join: dynasmrt::DynamicLabel,
-    /// A stale slice's restart, and the grant's store and count.
-    pub fresh: dynasmrt::DynamicLabel,
-    pub granted: dynasmrt::DynamicLabel,
     pub back: dynasmrt::DynamicLabel,
     /// The access's issue cycle, relative to `r13` before it: the last
     /// cycle of its cost, as the interpreter's `Run::extra` and the
@@ -181,7 +178,11 @@ fn grant(a: &mut Asm, site: &L1Site) {
     const BANK_BITS: i32 = (BANKS as i32 - 1) << 2;
     const BANK_SHIFT: i8 = (WORDS * 16).trailing_zeros() as i8 - 2;
     const SLOT_BITS: i32 = (WORDS as i32 - 1) << 4;
-    let no_arb = a.new_dynamic_label();
+    let (no_arb, fresh, granted) = (
+        a.new_dynamic_label(),
+        a.new_dynamic_label(),
+        a.new_dynamic_label(),
+    );
     dynasm!(a ; .arch x64
         ; mov r9, [rbx + L1_GRANTED]
         ; test r9, r9
@@ -206,16 +207,16 @@ fn grant(a: &mut Asm, site: &L1Site) {
         // restarts with this tag and this bit alone, as `Tcdm::access`
         // does (about every other access: kept inline).
         ; cmp [r9 + rsi], r10
-        ; jne =>site.fresh
+        ; jne =>fresh
         ; mov r11, [r9 + rsi + 8]
         ; bts r11, rdx
         ; jc =>site.busy
-        ; jmp =>site.granted
-        ; =>site.fresh
+        ; jmp =>granted
+        ; =>fresh
         ; mov [r9 + rsi], r10
         ; xor r11d, r11d
         ; bts r11, rdx
-        ; =>site.granted
+        ; =>granted
         ; mov [r9 + rsi + 8], r11
         // The port's count, in `r15`'s high bits (`GRANT_ONE`).
         ; add r15, GRANT_ONE
