@@ -159,6 +159,23 @@ impl Shared {
         1 + (agent + self.n - rot) % self.n
     }
 
+    /// The L1 arbiter's floor ([`Tcdm::retire`]): a quantum before the
+    /// slowest of the FC and the runnable cores, in cluster cycles of
+    /// `period`. Every later access is at or above it: a core runs from
+    /// its own time on, and a core that wakes or starts does so at the
+    /// time of the agent that wakes it (the FC or a core, all at or above
+    /// the slowest), or at a DMA completion, which no agent passes by more
+    /// than an instruction; the quantum is the margin. The fastest core is
+    /// at most a quantum (and an instruction) above the slowest, so the
+    /// arbiter's window (four quanta) holds every cycle between.
+    fn arbiter_floor(&self, period: Picos) -> u64 {
+        let slowest = (0..self.n)
+            .filter(|&j| self.state[j] == CoreState::Running)
+            .map(|j| self.time[j])
+            .fold(self.fc_time, Picos::min);
+        (slowest.0 / period.0.max(1)).saturating_sub(QUANTUM_CYCLES)
+    }
+
     fn eff_time(&self, agent: usize, now: Picos) -> Picos {
         self.blocked_at[agent].map_or(now, |b| b.max(now))
     }
@@ -675,6 +692,10 @@ impl Cluster {
                     self.off_cycles[who] += core.cycles().0 - before;
                 }
                 core.gate_until(self.sh.time[who]);
+                if let Some(t) = mem.tcdm.as_mut() {
+                    t.retire(self.sh.arbiter_floor(self.cfg.clock.period()));
+                }
+                let core = &mut self.cores[who];
                 let mut bus = CoreBus {
                     sh: &mut self.sh,
                     core: who,

@@ -8,19 +8,27 @@
 //! # Why the counts are exact and deterministic
 //!
 //! Every access carries its exact cluster cycle (the core's issue cycle).
-//! The arbiter keeps, per bank, one bit per cycle of a sliding window:
-//! "granted in this cycle" (slices of 64 cycles tagged with their number,
-//! so a slot from a window ago reads as free without being cleared). An
-//! access at cycle `c` takes the first free cycle `g >= c` of its bank and
-//! stalls `g - c`. The cluster scheduler (`mod.rs`) runs the cores one
-//! after another in quanta (at most [`super::QUANTUM_CYCLES`] ahead of the
-//! slowest runnable one, in a fixed order), so the window ([`WINDOW`]
-//! cycles, four quanta) always holds every cycle a core may still reach.
+//! The arbiter keeps, for each cycle of a sliding window of [`WINDOW`]
+//! cycles, which banks were granted in it: one 16-bit mask per cycle, at
+//! `cycle % WINDOW`. An access at cycle `c` takes the first cycle `g >= c`
+//! whose mask does not hold its bank and stalls `g - c`. The cluster
+//! scheduler (`mod.rs`) runs the cores one after another in quanta (at
+//! most [`super::QUANTUM_CYCLES`] ahead of the slowest runnable one, in a
+//! fixed order) and tells the arbiter, before each core's turn, the
+//! slowest runnable core's cycle ([`Tcdm::retire`]): no access is issued
+//! below it any more, so the masks of the cycles before it are cleared
+//! for the cycles a window later. The window (four quanta) therefore
+//! always holds every cycle a core may still reach, and only those.
 //! What the quantum decides is only *which* of two cores that ask for one
 //! bank in one cycle wins: the one the scheduler runs first in that
 //! quantum, and the scheduler rotates that order every quantum (round
 //! robin per quantum rather than per cycle). The number of stalled cycles
 //! of a saturated bank, and everything else, is the same on every host.
+//!
+//! A mask per cycle (rather than a bit per cycle per bank) makes a grant
+//! one load, one bit test and one store at an index the cycle alone gives,
+//! which the block translator emits inline (`iss/jit/emit/mem.rs`): the
+//! network's inner loop makes six L1 accesses per eight dot products.
 
 /// Banks of the L1 (GAP8: 16, one 32-bit word per bank in turn).
 pub const BANKS: usize = 16;
@@ -31,9 +39,7 @@ pub const L1_SIZE: u32 = 64 * 1024;
 /// fastest and the slowest runnable core (quantum plus one instruction's
 /// overshoot), see `mod.rs`.
 pub const WINDOW: u64 = 4096;
-/// Slices per bank.
-pub(crate) const WORDS: usize = (WINDOW / 64) as usize;
-const _: () = assert!(WORDS.is_power_of_two() && BANKS.is_power_of_two());
+const _: () = assert!(WINDOW.is_power_of_two() && BANKS <= 16);
 
 /// Ports of the arbiter: cluster cores 0..8 (statistics are per port).
 pub const PORTS: usize = 8;
@@ -45,31 +51,23 @@ pub struct PortStats {
     pub stall_cycles: u64,
 }
 
-/// One 64-cycle slice of a bank's grants: which cycles of slice `tag`
-/// (cycle / 64) are taken. A slot holding another slice is stale (older
-/// than the window) and reads as free, so nothing ever has to be cleared.
-/// `repr(C)`: the block translator reads and sets it in place
-/// ([`Tcdm::raw_parts`]).
-#[derive(Debug, Clone, Copy, Default)]
-#[repr(C)]
-struct Slice {
-    tag: u64,
-    bits: u64,
-}
-
 /// The bank arbiter.
 #[derive(Debug, Clone)]
 pub struct Tcdm {
-    /// Per bank, the slices of the last [`WINDOW`] cycles, slice `k` at
-    /// `k % (WINDOW / 64)`.
-    granted: Box<[[Slice; WORDS]; BANKS]>,
+    /// Per cycle of the window, at `cycle % WINDOW`, the banks granted in
+    /// it (bit `b`: bank `b`).
+    granted: Box<[u16; WINDOW as usize]>,
+    /// No access is issued below this cycle any more ([`Tcdm::retire`]);
+    /// the masks of the cycles before it are clear.
+    floor: u64,
     pub stats: [PortStats; PORTS],
 }
 
 impl Default for Tcdm {
     fn default() -> Self {
         Tcdm {
-            granted: Box::new([[Slice::default(); WORDS]; BANKS]),
+            granted: Box::new([0; WINDOW as usize]),
+            floor: 0,
             stats: [PortStats::default(); PORTS],
         }
     }
@@ -82,39 +80,54 @@ impl Tcdm {
         ((addr >> 2) as usize) & (BANKS - 1)
     }
 
-    /// For the block translator's inline grant (`iss/jit/emit.rs`): the
-    /// slices, `BANKS × WINDOW/64` [`Slice`]s of `{tag: u64, bits: u64}`,
-    /// bank-major, and `port`'s counts, to which the core adds what the
-    /// run granted and stalled. Translated code does in the slices exactly
-    /// what [`Tcdm::access`] does (and calls `access` when a conflict's
-    /// search leaves the slice).
-    pub(crate) fn raw_parts(&mut self, port: u8) -> (*mut u64, *mut PortStats) {
+    /// For the block translator's inline grant (`iss/jit/emit/mem.rs`): the
+    /// window's masks, [`WINDOW`] `u16`s, and `port`'s counts, to which the
+    /// core adds what the run granted and stalled. Translated code does in
+    /// the masks exactly what [`Tcdm::access`] does.
+    pub(crate) fn raw_parts(&mut self, port: u8) -> (*mut u16, *mut PortStats) {
         (
-            self.granted.as_mut_ptr() as *mut u64,
+            self.granted.as_mut_ptr(),
             &mut self.stats[port as usize % PORTS],
         )
+    }
+
+    /// No access will be issued below cycle `floor` from now on (the
+    /// scheduler's slowest runnable core): clear the masks of the cycles
+    /// from the last floor to this one, which the cycles a window later
+    /// reuse. A floor below the last one changes nothing.
+    pub fn retire(&mut self, floor: u64) {
+        if floor <= self.floor {
+            return;
+        }
+        if floor - self.floor >= WINDOW {
+            self.granted.fill(0);
+        } else {
+            let (a, b) = ((self.floor % WINDOW) as usize, (floor % WINDOW) as usize);
+            if a < b {
+                self.granted[a..b].fill(0);
+            } else {
+                self.granted[a..].fill(0);
+                self.granted[..b].fill(0);
+            }
+        }
+        self.floor = floor;
     }
 
     /// An access by `port` to `addr` issued at cluster cycle `cycle`: the
     /// stall cycles until its bank grants it.
     #[inline]
     pub fn access(&mut self, port: u8, addr: u32, cycle: u64) -> u64 {
-        let bank = &mut self.granted[Self::bank(addr)];
+        debug_assert!(
+            cycle >= self.floor && cycle - self.floor < WINDOW,
+            "an L1 access at cycle {cycle} outside the arbiter's window from {}",
+            self.floor
+        );
+        let bank = 1u16 << Self::bank(addr);
         let mut g = cycle;
-        loop {
-            let tag = g / 64;
-            let slot = &mut bank[(tag % WORDS as u64) as usize];
-            if slot.tag != tag {
-                // A stale slice: older than the window, free.
-                *slot = Slice { tag, bits: 0 };
-            }
-            let bit = 1u64 << (g % 64);
-            if slot.bits & bit == 0 {
-                slot.bits |= bit;
-                break;
-            }
+        while self.granted[(g % WINDOW) as usize] & bank != 0 {
             g += 1;
         }
+        self.granted[(g % WINDOW) as usize] |= bank;
         let stall = g - cycle;
         let s = &mut self.stats[port as usize % PORTS];
         s.accesses += 1;
@@ -137,8 +150,13 @@ mod tests {
         assert_eq!(t.stats[3].stall_cycles, 2);
         // Cycles 11 and 12 of bank 0 are taken.
         assert_eq!(t.access(4, L1_BASE, 11), 2);
-        // A cycle a window later reuses the slot: free again.
+        // Once the scheduler retires cycles 0..12, a cycle a window later
+        // reuses their slots: free again (cycles 12 and 13 stay taken).
+        t.retire(12);
         assert_eq!(t.access(4, L1_BASE, 10 + WINDOW), 0);
         assert_eq!(t.access(5, L1_BASE, 10 + WINDOW), 1);
+        assert_eq!(t.access(6, L1_BASE, 12), 2);
+        t.retire(5 * WINDOW);
+        assert_eq!(t.access(7, L1_BASE, 5 * WINDOW + 11), 0);
     }
 }

@@ -4,7 +4,6 @@
 //! would have left it.
 
 use super::*;
-use crate::cluster::tcdm::Tcdm;
 use crate::iss::jit::ctx::{Ctx, NO_TOHOST};
 use crate::iss::jit::JitCache;
 
@@ -71,16 +70,9 @@ impl Cpu {
             Some(r) => (r.data.as_mut_ptr(), r.size as u64, (r.code_lo, r.code_hi)),
             None => (std::ptr::null_mut(), 0, (0, 0)),
         };
-        let (tcdm, l1_granted, l1_port_stats) = match (t.l1_port, mem.tcdm.as_mut()) {
-            (Some(port), Some(a)) => {
-                let (g, n) = a.raw_parts(port);
-                (a as *mut Tcdm, g, n)
-            }
-            _ => (
-                std::ptr::null_mut(),
-                std::ptr::null_mut(),
-                std::ptr::null_mut(),
-            ),
+        let (l1_granted, l1_port_stats) = match (t.l1_port, mem.tcdm.as_mut()) {
+            (Some(port), Some(a)) => a.raw_parts(port),
+            _ => (std::ptr::null_mut(), std::ptr::null_mut()),
         };
         let r = &mut mem.regions[region];
         // The fast region is the code's, as in `exec::Run::set_code_region`
@@ -128,8 +120,6 @@ impl Cpu {
             l1_code_lo: l1_code.0 as u64,
             l1_code_hi: l1_code.1 as u64,
             l1_extra: t.l1_extra,
-            tcdm,
-            l1_port: t.l1_port.unwrap_or(0) as u64,
             l1_granted,
             l1_port_stats,
             l1_stalls: 0,

@@ -10,7 +10,7 @@
 //! - `r15`: instructions retired since the run began,
 //! - `rbp`: [`Ctx::extra`], the extra cycles of every fast-region access.
 
-use crate::cluster::tcdm::{PortStats, Tcdm};
+use crate::cluster::tcdm::PortStats;
 
 use std::mem::offset_of;
 
@@ -105,13 +105,10 @@ pub(crate) struct Ctx {
     pub l1_code_lo: u64,
     pub l1_code_hi: u64,
     pub l1_extra: u64,
-    /// The bank arbiter and this core's port on it (null: no arbitration,
+    /// The bank arbiter's masks and this core's port's counts
+    /// ([`Tcdm::raw_parts`](crate::cluster::tcdm::Tcdm::raw_parts)), for the inline grant (null: no arbitration,
     /// the FC's view of L1).
-    pub tcdm: *mut Tcdm,
-    pub l1_port: u64,
-    /// The arbiter's slices and this port's counts ([`Tcdm::raw_parts`]),
-    /// for the inline grant (null: no arbitration).
-    pub l1_granted: *mut u64,
+    pub l1_granted: *mut u16,
     pub l1_port_stats: *mut PortStats,
     /// Stall cycles of the conflicts translated code resolved itself
     /// (`emit::mem::busy`), which the core adds to the port's count

@@ -9,7 +9,6 @@
 
 use super::super::decode::op;
 use super::super::xcv::{alu, mac, simd};
-use super::ctx::Ctx;
 
 /// A helper's signature.
 pub(crate) type Helper = extern "sysv64" fn(u32, u32, u32, u32) -> u64;
@@ -72,23 +71,6 @@ extern "sysv64" fn cv_sdotup_b(a: u32, b: u32, d: u32, _: u32) -> u64 {
 }
 extern "sysv64" fn cv_dotsp_b(a: u32, b: u32, _: u32, _: u32) -> u64 {
     simd::sdotsp_b(0, a, b) as u64
-}
-
-/// An L1 access at `addr` issued at cluster cycle `cycle`: its extra
-/// cycles, the L1's latency plus the stall until its bank grants it
-/// (`Tcdm::access`, the very arbiter the interpreter's `MemTiming::extra`
-/// asks, at the same issue cycle, so the grants and the per-port counts
-/// are the interpreter's).
-pub(crate) extern "sysv64" fn l1_access(ctx: *mut Ctx, addr: u32, cycle: u64) -> u64 {
-    // SAFETY: translated code passes its own context (`rbx`), valid for
-    // the run; its `tcdm` is null or the memory's arbiter, which nothing
-    // else touches during the run (`Cpu::run_translated` holds `&mut`).
-    let ctx = unsafe { &mut *ctx };
-    let stall = match unsafe { ctx.tcdm.as_mut() } {
-        Some(t) => t.access(ctx.l1_port as u8, addr, cycle),
-        None => 0,
-    };
-    ctx.l1_extra + stall
 }
 
 /// The helper of an op done by a call, if it is one.

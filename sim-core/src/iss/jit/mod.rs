@@ -294,6 +294,12 @@ impl JitCache {
             let pc = regions[region].base.wrapping_add(off as u32);
             // A profiling aid only: a failed write loses a name, nothing else.
             let _ = writeln!(m, "{code:x} {:x} rv_{pc:08x}", t.code.len());
+            // The code itself beside the map, for `objdump -D -b binary
+            // -mi386:x86-64 --adjust-vma=ADDR` (`perf report` cannot
+            // annotate JIT code from a map alone).
+            let dir = format!("/tmp/perf-{}.code", std::process::id());
+            let _ = std::fs::create_dir_all(&dir)
+                .and_then(|_| std::fs::write(format!("{dir}/{pc:08x}-{code:x}.bin"), &t.code));
         }
         for (to, off) in t.patches {
             self.pending.entry(to).or_default().push(code + off);

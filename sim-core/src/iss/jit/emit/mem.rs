@@ -8,9 +8,8 @@ use super::super::super::block::Inst;
 use super::super::super::decode::op;
 use super::super::super::xcv::mem::{base_op, mode, Mode};
 use super::super::ctx::*;
-use super::super::helpers::l1_access;
 use super::{fits, reg, Asm};
-use crate::cluster::tcdm::{BANKS, WORDS};
+use crate::cluster::tcdm::{BANKS, WINDOW};
 
 /// A load or store's labels and static facts (`mem_op`).
 #[derive(Clone, Copy)]
@@ -165,59 +164,33 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
 }
 
 /// The L1's extra cycles of an access at `eax` issued at `r13 + issue`
-/// (keeps `rax`, `rcx`): inline, what `Tcdm::access` does when the cycle
-/// is free in the bank (the common case: the slice of the cycle's 64 is
-/// set, or a stale one restarted, and the port's count goes up); when it
-/// is taken, the arbiter itself through [`l1_access`], which finds the
-/// stall; without arbitration (the FC), the L1's latency alone. With
-/// `flag`, `edi` says afterwards whether the access may have cost more
-/// than [`Ctx::worst_extra`]: after a stall 1, else [`Ctx::l1_recheck`].
-/// The taken case is out of line (`busy`).
+/// (keeps `rax`, `rcx`): inline, what `Tcdm::access` does: the cycle's
+/// mask of granted banks (`Tcdm::raw_parts`, one `u16` per cycle of the
+/// window) gets the access's bank, and the port's count goes up; when the
+/// bank is taken in that cycle, the next free cycle is found out of line
+/// (`busy`); without arbitration (the FC), the L1's latency alone. With
+/// `site.recheck`, `edi` says afterwards whether the access may have cost
+/// more than [`Ctx::worst_extra`]: after a stall 1, else
+/// [`Ctx::l1_recheck`].
 fn grant(a: &mut Asm, site: &L1Site) {
-    // A slice is 16 bytes (`Tcdm::raw_parts`), a bank WORDS slices.
-    const BANK_BITS: i32 = (BANKS as i32 - 1) << 2;
-    const BANK_SHIFT: i8 = (WORDS * 16).trailing_zeros() as i8 - 2;
-    const SLOT_BITS: i32 = (WORDS as i32 - 1) << 4;
-    let (no_arb, fresh, granted) = (
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-    );
+    const BANK_MASK: i32 = BANKS as i32 - 1;
+    const SLOT_MASK: i32 = WINDOW as i32 - 1;
+    let no_arb = a.new_dynamic_label();
     dynasm!(a ; .arch x64
         ; mov r9, [rbx + L1_GRANTED]
         ; test r9, r9
         ; jz =>no_arb
-        // rdx = cycle, r10 = its slice's tag.
-        ; lea rdx, [r13 + site.issue as i32]
-        ; mov r10, rdx
-        ; shr r10, 6
-        // rsi = 16 · (bank · WORDS + tag % WORDS), the slice's slot:
-        // bank = (addr >> 2) % BANKS, so 16 · WORDS · bank = (addr &
-        // BANK_BITS) << BANK_SHIFT; tag = cycle >> 6, so 16 · (tag %
-        // WORDS) = (cycle >> 2) & SLOT_BITS.
+        // edx = the cycle's slot (its low bits suffice), esi = the bank.
+        ; lea edx, [r13 + site.issue as i32]
+        ; and edx, SLOT_MASK
         ; mov esi, eax
-        ; and esi, BANK_BITS
-        ; shl esi, BANK_SHIFT
-        ; mov edi, edx
-        ; shr edi, 2
-        ; and edi, SLOT_BITS
-        ; add esi, edi
-        // The cycle's bit: `bts` leaves the old one in CF (taken: the
-        // arbiter finds the stall, `busy`). A stale slice (another tag)
-        // restarts with this tag and this bit alone, as `Tcdm::access`
-        // does (about every other access: kept inline).
-        ; cmp [r9 + rsi], r10
-        ; jne =>fresh
-        ; mov r11, [r9 + rsi + 8]
-        ; bts r11, rdx
+        ; shr esi, 2
+        ; and esi, BANK_MASK
+        // `bts` leaves the bank's old bit in CF: taken, `busy`.
+        ; movzx r11d, WORD [r9 + rdx * 2]
+        ; bts r11d, esi
         ; jc =>site.busy
-        ; jmp =>granted
-        ; =>fresh
-        ; mov [r9 + rsi], r10
-        ; xor r11d, r11d
-        ; bts r11, rdx
-        ; =>granted
-        ; mov [r9 + rsi + 8], r11
+        ; mov [r9 + rdx * 2], r11w
         // The port's count, in `r15`'s high bits (`GRANT_ONE`).
         ; add r15, GRANT_ONE
         ; =>no_arb
@@ -229,52 +202,32 @@ fn grant(a: &mut Asm, site: &L1Site) {
     dynasm!(a ; .arch x64 ; =>site.join);
 }
 
-/// The grant's taken-cycle case, out of line: the next free cycle of the
-/// bank in the same 64-cycle slice, found in its bits (`r11`, the slice's
-/// bits; `rdx`, the cycle; `[r9 + rsi]`, the slot), as `Tcdm::access`
-/// finds it: the grant set, the stall added to the cycles and counted in
-/// [`Ctx::l1_stalls`], the access in `r15` as an inline grant. Only when
-/// the search would leave the slice, the arbiter itself
-/// ([`l1_access`], which finds the stall and counts the access and the
-/// stall). Both go back to `site.join` (with `edi` = 1 for the deadline
-/// test, `grant`). Conflicts are about 2 % of the network's L1 accesses;
-/// the arbiter's call for each of them was 12 % of `cosim nn eval`.
+/// The grant's taken-cycle case, out of line: the next cycle whose mask
+/// lacks the bank (`esi`; `edx`, the cycle's slot; `r9`, the masks), as
+/// `Tcdm::access` finds it: the grant set, the stall added to the cycles
+/// and counted in [`Ctx::l1_stalls`], the access in `r15`. Back to
+/// `site.join` (with `edi` = 1 for the deadline test, `grant`). Conflicts
+/// are about 2 % of the network's L1 accesses.
 fn busy(a: &mut Asm, site: &L1Site) {
-    let f = l1_access as extern "sysv64" fn(*mut Ctx, u32, u64) -> u64 as usize as i64;
-    let (next, call, done) = (
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-        a.new_dynamic_label(),
-    );
+    const SLOT_MASK: i32 = WINDOW as i32 - 1;
+    let next = a.new_dynamic_label();
     dynasm!(a ; .arch x64
         ; =>site.busy
-        ; mov rdi, rdx
+        ; mov edi, edx
         ; =>next
-        ; add rdi, 1
-        ; test edi, 63
-        ; jz =>call
-        ; bt r11, rdi
+        ; add edi, 1
+        ; and edi, SLOT_MASK
+        ; movzx r11d, WORD [r9 + rdi * 2]
+        ; bts r11d, esi
         ; jc =>next
-        ; bts r11, rdi
-        ; mov [r9 + rsi + 8], r11
-        ; sub rdi, rdx
+        ; mov [r9 + rdi * 2], r11w
+        // The stall: the slots between, modulo the window.
+        ; sub edi, edx
+        ; and edi, SLOT_MASK
         ; add r13, rdi
         ; add [rbx + L1_STALLS], rdi
         ; add r15, GRANT_ONE
         ; add r13, [rbx + L1_EXTRA]
-        ; jmp =>done
-        // Two pushes keep `rsp` 16-aligned for the call; `rdx` = the cycle.
-        ; =>call
-        ; push rax
-        ; push rcx
-        ; mov rdi, rbx
-        ; mov esi, eax
-        ; mov rax, QWORD f
-        ; call rax
-        ; add r13, rax
-        ; pop rcx
-        ; pop rax
-        ; =>done
     );
     if site.recheck {
         dynasm!(a ; .arch x64 ; mov edi, 1);
