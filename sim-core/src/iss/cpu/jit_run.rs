@@ -57,6 +57,13 @@ impl Cpu {
         let has_l1 = mem.tcdm.is_some() && t.l1.1 != 0;
         let jit = mem.jit.as_mut().expect("made above");
         let l1 = t.l1_port.is_some() && mem.tcdm.is_some();
+        if l1 && t.l1_extra != 0 {
+            // The inline grant charges an arbitrated access nothing beyond
+            // the cycle it costs anyway (`emit::mem::grant`), as every
+            // cluster core has it (`Cluster::new`); another timing runs
+            // interpreted.
+            return Translated::Uncovered;
+        }
         let Some(e) = jit.entry(&mem.regions, &mem.insts, region, off as usize, first, l1) else {
             return Translated::Uncovered;
         };

@@ -439,6 +439,9 @@ impl Block<'_> {
                     },
                     slow: a.new_dynamic_label(),
                     busy: a.new_dynamic_label(),
+                    no_arb: a.new_dynamic_label(),
+                    split: a.new_dynamic_label(),
+                    split_back: a.new_dynamic_label(),
                     join: a.new_dynamic_label(),
                     back,
                     issue: self.prefix[k + 1] - 1,
@@ -611,21 +614,9 @@ impl Block<'_> {
 /// micro-op where `pmulld` and two `phaddd` are eight.)
 fn dot_b(a: &mut Asm, i: &Inst) {
     let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
-    dynasm!(a ; .arch x64
-        ; movd xmm0, [r12 + rs1]
-        ; movd xmm1, [r12 + rs2]
-    );
     // rs1 unsigned for sdotup and sdotusp, rs2 unsigned for sdotup only.
-    if matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B) {
-        dynasm!(a ; .arch x64 ; pmovzxbw xmm0, xmm0);
-    } else {
-        dynasm!(a ; .arch x64 ; pmovsxbw xmm0, xmm0);
-    }
-    if i.op == op::CV_SDOTUP_B {
-        dynasm!(a ; .arch x64 ; pmovzxbw xmm1, xmm1);
-    } else {
-        dynasm!(a ; .arch x64 ; pmovsxbw xmm1, xmm1);
-    }
+    widen(a, 0, rs1, matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B));
+    widen(a, 1, rs2, i.op == op::CV_SDOTUP_B);
     dynasm!(a ; .arch x64
         ; pmaddwd xmm0, xmm1
         ; pshufd xmm1, xmm0, 1
@@ -637,6 +628,28 @@ fn dot_b(a: &mut Asm, i: &Inst) {
     }
     if i.rd != 0 {
         dynasm!(a ; .arch x64 ; mov [r12 + rd], eax);
+    }
+}
+
+/// `xmm{x}`'s four low 16-bit lanes = the four bytes of the guest
+/// register at `off`, sign- or zero-extended. Straight from memory, which
+/// reads the next register's four bytes too, into lanes 4–7, which the
+/// dot product never adds (`pmaddwd`'s lanes 2–3); the last register has
+/// no next one in the register file, so it is loaded alone.
+fn widen(a: &mut Asm, x: u8, off: i32, unsigned: bool) {
+    if off + 8 <= 4 * 32 {
+        if unsigned {
+            dynasm!(a ; .arch x64 ; pmovzxbw Rx(x), QWORD [r12 + off]);
+        } else {
+            dynasm!(a ; .arch x64 ; pmovsxbw Rx(x), QWORD [r12 + off]);
+        }
+    } else {
+        dynasm!(a ; .arch x64 ; movd Rx(x), [r12 + off]);
+        if unsigned {
+            dynasm!(a ; .arch x64 ; pmovzxbw Rx(x), Rx(x));
+        } else {
+            dynasm!(a ; .arch x64 ; pmovsxbw Rx(x), Rx(x));
+        }
     }
 }
 

@@ -102,6 +102,7 @@ pub(crate) struct JitCache {
     /// named by its guest pc, so a profile shows which guest code the
     /// translated samples ran.
     perf_map: Option<std::io::LineWriter<std::fs::File>>,
+    dump_code: bool,
     /// Blocks translated and cache flushes so far (statistics).
     pub translated: u64,
     pub flushes: u64,
@@ -191,6 +192,7 @@ impl JitCache {
             pending: Default::default(),
             translated: 0,
             flushes: 0,
+            dump_code: std::env::var_os("COSIM_PERF_MAP").is_some_and(|v| v == "code"),
             perf_map: std::env::var_os("COSIM_PERF_MAP").and_then(|_| {
                 let path = format!("/tmp/perf-{}.map", std::process::id());
                 std::fs::OpenOptions::new()
@@ -294,12 +296,15 @@ impl JitCache {
             let pc = regions[region].base.wrapping_add(off as u32);
             // A profiling aid only: a failed write loses a name, nothing else.
             let _ = writeln!(m, "{code:x} {:x} rv_{pc:08x}", t.code.len());
-            // The code itself beside the map, for `objdump -D -b binary
-            // -mi386:x86-64 --adjust-vma=ADDR` (`perf report` cannot
-            // annotate JIT code from a map alone).
-            let dir = format!("/tmp/perf-{}.code", std::process::id());
-            let _ = std::fs::create_dir_all(&dir)
-                .and_then(|_| std::fs::write(format!("{dir}/{pc:08x}-{code:x}.bin"), &t.code));
+            if self.dump_code {
+                // `COSIM_PERF_MAP=code`: the code itself beside the map, for
+                // `objdump -D -b binary -mi386:x86-64 --adjust-vma=ADDR`
+                // (`perf report` cannot annotate JIT code from a map alone).
+                let dir = format!("/tmp/perf-{}.code", std::process::id());
+                let _ = std::fs::create_dir_all(&dir).and_then(|_| {
+                    std::fs::write(format!("{dir}/{pc:08x}-{code:x}.bin"), &t.code)
+                });
+            }
         }
         for (to, off) in t.patches {
             self.pending.entry(to).or_default().push(code + off);

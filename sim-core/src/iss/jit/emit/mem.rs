@@ -23,6 +23,13 @@ pub(super) struct L1Site {
     /// The bank grant's out-of-line call of the arbiter (`busy`), and
     /// where it rejoins.
     pub busy: dynasmrt::DynamicLabel,
+    /// The grant's path for a core without a port on the arbiter (the FC
+    /// running a cluster core's translation), out of line.
+    pub no_arb: dynasmrt::DynamicLabel,
+    /// A word access's split cycle, out of line (misaligned words are
+    /// rare), and where it rejoins.
+    pub split: dynasmrt::DynamicLabel,
+    pub split_back: dynasmrt::DynamicLabel,
     pub join: dynasmrt::DynamicLabel,
     pub back: dynasmrt::DynamicLabel,
     /// The access's issue cycle, relative to `r13` before it: the last
@@ -90,7 +97,7 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
     in_region(a, i, site, (L1_BASE, L1_SIZE, L1_CODE_LO, L1_CODE_HI));
     grant(a, site);
     dynasm!(a ; .arch x64 ; mov r8, [rbx + L1_PTR]);
-    access(a, i, 8);
+    access(a, i, 8, Some(site));
     if site.recheck {
         // `edi` (from `grant`): whether this access may have cost more
         // than the checked entry counted.
@@ -103,7 +110,7 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
 /// at `site.exit`.
 fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site) {
     in_region(a, i, site, (FAST_BASE, FAST_SIZE, CODE_LO, CODE_HI));
-    access(a, i, 14);
+    access(a, i, 14, None);
     dynasm!(a ; .arch x64 ; add r13, rbp);
 }
 
@@ -143,6 +150,16 @@ fn recheck(a: &mut Asm, site: &L1Site) {
 /// than counted; both rejoin at `site.back`.
 pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
     busy(a, site);
+    // No port on the arbiter: the L1's latency, and the deadline test when
+    // it exceeds what the checked entry counted.
+    dynasm!(a ; .arch x64 ; =>site.no_arb ; add r13, [rbx + L1_EXTRA]);
+    if site.recheck {
+        dynasm!(a ; .arch x64 ; mov edi, [rbx + L1_RECHECK]);
+    }
+    dynasm!(a ; .arch x64 ; jmp =>site.join);
+    if shape(i).1 == 4 {
+        dynasm!(a ; .arch x64 ; =>site.split ; add r13, 1 ; jmp =>site.split_back);
+    }
     dynasm!(a ; .arch x64 ; =>site.other);
     let fast = L1Site {
         other: site.exit,
@@ -168,42 +185,43 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
 /// mask of granted banks (`Tcdm::raw_parts`, one `u16` per cycle of the
 /// window) gets the access's bank, and the port's count goes up; when the
 /// bank is taken in that cycle, the next free cycle is found out of line
-/// (`busy`); without arbitration (the FC), the L1's latency alone. With
-/// `site.recheck`, `edi` says afterwards whether the access may have cost
-/// more than [`Ctx::worst_extra`]: after a stall 1, else
-/// [`Ctx::l1_recheck`].
+/// (`busy`). A core with a port on the arbiter has no L1 latency beyond
+/// the cycle its load or store costs anyway, and the checked entry counts
+/// its accesses at that (`Cpu::run_translated` makes sure of both), so
+/// only a stall can make it cost more than counted. Without a port (the
+/// FC), the L1's latency alone (`site.no_arb`). With `site.recheck`, `edi`
+/// says afterwards whether the access may have cost more than
+/// [`Ctx::worst_extra`].
 fn grant(a: &mut Asm, site: &L1Site) {
-    const BANK_MASK: i32 = BANKS as i32 - 1;
     const SLOT_MASK: i32 = WINDOW as i32 - 1;
-    let no_arb = a.new_dynamic_label();
     dynasm!(a ; .arch x64
         ; mov r9, [rbx + L1_GRANTED]
         ; test r9, r9
-        ; jz =>no_arb
-        // edx = the cycle's slot (its low bits suffice), esi = the bank.
+        ; jz =>site.no_arb
+        // edx = the cycle's slot (its low bits suffice), si = the word's
+        // index, whose low four bits are the bank: a 16-bit `bts` takes
+        // its bit offset modulo 16, and leaves the old bit in CF (taken:
+        // `busy`).
         ; lea edx, [r13 + site.issue as i32]
         ; and edx, SLOT_MASK
         ; mov esi, eax
         ; shr esi, 2
-        ; and esi, BANK_MASK
-        // `bts` leaves the bank's old bit in CF: taken, `busy`.
         ; movzx r11d, WORD [r9 + rdx * 2]
-        ; bts r11d, esi
+        ; bts r11w, si
         ; jc =>site.busy
         ; mov [r9 + rdx * 2], r11w
         // The port's count, in `r15`'s high bits (`GRANT_ONE`).
         ; add r15, GRANT_ONE
-        ; =>no_arb
-        ; add r13, [rbx + L1_EXTRA]
     );
     if site.recheck {
-        dynasm!(a ; .arch x64 ; mov edi, [rbx + L1_RECHECK]);
+        dynasm!(a ; .arch x64 ; xor edi, edi);
     }
     dynasm!(a ; .arch x64 ; =>site.join);
+    const _: () = assert!(BANKS == 16, "the grant's 16-bit bts is the bank");
 }
 
 /// The grant's taken-cycle case, out of line: the next cycle whose mask
-/// lacks the bank (`esi`; `edx`, the cycle's slot; `r9`, the masks), as
+/// lacks the bank (`si`; `edx`, the cycle's slot; `r9`, the masks), as
 /// `Tcdm::access` finds it: the grant set, the stall added to the cycles
 /// and counted in [`Ctx::l1_stalls`], the access in `r15`. Back to
 /// `site.join` (with `edi` = 1 for the deadline test, `grant`). Conflicts
@@ -218,7 +236,7 @@ fn busy(a: &mut Asm, site: &L1Site) {
         ; add edi, 1
         ; and edi, SLOT_MASK
         ; movzx r11d, WORD [r9 + rdi * 2]
-        ; bts r11d, esi
+        ; bts r11w, si
         ; jc =>next
         ; mov [r9 + rdi * 2], r11w
         // The stall: the slots between, modulo the window.
@@ -227,7 +245,6 @@ fn busy(a: &mut Asm, site: &L1Site) {
         ; add r13, rdi
         ; add [rbx + L1_STALLS], rdi
         ; add r15, GRANT_ONE
-        ; add r13, [rbx + L1_EXTRA]
     );
     if site.recheck {
         dynasm!(a ; .arch x64 ; mov edi, 1);
@@ -257,7 +274,7 @@ fn watched(a: &mut Asm, lo: i32, hi: i32, exit: dynasmrt::DynamicLabel) {
 /// The access itself at host address `base + rcx` (`eax` = the guest
 /// address), the base register's write-back, the loaded value and the
 /// split cycle.
-fn access(a: &mut Asm, i: &Inst, base: u8) {
+fn access(a: &mut Asm, i: &Inst, base: u8, site: Option<&L1Site>) {
     let (o, n, store, m, opnd) = shape(i);
     let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
     let imm = i.imm as i32;
@@ -290,9 +307,13 @@ fn access(a: &mut Asm, i: &Inst, base: u8) {
     if !store && i.rd != 0 {
         dynasm!(a ; .arch x64 ; mov [r12 + rd], edx);
     }
-    // A split access (crosses a word boundary) costs one more cycle:
-    // ((addr & 3) + n + 3) >> 3 is 1 exactly when (addr & 3) + n > 4.
-    if n > 1 {
+    // A split access (crosses a word boundary) costs one more cycle: for a
+    // word, any misaligned one (out of line at `site.split` where there
+    // is one); else ((addr & 3) + n + 3) >> 3 is 1 exactly when
+    // (addr & 3) + n > 4.
+    if let (4, Some(site)) = (n, site) {
+        dynasm!(a ; .arch x64 ; test al, 3 ; jnz =>site.split ; =>site.split_back);
+    } else if n > 1 {
         dynasm!(a ; .arch x64
             ; and eax, 3
             ; add eax, n + 3
