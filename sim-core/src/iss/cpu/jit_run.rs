@@ -4,7 +4,7 @@
 //! would have left it.
 
 use super::*;
-use crate::iss::jit::ctx::{Ctx, NO_TOHOST};
+use crate::iss::jit::ctx::{Bounds, Ctx, NO_TOHOST};
 use crate::iss::jit::JitCache;
 
 /// Cycles the interpreter runs, having started on a block the translator
@@ -109,21 +109,24 @@ impl Cpu {
         } else {
             return Translated::TooLong;
         };
+        let fast = Bounds::new(r.base, if banked { 0 } else { r.size as u64 });
+        let l1 = Bounds::new(t.l1.0, l1_size);
         let mut ctx = Ctx {
             regs: self.regs.as_mut_ptr(),
             fast_ptr: r.data.as_mut_ptr(),
-            fast_base: r.base as u64,
-            fast_size: if banked { 0 } else { r.size as u64 },
+            fast_base: fast.base,
+            fast_size: fast.size,
+            fast_last: fast.last,
             code_lo: r.code_lo as u64,
             code_hi: r.code_hi as u64,
             tohost: self.tohost.map_or(NO_TOHOST, |t| t as u64),
             deadline: self.deadline,
             extra,
-            l1_recheck: (t.l1_extra > worst_extra) as u64,
             worst_extra,
             l1_ptr,
-            l1_base: t.l1.0 as u64,
-            l1_size,
+            l1_base: l1.base,
+            l1_size: l1.size,
+            l1_last: l1.last,
             l1_code_lo: l1_code.0 as u64,
             l1_code_hi: l1_code.1 as u64,
             l1_extra: t.l1_extra,

@@ -71,9 +71,12 @@ pub(crate) struct Ctx {
     pub regs: *mut u32,
     /// Host address of the fast region's data.
     pub fast_ptr: *mut u8,
-    /// Guest address and size of the fast region (size 0: none).
+    /// Guest address and size of the fast region (size 0: none, and then
+    /// the base [`NO_REGION`]), and the last offset at which a load of 1,
+    /// 2 and 4 bytes fits in it ([`Bounds`]).
     pub fast_base: u64,
     pub fast_size: u64,
+    pub fast_last: [u64; 3],
     /// Byte offsets `[code_lo, code_hi)` in the fast region that hold
     /// cached code: stores there leave translated code.
     pub code_lo: u64,
@@ -85,12 +88,6 @@ pub(crate) struct Ctx {
     pub deadline: u64,
     /// Extra cycles of every fast-region access (a cluster core's L2).
     pub extra: u64,
-    /// 1 when an L1 access granted at once may cost more than
-    /// [`Ctx::worst_extra`] (its extra is above the fast region's), so the
-    /// checked code must test the deadline again after it; else 0 (a
-    /// cluster core: its L1 is the cheaper region) and only a bank's stall
-    /// makes it test again.
-    pub l1_recheck: u64,
     /// The most extra cycles of an access apart from an L1 bank's stall:
     /// the larger of [`Ctx::extra`] and [`Ctx::l1_extra`] (the worst-case
     /// checks count it per load or store).
@@ -102,6 +99,7 @@ pub(crate) struct Ctx {
     pub l1_ptr: *mut u8,
     pub l1_base: u64,
     pub l1_size: u64,
+    pub l1_last: [u64; 3],
     pub l1_code_lo: u64,
     pub l1_code_hi: u64,
     pub l1_extra: u64,
@@ -167,20 +165,62 @@ impl Ctx {
 /// `addr - NO_TOHOST` (wrapping, 64-bit) is never below 8.
 pub(crate) const NO_TOHOST: u64 = 1 << 40;
 
+/// A region's base, size and last offsets as [`Ctx`] holds them: a load
+/// of `n` bytes at offset `off = addr - base` (64-bit, wrapping) is inside
+/// when `off <= last[n]`, one comparison; without a region (size 0) the
+/// base is [`NO_REGION`], so no 32-bit address is at an offset as small as
+/// a `last`, which is then 0.
+pub(crate) struct Bounds {
+    pub base: u64,
+    pub size: u64,
+    pub last: [u64; 3],
+}
+
+/// The base of no region: far above any 32-bit address.
+pub(crate) const NO_REGION: u64 = 1 << 40;
+
+impl Bounds {
+    pub fn new(base: u32, size: u64) -> Bounds {
+        if size == 0 {
+            return Bounds {
+                base: NO_REGION,
+                size: 0,
+                last: [0; 3],
+            };
+        }
+        let last = |n: u64| size.checked_sub(n).unwrap_or(0);
+        Bounds {
+            base: base as u64,
+            size,
+            last: [last(1), last(2), last(4)],
+        }
+    }
+
+    /// The index of an access size in `last` (1, 2 or 4 bytes).
+    pub const fn index(n: i32) -> i32 {
+        match n {
+            1 => 0,
+            2 => 1,
+            _ => 2,
+        }
+    }
+}
+
 pub(crate) const REGS: i32 = offset_of!(Ctx, regs) as i32;
 pub(crate) const FAST_PTR: i32 = offset_of!(Ctx, fast_ptr) as i32;
 pub(crate) const FAST_BASE: i32 = offset_of!(Ctx, fast_base) as i32;
 pub(crate) const FAST_SIZE: i32 = offset_of!(Ctx, fast_size) as i32;
+pub(crate) const FAST_LAST: i32 = offset_of!(Ctx, fast_last) as i32;
 pub(crate) const CODE_LO: i32 = offset_of!(Ctx, code_lo) as i32;
 pub(crate) const CODE_HI: i32 = offset_of!(Ctx, code_hi) as i32;
 pub(crate) const TOHOST: i32 = offset_of!(Ctx, tohost) as i32;
 pub(crate) const DEADLINE: i32 = offset_of!(Ctx, deadline) as i32;
 pub(crate) const EXTRA: i32 = offset_of!(Ctx, extra) as i32;
-pub(crate) const L1_RECHECK: i32 = offset_of!(Ctx, l1_recheck) as i32;
 pub(crate) const WORST_EXTRA: i32 = offset_of!(Ctx, worst_extra) as i32;
 pub(crate) const L1_PTR: i32 = offset_of!(Ctx, l1_ptr) as i32;
 pub(crate) const L1_BASE: i32 = offset_of!(Ctx, l1_base) as i32;
 pub(crate) const L1_SIZE: i32 = offset_of!(Ctx, l1_size) as i32;
+pub(crate) const L1_LAST: i32 = offset_of!(Ctx, l1_last) as i32;
 pub(crate) const L1_CODE_LO: i32 = offset_of!(Ctx, l1_code_lo) as i32;
 pub(crate) const L1_CODE_HI: i32 = offset_of!(Ctx, l1_code_hi) as i32;
 pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;

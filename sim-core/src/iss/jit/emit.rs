@@ -437,7 +437,7 @@ impl Block<'_> {
                     } else {
                         self.exits[k]
                     },
-                    slow: a.new_dynamic_label(),
+                    ool: a.new_dynamic_label(),
                     busy: a.new_dynamic_label(),
                     no_arb: a.new_dynamic_label(),
                     split: a.new_dynamic_label(),
@@ -615,7 +615,12 @@ impl Block<'_> {
 fn dot_b(a: &mut Asm, i: &Inst) {
     let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
     // rs1 unsigned for sdotup and sdotusp, rs2 unsigned for sdotup only.
-    widen(a, 0, rs1, matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B));
+    widen(
+        a,
+        0,
+        rs1,
+        matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B),
+    );
     widen(a, 1, rs2, i.op == op::CV_SDOTUP_B);
     dynasm!(a ; .arch x64
         ; pmaddwd xmm0, xmm1

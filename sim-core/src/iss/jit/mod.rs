@@ -301,9 +301,8 @@ impl JitCache {
                 // `objdump -D -b binary -mi386:x86-64 --adjust-vma=ADDR`
                 // (`perf report` cannot annotate JIT code from a map alone).
                 let dir = format!("/tmp/perf-{}.code", std::process::id());
-                let _ = std::fs::create_dir_all(&dir).and_then(|_| {
-                    std::fs::write(format!("{dir}/{pc:08x}-{code:x}.bin"), &t.code)
-                });
+                let _ = std::fs::create_dir_all(&dir)
+                    .and_then(|_| std::fs::write(format!("{dir}/{pc:08x}-{code:x}.bin"), &t.code));
             }
         }
         for (to, off) in t.patches {

@@ -15,11 +15,12 @@ use crate::cluster::tcdm::{BANKS, WINDOW};
 #[derive(Clone, Copy)]
 pub(super) struct L1Site {
     /// The other region's path (out of line, after the block, on a
-    /// memory with an L1; else the exit before the access), the deadline
-    /// test after an access that cost more than counted (out of line),
-    /// and where both rejoin the block.
+    /// memory with an L1; else the exit before the access), the L1 access
+    /// done out of line after a grant that cost more than counted (a
+    /// stall, or no port on the arbiter), with the deadline test after it
+    /// (`ool`), and where both rejoin the block (`back`).
     pub other: dynasmrt::DynamicLabel,
-    pub slow: dynasmrt::DynamicLabel,
+    pub ool: dynasmrt::DynamicLabel,
     /// The bank grant's out-of-line call of the arbiter (`busy`), and
     /// where it rejoins.
     pub busy: dynasmrt::DynamicLabel,
@@ -94,42 +95,50 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
         fast_access(a, i, site);
         return;
     }
-    in_region(a, i, site, (L1_BASE, L1_SIZE, L1_CODE_LO, L1_CODE_HI));
+    in_region(
+        a,
+        i,
+        site,
+        (L1_BASE, L1_SIZE, L1_LAST, L1_CODE_LO, L1_CODE_HI),
+    );
     grant(a, site);
     dynasm!(a ; .arch x64 ; mov r8, [rbx + L1_PTR]);
     access(a, i, 8, Some(site));
-    if site.recheck {
-        // `edi` (from `grant`): whether this access may have cost more
-        // than the checked entry counted.
-        dynasm!(a ; .arch x64 ; test edi, edi ; jnz =>site.slow);
-    }
 }
 
 /// The fast region's access (`eax` = address): rcx = offset in it, rdx =
 /// its end; outside it, on to `site.other`; near code or `tohost`, leave
 /// at `site.exit`.
 fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site) {
-    in_region(a, i, site, (FAST_BASE, FAST_SIZE, CODE_LO, CODE_HI));
+    in_region(
+        a,
+        i,
+        site,
+        (FAST_BASE, FAST_SIZE, FAST_LAST, CODE_LO, CODE_HI),
+    );
     access(a, i, 14, None);
     dynasm!(a ; .arch x64 ; add r13, rbp);
 }
 
-/// Whether the access at `eax` is inside the region whose base, size and
-/// cached-code bounds are the [`Ctx`] fields at `fields`: `rcx` = its
-/// offset there, `rdx` = its end; outside, on to `site.other`; a store
-/// near the region's code or on `tohost` leaves at `site.exit`.
-fn in_region(a: &mut Asm, i: &Inst, site: &L1Site, fields: (i32, i32, i32, i32)) {
+/// Whether the access at `eax` is inside the region whose base, size,
+/// last offsets ([`Bounds`]) and cached-code bounds are the [`Ctx`] fields
+/// at `fields`: `rcx` = its offset there (and for a store `rdx` = its
+/// end); outside, on to `site.other`; a store near the region's code or on
+/// `tohost` leaves at `site.exit`.
+fn in_region(a: &mut Asm, i: &Inst, site: &L1Site, fields: (i32, i32, i32, i32, i32)) {
     let (_, n, store, _, _) = shape(i);
-    let (base, size, code_lo, code_hi) = fields;
-    dynasm!(a ; .arch x64
-        ; mov ecx, eax
-        ; sub rcx, [rbx + base]
-        ; lea rdx, [rcx + n]
-        ; cmp rdx, [rbx + size]
-        ; ja =>site.other
-    );
+    let (base, size, last, code_lo, code_hi) = fields;
+    dynasm!(a ; .arch x64 ; mov ecx, eax ; sub rcx, [rbx + base]);
     if store {
+        dynasm!(a ; .arch x64
+            ; lea rdx, [rcx + n]
+            ; cmp rdx, [rbx + size]
+            ; ja =>site.other
+        );
         watched(a, code_lo, code_hi, site.exit);
+    } else {
+        let last = last + 8 * Bounds::index(n);
+        dynasm!(a ; .arch x64 ; cmp rcx, [rbx + last] ; ja =>site.other);
     }
 }
 
@@ -144,19 +153,29 @@ fn recheck(a: &mut Asm, site: &L1Site) {
 }
 
 /// The out-of-line parts of an L1-path access (after the block): the
-/// grant's call of the arbiter (`busy`), at `site.other` the fast
-/// region's access (else leave just before it),
-/// and at `site.slow` the deadline test after an access that cost more
-/// than counted; both rejoin at `site.back`.
+/// grant's stall (`busy`) and the path without a port on the arbiter
+/// (`site.no_arb`), which with `site.recheck` go on at `site.ool`: the
+/// access there, then the deadline test (an access that cost more than
+/// the checked entry counted); at `site.other` the fast region's access
+/// (else leave just before it); all rejoin at `site.back`.
 pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
     busy(a, site);
-    // No port on the arbiter: the L1's latency, and the deadline test when
-    // it exceeds what the checked entry counted.
+    // No port on the arbiter: the L1's latency.
     dynasm!(a ; .arch x64 ; =>site.no_arb ; add r13, [rbx + L1_EXTRA]);
     if site.recheck {
-        dynasm!(a ; .arch x64 ; mov edi, [rbx + L1_RECHECK]);
+        // The L1's latency exceeds what the checked entry counted when
+        // the fast region's is lower ([`Ctx::worst_extra`]); the test is
+        // harmless when it does not.
+        dynasm!(a ; .arch x64
+            ; =>site.ool
+            ; mov r8, [rbx + L1_PTR]
+        );
+        access(a, i, 8, None);
+        recheck(a, site);
+        dynasm!(a ; .arch x64 ; jmp =>site.back);
+    } else {
+        dynasm!(a ; .arch x64 ; jmp =>site.join);
     }
-    dynasm!(a ; .arch x64 ; jmp =>site.join);
     if shape(i).1 == 4 {
         dynasm!(a ; .arch x64 ; =>site.split ; add r13, 1 ; jmp =>site.split_back);
     }
@@ -173,11 +192,6 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
         recheck(a, site);
     }
     dynasm!(a ; .arch x64 ; jmp =>site.back);
-    if site.recheck {
-        dynasm!(a ; .arch x64 ; =>site.slow);
-        recheck(a, site);
-        dynasm!(a ; .arch x64 ; jmp =>site.back);
-    }
 }
 
 /// The L1's extra cycles of an access at `eax` issued at `r13 + issue`
@@ -189,9 +203,9 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
 /// the cycle its load or store costs anyway, and the checked entry counts
 /// its accesses at that (`Cpu::run_translated` makes sure of both), so
 /// only a stall can make it cost more than counted. Without a port (the
-/// FC), the L1's latency alone (`site.no_arb`). With `site.recheck`, `edi`
-/// says afterwards whether the access may have cost more than
-/// [`Ctx::worst_extra`].
+/// FC), the L1's latency alone (`site.no_arb`). With `site.recheck`, both
+/// of those go on out of line (`site.ool`), where the deadline is tested
+/// again after the access.
 fn grant(a: &mut Asm, site: &L1Site) {
     const SLOT_MASK: i32 = WINDOW as i32 - 1;
     dynasm!(a ; .arch x64
@@ -212,20 +226,18 @@ fn grant(a: &mut Asm, site: &L1Site) {
         ; mov [r9 + rdx * 2], r11w
         // The port's count, in `r15`'s high bits (`GRANT_ONE`).
         ; add r15, GRANT_ONE
+        ; =>site.join
     );
-    if site.recheck {
-        dynasm!(a ; .arch x64 ; xor edi, edi);
-    }
-    dynasm!(a ; .arch x64 ; =>site.join);
     const _: () = assert!(BANKS == 16, "the grant's 16-bit bts is the bank");
 }
 
 /// The grant's taken-cycle case, out of line: the next cycle whose mask
 /// lacks the bank (`si`; `edx`, the cycle's slot; `r9`, the masks), as
 /// `Tcdm::access` finds it: the grant set, the stall added to the cycles
-/// and counted in [`Ctx::l1_stalls`], the access in `r15`. Back to
-/// `site.join` (with `edi` = 1 for the deadline test, `grant`). Conflicts
-/// are about 2 % of the network's L1 accesses.
+/// and counted in [`Ctx::l1_stalls`], the access in `r15`. On at
+/// `site.ool` (the access and the deadline test) or, in the careful
+/// variant, back at `site.join`. Conflicts are about 2 % of the network's
+/// L1 accesses.
 fn busy(a: &mut Asm, site: &L1Site) {
     const SLOT_MASK: i32 = WINDOW as i32 - 1;
     let next = a.new_dynamic_label();
@@ -246,10 +258,9 @@ fn busy(a: &mut Asm, site: &L1Site) {
         ; add [rbx + L1_STALLS], rdi
         ; add r15, GRANT_ONE
     );
-    if site.recheck {
-        dynasm!(a ; .arch x64 ; mov edi, 1);
-    }
-    dynasm!(a ; .arch x64 ; jmp =>site.join);
+    // A stall: the rest of the block may no longer fit (`site.ool`).
+    let to = if site.recheck { site.ool } else { site.join };
+    dynasm!(a ; .arch x64 ; jmp =>to);
 }
 
 /// A store's checks besides the bounds (`rcx` = offset in the region, `rdx`
