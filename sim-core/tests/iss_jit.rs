@@ -9,7 +9,7 @@
 
 mod iss_util;
 
-use iss_util::encode::{b, csr, i, s};
+use iss_util::encode::{b, csr, i, r, s};
 
 use sim_core::iss::{Backend, Cpu, CpuConfig, Memory, NoDevices, StopReason};
 use sim_core::units::Picos;
@@ -225,6 +225,58 @@ fn self_modifying_code_with_fence_i() {
     assert_eq!(interp, jit);
     // x6 = 0 + 1 + ... + 39 (each iteration's patched immediate).
     assert_eq!(jit.1[6], (0..40).sum::<u32>());
+}
+
+/// `cv.min`, `cv.max`, `cv.minu`, `cv.maxu` (translated inline, not
+/// through the helper) on the values where signed and unsigned order
+/// disagree, every pair, rd = rs1 and rd = rs2 too: the interpreter's
+/// results, and the right ones.
+#[test]
+fn min_max_agree_with_the_interpreter() {
+    const VALUES: [u32; 6] = [0, 1, 0x7fff_ffff, 0x8000_0000, 0xffff_ffff, 0x1234];
+    // custom-1, funct3 011, funct7 0b0101011 + (MIN, MINU, MAX, MAXU) - MIN
+    // (CV32E40P manual, "ALU"; `xcv::decode_custom1_rr`).
+    let ops = [0b010_1011, 0b010_1100, 0b010_1101, 0b010_1110];
+    let mut prog = Vec::new();
+    let mut expect = Vec::new();
+    for (x, &va) in VALUES.iter().enumerate() {
+        for (y, &vb) in VALUES.iter().enumerate() {
+            for (k, &f7) in ops.iter().enumerate() {
+                // x5 = va, x6 = vb (lui + addi), then the op into x7, x5 or x6.
+                let set = |reg: u32, v: u32| {
+                    let hi = v.wrapping_add(0x800) & 0xffff_f000;
+                    [
+                        hi | reg << 7 | 0x37,
+                        i((v.wrapping_sub(hi)) as i32, reg, 0, reg, 0x13),
+                    ]
+                };
+                prog.extend(set(5, va));
+                prog.extend(set(6, vb));
+                let rd = [7, 5, 6][(x + y + k) % 3];
+                prog.push(r(f7, 6, 5, 3, rd, 0x2b));
+                // Keep each result: sw rd, n(x0) would need a base; add into x8.
+                prog.push(r(0, rd, 8, 0, 8, 0x33)); // add x8, x8, rd
+                let (sa, sb) = (va as i32, vb as i32);
+                expect.push(match k {
+                    0 => sa.min(sb) as u32,
+                    1 => va.min(vb),
+                    2 => sa.max(sb) as u32,
+                    _ => va.max(vb),
+                });
+            }
+        }
+    }
+    prog.push(0x0000_006f); // j .
+    let run = |iss| {
+        let (mut cpu, mut mem) = setup(&prog, iss);
+        cpu.set_instruction_limit(Some(prog.len() as u64 - 1));
+        let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+        state(stop, &cpu, &mem)
+    };
+    let (interp, jit) = (run(Backend::Interp), run(Backend::Jit));
+    assert_eq!(interp, jit);
+    let sum = expect.iter().fold(0u32, |a, &v| a.wrapping_add(v));
+    assert_eq!(jit.1[8], sum);
 }
 
 proptest::proptest! {

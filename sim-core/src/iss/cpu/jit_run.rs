@@ -4,7 +4,7 @@
 //! would have left it.
 
 use super::*;
-use crate::iss::jit::ctx::{Bounds, Ctx, NO_TOHOST};
+use crate::iss::jit::ctx::{Bounds, Ctx, L1_PATH, NO_TOHOST};
 use crate::iss::jit::JitCache;
 
 /// Cycles the interpreter runs, having started on a block the translator
@@ -67,6 +67,11 @@ impl Cpu {
         let Some(e) = jit.entry(&mem.regions, &mem.insts, region, off as usize, first, l1) else {
             return Translated::Uncovered;
         };
+        if e.nmem & L1_PATH != 0 && !l1 {
+            // A cluster core's translation (its grants assume a port on
+            // the arbiter, `emit::mem::grant`): the FC interprets it.
+            return Translated::Uncovered;
+        }
         // The L1 (the cluster's TCDM): its data, bounds and cached code,
         // and the bank arbiter if this core has a port on it.
         let (l1_ptr, l1_size, l1_code) = match mem
@@ -129,7 +134,6 @@ impl Cpu {
             l1_last: l1.last,
             l1_code_lo: l1_code.0 as u64,
             l1_code_hi: l1_code.1 as u64,
-            l1_extra: t.l1_extra,
             l1_granted,
             l1_port_stats,
             l1_stalls: 0,

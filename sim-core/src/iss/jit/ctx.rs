@@ -88,21 +88,22 @@ pub(crate) struct Ctx {
     pub deadline: u64,
     /// Extra cycles of every fast-region access (a cluster core's L2).
     pub extra: u64,
-    /// The most extra cycles of an access apart from an L1 bank's stall:
-    /// the larger of [`Ctx::extra`] and [`Ctx::l1_extra`] (the worst-case
-    /// checks count it per load or store).
+    /// What the checked entries of L1-path translations count per load or
+    /// store: the cheaper of the fast region's extra cycles and the L1's
+    /// (none, for the cores that run them); an access that costs more (an
+    /// L2 one, or an L1 one that stalled on its bank) tests the deadline
+    /// again.
     pub worst_extra: u64,
     /// The L1 (`MemTiming::l1`, the cluster's TCDM) when it is not the
     /// fast region: host address of its data, guest base and size (size
-    /// 0: none), the byte offsets `[l1_code_lo, l1_code_hi)` of cached
-    /// code in it, and the extra cycles of every access.
+    /// 0: none), and the byte offsets `[l1_code_lo, l1_code_hi)` of cached
+    /// code in it.
     pub l1_ptr: *mut u8,
     pub l1_base: u64,
     pub l1_size: u64,
     pub l1_last: [u64; 3],
     pub l1_code_lo: u64,
     pub l1_code_hi: u64,
-    pub l1_extra: u64,
     /// The bank arbiter's masks and this core's port's counts
     /// ([`Tcdm::raw_parts`](crate::cluster::tcdm::Tcdm::raw_parts)), for the inline grant (null: no arbitration,
     /// the FC's view of L1).
@@ -225,7 +226,6 @@ pub(crate) const L1_CODE_LO: i32 = offset_of!(Ctx, l1_code_lo) as i32;
 pub(crate) const L1_CODE_HI: i32 = offset_of!(Ctx, l1_code_hi) as i32;
 pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;
 pub(crate) const POLL_FROM: i32 = offset_of!(Ctx, poll_from) as i32;
-pub(crate) const L1_EXTRA: i32 = offset_of!(Ctx, l1_extra) as i32;
 pub(crate) const L1_GRANTED: i32 = offset_of!(Ctx, l1_granted) as i32;
 pub(crate) const L1_STALLS: i32 = offset_of!(Ctx, l1_stalls) as i32;
 pub(crate) const JUMPS: i32 = offset_of!(Ctx, jumps) as i32;

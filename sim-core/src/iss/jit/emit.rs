@@ -24,6 +24,7 @@ use super::super::block::Inst;
 use super::super::cpu::MAX_POLL_LOOP_BYTES;
 use super::super::decode::op;
 use super::super::timing::BRANCH_TAKEN_EXTRA;
+use super::super::xcv::alu;
 use super::super::xcv::mem::base_op;
 use super::ctx::*;
 use super::helpers::{helper, is_div, MAX_DIV_EXTRA};
@@ -104,9 +105,14 @@ pub(crate) fn translate(
     // Static bookkeeping: cycles and jumps before each instruction.
     let mut prefix = vec![0u64; n + 1];
     let mut jumps = vec![0u64; n + 1];
+    // With the L1 path, the loads and stores before each instruction: the
+    // L1 grants an exit there counts in `r15` (`account`), the accesses
+    // that went to another region having taken theirs back.
+    let mut grants = vec![0u64; n + 1];
     for (k, i) in b[..n].iter().enumerate() {
         prefix[k + 1] = prefix[k] + i.cost as u64;
         jumps[k + 1] = jumps[k] + (i.op == op::JUMP) as u64;
+        grants[k + 1] = grants[k] + (l1 && is_mem(i.op)) as u64;
     }
     // The worst case of instructions k.. (from the block's entry cycle:
     // all static costs, a taken branch, and the longest divisions and a
@@ -153,6 +159,7 @@ pub(crate) fn translate(
         used: vec![false; n + 1],
         prefix,
         jumps,
+        grants,
         rest,
         careful_at: careful.as_ref().map(|c| c.0.clone()),
         careful_go: careful.as_ref().map(|c| c.1),
@@ -190,7 +197,7 @@ pub(crate) fn translate(
     // transfer (the core fixes the entry block's k = 0 case).
     for (k, l) in blk.exits.iter().enumerate().filter(|&(k, _)| blk.used[k]) {
         dynasm!(a ; =>*l);
-        account(&mut a, blk.prefix[k], k as u64, blk.jumps[k]);
+        account(&mut a, blk.prefix[k], blk.retired(k), blk.jumps[k]);
         let mask = if k > 0 { b[k - 1].load_mask() } else { 0 };
         let pc = b.get(k).map_or(0, |i| i.pc);
         dynasm!(a
@@ -243,6 +250,7 @@ struct Block<'a> {
     /// instructions k.. and their loads and stores.
     prefix: Vec<u64>,
     jumps: Vec<u64>,
+    grants: Vec<u64>,
     rest: Vec<(u64, u32)>,
     /// The careful variant: before each instruction's deadline test, and
     /// past the first one (the core's entry).
@@ -259,6 +267,13 @@ struct Block<'a> {
 }
 
 impl Block<'_> {
+    /// What an exit before instruction `k` adds to `r15`: the instructions
+    /// retired, and with the L1 path the grants in the bits from
+    /// [`GRANT_SHIFT`] (`ctx::Ctx::retired_grants`).
+    fn retired(&self, k: usize) -> u64 {
+        k as u64 + (self.grants[k] << GRANT_SHIFT)
+    }
+
     /// One variant of the block's instructions: the checked one (entered
     /// when the worst case fits; L1 accesses test the deadline again after
     /// themselves, going on in the careful variant when the rest might not
@@ -398,6 +413,21 @@ impl Block<'_> {
             op::CV_SDOTSP_B | op::CV_SDOTUSP_B | op::CV_SDOTUP_B | op::CV_DOTSP_B if self.sse41 => {
                 dot_b(a, i)
             }
+            // `cv.min`, `cv.max` and their unsigned forms inline (the
+            // network's requantization clamps with them; `xcv::alu::exec`
+            // through the helper otherwise): rs2 where it wins.
+            op::CV_ALU if min_max(i.imm).is_some() => {
+                dynasm!(a ; mov eax, [r12 + rs1] ; mov ecx, [r12 + rs2] ; cmp eax, ecx);
+                match min_max(i.imm).expect("guarded") {
+                    alu::MIN => dynasm!(a ; cmovg eax, ecx),
+                    alu::MAX => dynasm!(a ; cmovl eax, ecx),
+                    alu::MINU => dynasm!(a ; cmova eax, ecx),
+                    _ => dynasm!(a ; cmovb eax, ecx),
+                }
+                if i.rd != 0 {
+                    dynasm!(a ; mov [r12 + rd], eax);
+                }
+            }
             o if helper(o).is_some() => {
                 let f = helper(o).expect("helper") as usize as i64;
                 dynasm!(a
@@ -439,7 +469,6 @@ impl Block<'_> {
                     },
                     ool: a.new_dynamic_label(),
                     busy: a.new_dynamic_label(),
-                    no_arb: a.new_dynamic_label(),
                     split: a.new_dynamic_label(),
                     split_back: a.new_dynamic_label(),
                     join: a.new_dynamic_label(),
@@ -497,7 +526,12 @@ impl Block<'_> {
                     let link = i.pc.wrapping_add(i.len as u32) as i32;
                     dynasm!(a ; mov DWORD [r12 + rd], link);
                 }
-                account(a, self.prefix[k + 1], k as u64 + 1, self.jumps[k] + 1);
+                account(
+                    a,
+                    self.prefix[k + 1],
+                    self.retired(k + 1),
+                    self.jumps[k] + 1,
+                );
                 if i.op == op::JAL {
                     self.chain(a, i.imm);
                 } else {
@@ -521,7 +555,7 @@ impl Block<'_> {
                     self.used[k] = true;
                     dynasm!(a ; jmp =>self.exits[k]);
                 } else {
-                    account(a, self.prefix[k], k as u64, self.jumps[k]);
+                    account(a, self.prefix[k], self.retired(k), self.jumps[k]);
                     self.chain(a, i.imm);
                 }
                 return true;
@@ -561,7 +595,7 @@ impl Block<'_> {
             account(
                 a,
                 self.prefix[k + 1] + BRANCH_TAKEN_EXTRA,
-                k as u64 + 1,
+                self.retired(k + 1),
                 self.jumps[k] + 1,
             );
             // A short backward branch closes a loop the idle detector wants
@@ -602,6 +636,13 @@ impl Block<'_> {
             }
         }
     }
+}
+
+/// The function of a `cv.min`, `cv.max`, `cv.minu` or `cv.maxu` (an
+/// [`op::CV_ALU`]'s `imm`, `xcv::alu`), else `None`.
+fn min_max(imm: u32) -> Option<u32> {
+    let f = imm >> 16;
+    matches!(f, alu::MIN | alu::MAX | alu::MINU | alu::MAXU).then_some(f)
 }
 
 /// The byte dot products (`cv.sdotsp.b`, `cv.sdotusp.b`, `cv.sdotup.b`,
@@ -677,8 +718,11 @@ fn account(a: &mut Asm, cycles: u64, retired: u64, jumps: u64) {
     if cycles != 0 {
         dynasm!(a ; .arch x64 ; add r13, cycles as i32);
     }
-    if retired != 0 {
-        dynasm!(a ; .arch x64 ; add r15, retired as i32);
+    match i32::try_from(retired) {
+        Ok(0) => {}
+        Ok(r) => dynasm!(a ; .arch x64 ; add r15, r),
+        // Over 127 grants (`retired`): through `rcx`, free at every exit.
+        Err(_) => dynasm!(a ; .arch x64 ; mov rcx, QWORD retired as i64 ; add r15, rcx),
     }
     if jumps != 0 {
         dynasm!(a ; .arch x64 ; add QWORD [rbx + JUMPS], jumps as i32);

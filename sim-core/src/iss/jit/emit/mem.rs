@@ -24,9 +24,6 @@ pub(super) struct L1Site {
     /// The bank grant's out-of-line call of the arbiter (`busy`), and
     /// where it rejoins.
     pub busy: dynasmrt::DynamicLabel,
-    /// The grant's path for a core without a port on the arbiter (the FC
-    /// running a cluster core's translation), out of line.
-    pub no_arb: dynasmrt::DynamicLabel,
     /// A word access's split cycle, out of line (misaligned words are
     /// rare), and where it rejoins.
     pub split: dynasmrt::DynamicLabel,
@@ -160,12 +157,7 @@ fn recheck(a: &mut Asm, site: &L1Site) {
 /// (else leave just before it); all rejoin at `site.back`.
 pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
     busy(a, site);
-    // No port on the arbiter: the L1's latency.
-    dynasm!(a ; .arch x64 ; =>site.no_arb ; add r13, [rbx + L1_EXTRA]);
     if site.recheck {
-        // The L1's latency exceeds what the checked entry counted when
-        // the fast region's is lower ([`Ctx::worst_extra`]); the test is
-        // harmless when it does not.
         dynasm!(a ; .arch x64
             ; =>site.ool
             ; mov r8, [rbx + L1_PTR]
@@ -173,8 +165,6 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
         access(a, i, 8, None);
         recheck(a, site);
         dynasm!(a ; .arch x64 ; jmp =>site.back);
-    } else {
-        dynasm!(a ; .arch x64 ; jmp =>site.join);
     }
     if shape(i).1 == 4 {
         dynasm!(a ; .arch x64 ; =>site.split ; add r13, 1 ; jmp =>site.split_back);
@@ -185,6 +175,9 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
         ..*site
     };
     fast_access(a, i, &fast);
+    // Not an L1 access: no grant (the block's exits count one per load or
+    // store, `emit::Block::retired`).
+    dynasm!(a ; .arch x64 ; sub r15, GRANT_ONE);
     if site.recheck {
         // Only a core whose fast-region accesses cost extra (a cluster
         // core's L2) can exceed the count: the FC's cost nothing more.
@@ -197,21 +190,20 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
 /// The L1's extra cycles of an access at `eax` issued at `r13 + issue`
 /// (keeps `rax`, `rcx`): inline, what `Tcdm::access` does: the cycle's
 /// mask of granted banks (`Tcdm::raw_parts`, one `u16` per cycle of the
-/// window) gets the access's bank, and the port's count goes up; when the
-/// bank is taken in that cycle, the next free cycle is found out of line
-/// (`busy`). A core with a port on the arbiter has no L1 latency beyond
-/// the cycle its load or store costs anyway, and the checked entry counts
-/// its accesses at that (`Cpu::run_translated` makes sure of both), so
-/// only a stall can make it cost more than counted. Without a port (the
-/// FC), the L1's latency alone (`site.no_arb`). With `site.recheck`, both
-/// of those go on out of line (`site.ool`), where the deadline is tested
-/// again after the access.
+/// window) gets the access's bank; when the bank is taken in that cycle,
+/// the next free cycle is found out of line (`busy`). The port's count is
+/// the block's (its exits count one grant per load or store,
+/// `emit::Block::retired`). Only cores with a port on the arbiter run these
+/// translations, and they have no L1 latency beyond the cycle the load or
+/// store costs anyway, which the checked entry counts
+/// (`Cpu::run_translated` makes sure of both): only a stall can make an
+/// access cost more than counted, and with `site.recheck` the access then
+/// goes on out of line (`site.ool`), where the deadline is tested again
+/// after it.
 fn grant(a: &mut Asm, site: &L1Site) {
     const SLOT_MASK: i32 = WINDOW as i32 - 1;
     dynasm!(a ; .arch x64
         ; mov r9, [rbx + L1_GRANTED]
-        ; test r9, r9
-        ; jz =>site.no_arb
         // edx = the cycle's slot (its low bits suffice), si = the word's
         // index, whose low four bits are the bank: a 16-bit `bts` takes
         // its bit offset modulo 16, and leaves the old bit in CF (taken:
@@ -224,8 +216,6 @@ fn grant(a: &mut Asm, site: &L1Site) {
         ; bts r11w, si
         ; jc =>site.busy
         ; mov [r9 + rdx * 2], r11w
-        // The port's count, in `r15`'s high bits (`GRANT_ONE`).
-        ; add r15, GRANT_ONE
         ; =>site.join
     );
     const _: () = assert!(BANKS == 16, "the grant's 16-bit bts is the bank");
@@ -234,7 +224,7 @@ fn grant(a: &mut Asm, site: &L1Site) {
 /// The grant's taken-cycle case, out of line: the next cycle whose mask
 /// lacks the bank (`si`; `edx`, the cycle's slot; `r9`, the masks), as
 /// `Tcdm::access` finds it: the grant set, the stall added to the cycles
-/// and counted in [`Ctx::l1_stalls`], the access in `r15`. On at
+/// and counted in [`Ctx::l1_stalls`]. On at
 /// `site.ool` (the access and the deadline test) or, in the careful
 /// variant, back at `site.join`. Conflicts are about 2 % of the network's
 /// L1 accesses.
@@ -256,7 +246,6 @@ fn busy(a: &mut Asm, site: &L1Site) {
         ; and edi, SLOT_MASK
         ; add r13, rdi
         ; add [rbx + L1_STALLS], rdi
-        ; add r15, GRANT_ONE
     );
     // A stall: the rest of the block may no longer fit (`site.ool`).
     let to = if site.recheck { site.ool } else { site.join };
