@@ -678,24 +678,17 @@ fn dot_b(a: &mut Asm, i: &Inst) {
 }
 
 /// `xmm{x}`'s four low 16-bit lanes = the four bytes of the guest
-/// register at `off`, sign- or zero-extended. Straight from memory, which
-/// reads the next register's four bytes too, into lanes 4–7, which the
-/// dot product never adds (`pmaddwd`'s lanes 2–3); the last register has
-/// no next one in the register file, so it is loaded alone.
+/// register at `off`, sign- or zero-extended. Loaded with a 4-byte `movd`
+/// first: an 8-byte load straight from the register file would span the
+/// register and the next one, most often both just stored, which the
+/// host cannot forward from its store buffer (measured: `xcv_bench.elf`
+/// 3x slower, `cosim nn eval` no faster).
 fn widen(a: &mut Asm, x: u8, off: i32, unsigned: bool) {
-    if off + 8 <= 4 * 32 {
-        if unsigned {
-            dynasm!(a ; .arch x64 ; pmovzxbw Rx(x), QWORD [r12 + off]);
-        } else {
-            dynasm!(a ; .arch x64 ; pmovsxbw Rx(x), QWORD [r12 + off]);
-        }
+    dynasm!(a ; .arch x64 ; movd Rx(x), [r12 + off]);
+    if unsigned {
+        dynasm!(a ; .arch x64 ; pmovzxbw Rx(x), Rx(x));
     } else {
-        dynasm!(a ; .arch x64 ; movd Rx(x), [r12 + off]);
-        if unsigned {
-            dynasm!(a ; .arch x64 ; pmovzxbw Rx(x), Rx(x));
-        } else {
-            dynasm!(a ; .arch x64 ; pmovsxbw Rx(x), Rx(x));
-        }
+        dynasm!(a ; .arch x64 ; pmovsxbw Rx(x), Rx(x));
     }
 }
 
