@@ -269,7 +269,9 @@ fn min_max_agree_with_the_interpreter() {
     prog.push(0x0000_006f); // j .
     let run = |iss| {
         let (mut cpu, mut mem) = setup(&prog, iss);
-        cpu.set_instruction_limit(Some(prog.len() as u64 - 1));
+        // Room for the whole block (the translator enters a block only
+        // when its worst case fits), then `j .` to the limit.
+        cpu.set_instruction_limit(Some(prog.len() as u64 + 1000));
         let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
         state(stop, &cpu, &mem)
     };
@@ -277,6 +279,63 @@ fn min_max_agree_with_the_interpreter() {
     assert_eq!(interp, jit);
     let sum = expect.iter().fold(0u32, |a, &v| a.wrapping_add(v));
     assert_eq!(jit.1[8], sum);
+}
+
+/// Runs of byte dot products sharing their first operand (translated
+/// with its widened bytes kept between them), broken by a signedness
+/// change, by one that writes the shared register, by x0, and by other
+/// instructions: the interpreter's results.
+#[test]
+fn dot_product_runs_agree_with_the_interpreter() {
+    // custom-3, funct3 001 (.b), funct5: dotsp 18, sdotup 19, sdotusp 20,
+    // sdotsp 21 (CV32E40P manual, "SIMD"; `xcv::simd::decode`).
+    let dot = |f5: u32, rd: u32, rs1: u32, rs2: u32| r(f5 << 2, rs2, rs1, 1, rd, 0x7b);
+    let (dotsp, sdotup, sdotusp, sdotsp) = (18, 19, 20, 21);
+    let mut prog = vec![];
+    // x10..x15 = operands with bytes of both signs.
+    let vals = [
+        0x80ff_7f01u32,
+        0x0102_fe80,
+        0x7f7f_8080,
+        0xff00_ff00,
+        0x1234_5678,
+        0xdead_beef,
+    ];
+    for (k, v) in vals.iter().enumerate() {
+        let reg = 10 + k as u32;
+        let hi = v.wrapping_add(0x800) & 0xffff_f000;
+        prog.push(hi | reg << 7 | 0x37);
+        prog.push(i(v.wrapping_sub(hi) as i32, reg, 0, reg, 0x13));
+    }
+    prog.extend([
+        dot(sdotsp, 20, 10, 11),
+        dot(sdotsp, 21, 10, 12),
+        dot(sdotsp, 22, 10, 13),
+        dot(sdotsp, 23, 10, 14),
+        dot(sdotusp, 24, 10, 11), // rs1 unsigned now: widened again
+        dot(sdotusp, 25, 10, 15),
+        dot(sdotup, 26, 10, 12),
+        dot(sdotsp, 10, 10, 13), // writes the shared register
+        dot(sdotsp, 27, 10, 14), // so this one reads the new x10
+        dot(dotsp, 28, 11, 12),
+        dot(dotsp, 0, 11, 13),  // to x0
+        dot(sdotsp, 29, 11, 0), // with x0
+        i(1, 11, 0, 11, 0x13),  // addi x11, x11, 1 between two
+        dot(sdotsp, 30, 11, 12),
+        0x0000_006f, // j .
+    ]);
+    let run = |iss| {
+        let (mut cpu, mut mem) = setup(&prog, iss);
+        // Room for the whole block (the translator enters a block only
+        // when its worst case fits), then `j .` to the limit.
+        cpu.set_instruction_limit(Some(prog.len() as u64 + 1000));
+        let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+        state(stop, &cpu, &mem)
+    };
+    let (interp, jit) = (run(Backend::Interp), run(Backend::Jit));
+    assert_eq!(interp, jit);
+    // sdotsp(0, 0x80ff7f01, 0x0102fe80): 1·-128 + 127·-2 + -1·2 + -128·1.
+    assert_eq!(jit.1[20] as i32, -128 - 254 - 2 - 128);
 }
 
 proptest::proptest! {

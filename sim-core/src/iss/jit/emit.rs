@@ -147,6 +147,7 @@ pub(crate) fn translate(
     });
     let mut blk = Block {
         b,
+        xmm2: None,
         n,
         at,
         stubs,
@@ -231,6 +232,11 @@ pub(crate) fn translate(
 /// One block being translated: what both of its variants share.
 struct Block<'a> {
     b: &'a [Inst],
+    /// The guest register whose widened bytes `xmm2` holds (and whether
+    /// zero-extended), for a run of byte dot products sharing their first
+    /// operand (`dot_b`); only in the checked variant, which is entered
+    /// at its start alone.
+    xmm2: Option<(u8, bool)>,
     /// Its covered instructions.
     n: usize,
     at: usize,
@@ -285,7 +291,14 @@ impl Block<'_> {
         let (b, n) = (self.b, self.n);
         // The loads and stores' other-region paths, emitted after the body.
         let mut l1_sites: Vec<(Inst, L1Site)> = Vec::new();
+        self.xmm2 = None;
         for (k, i) in b[..n].iter().enumerate() {
+            // Only consecutive dot products share `xmm2` (anything else may
+            // write the register or call a helper, which clobbers it).
+            let dot = self.sse41 && is_dot_b(i.op);
+            if careful || !dot {
+                self.xmm2 = None;
+            }
             if careful {
                 let here = self.careful_at.as_ref().expect("careful variant")[k];
                 dynasm!(a ; .arch x64 ; =>here);
@@ -410,8 +423,12 @@ impl Block<'_> {
                 }
                 dynasm!(a ; imul rax, rcx ; shr rax, 32 ; mov [r12 + rd], eax);
             }
-            op::CV_SDOTSP_B | op::CV_SDOTUSP_B | op::CV_SDOTUP_B | op::CV_DOTSP_B if self.sse41 => {
-                dot_b(a, i)
+            o if self.sse41 && is_dot_b(o) => {
+                let first = (i.rs1, matches!(o, op::CV_SDOTUP_B | op::CV_SDOTUSP_B));
+                let cached = self.xmm2 == Some(first);
+                dot_b(a, i, cached);
+                // The next one may reuse it, unless this one wrote it.
+                self.xmm2 = (!careful && i.rd != i.rs1).then_some(first);
             }
             // `cv.min`, `cv.max` and their unsigned forms inline (the
             // network's requantization clamps with them; `xcv::alu::exec`
@@ -653,19 +670,23 @@ fn min_max(imm: u32) -> Option<u32> {
 /// (modulo 2^32) for the `sdot` forms. Every product and sum fits in 32
 /// bits, so this is the interpreter's `i32` sum. (`pmaddwd` is one
 /// micro-op where `pmulld` and two `phaddd` are eight.)
-fn dot_b(a: &mut Asm, i: &Inst) {
+fn dot_b(a: &mut Asm, i: &Inst, cached: bool) {
     let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
-    // rs1 unsigned for sdotup and sdotusp, rs2 unsigned for sdotup only.
-    widen(
-        a,
-        0,
-        rs1,
-        matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B),
-    );
+    // rs1 unsigned for sdotup and sdotusp, rs2 unsigned for sdotup only;
+    // rs1's widened bytes stay in xmm2 for the next dot product (`cached`:
+    // the previous one left them there).
+    if !cached {
+        widen(
+            a,
+            2,
+            rs1,
+            matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B),
+        );
+    }
     widen(a, 1, rs2, i.op == op::CV_SDOTUP_B);
     dynasm!(a ; .arch x64
-        ; pmaddwd xmm0, xmm1
-        ; pshufd xmm1, xmm0, 1
+        ; pmaddwd xmm1, xmm2
+        ; pshufd xmm0, xmm1, 1
         ; paddd xmm0, xmm1
         ; movd eax, xmm0
     );
@@ -675,6 +696,14 @@ fn dot_b(a: &mut Asm, i: &Inst) {
     if i.rd != 0 {
         dynasm!(a ; .arch x64 ; mov [r12 + rd], eax);
     }
+}
+
+/// The byte dot products [`dot_b`] does inline.
+fn is_dot_b(o: u8) -> bool {
+    matches!(
+        o,
+        op::CV_SDOTSP_B | op::CV_SDOTUSP_B | op::CV_SDOTUP_B | op::CV_DOTSP_B
+    )
 }
 
 /// `xmm{x}`'s four low 16-bit lanes = the four bytes of the guest
