@@ -181,19 +181,21 @@ pub(crate) struct Bounds {
 pub(crate) const NO_REGION: u64 = 1 << 40;
 
 impl Bounds {
+    /// A region of `size` bytes at `base`; one of under 4 bytes (none of
+    /// our RAMs) is taken as none, so that every offset has a `last`: its
+    /// accesses are left to the interpreter.
     pub fn new(base: u32, size: u64) -> Bounds {
-        if size == 0 {
+        if size < 4 {
             return Bounds {
                 base: NO_REGION,
                 size: 0,
                 last: [0; 3],
             };
         }
-        let last = |n: u64| size.checked_sub(n).unwrap_or(0);
         Bounds {
             base: base as u64,
             size,
-            last: [last(1), last(2), last(4)],
+            last: [size - 1, size - 2, size - 4],
         }
     }
 
