@@ -227,6 +227,22 @@ fn self_modifying_code_with_fence_i() {
     assert_eq!(jit.1[6], (0..40).sum::<u32>());
 }
 
+/// Run `prog` (straight-line code ending in `j .`) under both back ends:
+/// the same end state, which it returns. The instruction limit leaves room
+/// for the whole block (the translator enters a block only when its worst
+/// case fits), then `j .` runs to it.
+fn straight_line_agrees(prog: &[u32]) -> State {
+    let run = |iss| {
+        let (mut cpu, mut mem) = setup(prog, iss);
+        cpu.set_instruction_limit(Some(prog.len() as u64 + 1000));
+        let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+        state(stop, &cpu, &mem)
+    };
+    let (interp, jit) = (run(Backend::Interp), run(Backend::Jit));
+    assert_eq!(interp, jit);
+    jit
+}
+
 /// `cv.min`, `cv.max`, `cv.minu`, `cv.maxu` (translated inline, not
 /// through the helper) on the values where signed and unsigned order
 /// disagree, every pair, rd = rs1 and rd = rs2 too: the interpreter's
@@ -267,16 +283,7 @@ fn min_max_agree_with_the_interpreter() {
         }
     }
     prog.push(0x0000_006f); // j .
-    let run = |iss| {
-        let (mut cpu, mut mem) = setup(&prog, iss);
-        // Room for the whole block (the translator enters a block only
-        // when its worst case fits), then `j .` to the limit.
-        cpu.set_instruction_limit(Some(prog.len() as u64 + 1000));
-        let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
-        state(stop, &cpu, &mem)
-    };
-    let (interp, jit) = (run(Backend::Interp), run(Backend::Jit));
-    assert_eq!(interp, jit);
+    let jit = straight_line_agrees(&prog);
     let sum = expect.iter().fold(0u32, |a, &v| a.wrapping_add(v));
     assert_eq!(jit.1[8], sum);
 }
@@ -324,16 +331,7 @@ fn dot_product_runs_agree_with_the_interpreter() {
         dot(sdotsp, 30, 11, 12),
         0x0000_006f, // j .
     ]);
-    let run = |iss| {
-        let (mut cpu, mut mem) = setup(&prog, iss);
-        // Room for the whole block (the translator enters a block only
-        // when its worst case fits), then `j .` to the limit.
-        cpu.set_instruction_limit(Some(prog.len() as u64 + 1000));
-        let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
-        state(stop, &cpu, &mem)
-    };
-    let (interp, jit) = (run(Backend::Interp), run(Backend::Jit));
-    assert_eq!(interp, jit);
+    let jit = straight_line_agrees(&prog);
     // sdotsp(0, 0x80ff7f01, 0x0102fe80): 1·-128 + 127·-2 + -1·2 + -128·1.
     assert_eq!(jit.1[20] as i32, -128 - 254 - 2 - 128);
 }
