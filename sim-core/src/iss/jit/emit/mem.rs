@@ -16,13 +16,13 @@ use crate::cluster::tcdm::{BANKS, WINDOW};
 pub(super) struct L1Site {
     /// The other region's path (out of line, after the block, on a
     /// memory with an L1; else the exit before the access), the L1 access
-    /// done out of line after a grant that cost more than counted (a
-    /// stall, or no port on the arbiter), with the deadline test after it
-    /// (`ool`), and where both rejoin the block (`back`).
+    /// done out of line after a grant that stalled, with the deadline test
+    /// after it (`ool`, in the checked variant), and where both rejoin the
+    /// block (`back`).
     pub other: dynasmrt::DynamicLabel,
     pub ool: dynasmrt::DynamicLabel,
-    /// The bank grant's out-of-line call of the arbiter (`busy`), and
-    /// where it rejoins.
+    /// The bank grant's out-of-line search for a free cycle (`busy`), and
+    /// where it rejoins in the careful variant (`join`).
     pub busy: dynasmrt::DynamicLabel,
     /// A word access's split cycle, out of line (misaligned words are
     /// rare), and where it rejoins.
@@ -103,9 +103,9 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
     access(a, i, 8, Some(site));
 }
 
-/// The fast region's access (`eax` = address): rcx = offset in it, rdx =
-/// its end; outside it, on to `site.other`; near code or `tohost`, leave
-/// at `site.exit`.
+/// The fast region's access (`eax` = address; `rcx` = its offset there):
+/// outside it, on to `site.other`; a store near code or `tohost` leaves at
+/// `site.exit`.
 fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site) {
     in_region(
         a,
@@ -150,11 +150,11 @@ fn recheck(a: &mut Asm, site: &L1Site) {
 }
 
 /// The out-of-line parts of an L1-path access (after the block): the
-/// grant's stall (`busy`) and the path without a port on the arbiter
-/// (`site.no_arb`), which with `site.recheck` go on at `site.ool`: the
-/// access there, then the deadline test (an access that cost more than
-/// the checked entry counted); at `site.other` the fast region's access
-/// (else leave just before it); all rejoin at `site.back`.
+/// grant's stall (`busy`), which with `site.recheck` goes on at
+/// `site.ool`: the access there, then the deadline test (the stall may
+/// have cost more than the checked entry counted); a misaligned word's
+/// split cycle; at `site.other` the fast region's access (else leave just
+/// before it); all rejoin at `site.back`.
 pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
     busy(a, site);
     if site.recheck {
