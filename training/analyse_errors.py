@@ -25,8 +25,8 @@ def main():
     ap.add_argument("data")
     ap.add_argument("--checkpoint", default=export.DEFAULT_CHECKPOINT)
     a = ap.parse_args()
+    ck = export.load_checkpoint(a.checkpoint)  # selects the net, its input resolution
     small, labels = netdef.load_dataset(a.data)
-    ck = export.load_checkpoint(a.checkpoint)
     head = int8_ref.float_forward(ck, netdef.to_int8(small).astype(np.float64) / 128)
     pred = evaluate.decode_float(head, export.decode_rule(ck, "float"))
     rows = []  # (distance, edge distance px, detected, centre error, distance error)
