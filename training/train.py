@@ -4,11 +4,12 @@ CPU with JAX + optax, seeded; writes the float checkpoint (framework-neutral
 
     python3 training/train.py --data DIR [DIR ...] --out training/checkpoint.npz \
         [--epochs 12] [--seed 0] [--heldout DIR] [--bn] [--init NPZ] [--max-seconds S] \
-        [--net base|wide]
+        [--net base|wide|fine160]
 
 --net picks the shape (netdef.NETS; "base" is the committed network); a
 checkpoint of another shape records it, and export.py, evaluate.py and the
-others then describe that shape.
+others then describe that shape (fine160: a 160x160 input, cached as
+DIR/inputs160.npy).
 
 --init starts from a checkpoint (or a --bn run's OUT-bn.npz), layer by layer
 where the shapes match, so a new shape can reuse an older network's first
@@ -187,7 +188,7 @@ def conv(x, w, s, p):
 
 
 def forward(params, x, keep=False):
-    """x: (n, 80, 80, 1) float (int8 input / 128). Returns the head (n, 5, 5, 12)
+    """x: (n, INPUT, INPUT, 1) float (int8 input / 128). Returns the head (n, 5, 5, 12)
     and, with keep, every ReLU output."""
     acts = []
     for name, _, s, p, _, _, relu in netdef.LAYERS:
@@ -361,8 +362,8 @@ def load_inputs(directory):
 def batch_inputs(small, idx, n, rng, gain, offset):
     """The float inputs of samples idx (idx >= n: image idx - n mirrored
     left-right), each with a random brightness gain and offset (photometric
-    augmentation) applied to the 80x80 uint8 image, rounded and clipped as
-    a real image would be."""
+    augmentation) applied to the input's uint8 image, rounded and clipped as
+    a real image would be. `rng` may be None without augmentation."""
     x = small[idx % n].astype(np.float32)
     flip = idx >= n
     x[flip] = x[flip, :, ::-1]
