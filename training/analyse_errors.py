@@ -5,7 +5,6 @@ the label's distance and by how near the centre lies to the image's edge.
     python3 training/analyse_errors.py DIR [--checkpoint training/checkpoint.npz]
 """
 
-import argparse
 import os
 import sys
 
@@ -21,12 +20,7 @@ GROSS_PX = 40
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("data")
-    ap.add_argument("--checkpoint", default=export.DEFAULT_CHECKPOINT)
-    a = ap.parse_args()
-    small, labels = netdef.load_dataset(a.data)
-    ck = export.load_checkpoint(a.checkpoint)
+    ck, small, labels = export.checkpoint_and_dataset()
     head = int8_ref.float_forward(ck, netdef.to_int8(small).astype(np.float64) / 128)
     pred = evaluate.decode_float(head, export.decode_rule(ck, "float"))
     rows = []  # (distance, edge distance px, detected, centre error, distance error)

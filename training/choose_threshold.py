@@ -37,8 +37,8 @@ def main():
     ap.add_argument("--checkpoint", default=export.DEFAULT_CHECKPOINT)
     ap.add_argument("--write", action="store_true", help="store the choice in the checkpoint")
     a = ap.parse_args()
+    ckpt = export.load_checkpoint(a.checkpoint)  # selects the net, its input resolution
     small, labels = netdef.load_dataset(a.data)
-    ckpt = export.load_checkpoint(a.checkpoint)
     heads = int8_ref.heads_batch(export.quantize(ckpt), netdef.to_int8(small))
     best = None
     print("   T    D mm  detected  false pos  mean px  p95 px")

@@ -69,8 +69,8 @@ def main():
     ap.add_argument("data")
     ap.add_argument("--checkpoint", default=os.path.join(here, "checkpoint.npz"))
     a = ap.parse_args()
+    ckpt = export.load_checkpoint(a.checkpoint)  # selects the net, its input resolution
     small, labels = netdef.load_dataset(a.data)
-    ckpt = export.load_checkpoint(a.checkpoint)
     x = netdef.to_int8(small)
     head = int8_ref.float_forward(ckpt, x.astype(np.float64) / 128.0)
     q = export.quantize(ckpt)

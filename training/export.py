@@ -48,6 +48,19 @@ def load_checkpoint(path):
     return ckpt
 
 
+def checkpoint_and_dataset(argv=None):
+    """The analysis scripts' command line, `DIR [--checkpoint CKPT]`: the
+    checkpoint (its net selected in netdef) and the dataset's (inputs,
+    labels) at that net's input resolution."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("data")
+    ap.add_argument("--checkpoint", default=DEFAULT_CHECKPOINT)
+    a = ap.parse_args(argv)
+    ckpt = load_checkpoint(a.checkpoint)
+    small, labels = netdef.load_dataset(a.data)
+    return ckpt, small, labels
+
+
 def decode_rule(ckpt, units="int8"):
     """The checkpoint's decoding rule (docs/NN.md, int8_ref step 3), or None
     for the original one (the best cell's objectness > 0). A checkpoint

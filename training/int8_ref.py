@@ -69,7 +69,7 @@ def layer_int8(layer, x):
 
 
 def head_int8(q, x):
-    """int8 input (n, 80, 80, 1) -> the head's int16 grid (n, 5, 5, 12)."""
+    """int8 input (n, INPUT, INPUT, 1) -> the head's int16 grid (n, 5, 5, 12)."""
     for layer in q:
         x = layer_int8(layer, x)
     return x
@@ -112,12 +112,12 @@ def decode(head, rule=None):
 
 
 def heads_batch(q, x, batch=256):
-    """int8 inputs (n, 80, 80, 1) -> the int16 heads (n, 5, 5, 12)."""
+    """int8 inputs (n, INPUT, INPUT, 1) -> the int16 heads (n, 5, 5, 12)."""
     return np.concatenate([head_int8(q, x[s:s + batch]) for s in range(0, len(x), batch)])
 
 
 def infer_batch(q, x, rule=None, batch=256):
-    """int8 inputs (n, 80, 80, 1) -> list of decoded outputs."""
+    """int8 inputs (n, INPUT, INPUT, 1) -> list of decoded outputs."""
     return [decode(h, rule) for h in heads_batch(q, x, batch)]
 
 
@@ -128,8 +128,12 @@ def infer_image(q, image, rule=None):
     return x[0], head, decode(head, rule)
 
 
-def float_forward(ckpt, x):
-    """The float network (numpy) on float inputs (n, 80, 80, 1): the head."""
+def float_forward(ckpt, x, batch=256):
+    """The float network (numpy) on float inputs (n, INPUT, INPUT, 1): the
+    head; `batch` images at a time (a 160x160 input's patches are large)."""
+    if len(x) > batch:
+        return np.concatenate([float_forward(ckpt, x[s:s + batch], batch)
+                               for s in range(0, len(x), batch)])
     for name, k, stride, pad, _, cout, relu in netdef.LAYERS:
         p = _patches(x, k, stride, pad)
         x = p @ ckpt[f"{name}.w"].reshape(cout, -1).T.astype(np.float64) + ckpt[f"{name}.b"]

@@ -15,8 +15,11 @@ grid cell (one cell = 16x16 input pixels = 64x64 camera pixels):
 
 That is NETS["base"], the committed network; NETS["wide"] widens conv4-conv6
 (same input, grid and head channels, so decode.c and nn_race.c are
-unchanged). A checkpoint records its net and export.load_checkpoint
-selects it (select()), so every script follows the checkpoint's shape.
+unchanged); NETS["fine160"] takes a 160x160 input (2x2 block means, POOLS)
+through two stride-2 layers into the base network's conv2-head. A
+checkpoint records its net and export.load_checkpoint selects it
+(select()), so every script follows the checkpoint's shape, input
+resolution included.
 
 Layout everywhere: activations HWC (channel fastest), weights
 [cout][kh][kw][cin] (the dot product runs over cin, 4 int8 per SIMD word).
@@ -28,8 +31,8 @@ import os
 import numpy as np
 
 CAMERA = 320
-POOL = 4  # camera pixels per input pixel (each way)
-INPUT = CAMERA // POOL  # 80
+POOL = 4  # camera pixels per input pixel (each way): the selected net's POOLS entry
+INPUT = CAMERA // POOL  # 80 (160 for "fine160")
 GRID = 5
 CELL_PX = CAMERA // GRID  # 64 camera pixels per grid cell
 DIST_SCALE_M = 8.0
@@ -57,7 +60,18 @@ NETS = {
         ("conv6", 3, 1, 1, 64, 128, True),
         ("head", 1, 1, 0, 128, 12, False),
     ],
+    # A 160x160 input (2x2 means) for the far gates and the centres
+    # (docs/NN.md "A finer input": at 8 m the 0.8 m opening is 8.5 pixels
+    # of the 80x80 input and its bars half a pixel). conv0 and conv1 take it
+    # to conv1's 40x40x8 of the base network, whose conv2-head follow
+    # unchanged: 4.63 MMAC, within DESIGN.md §13's 5.
+    "fine160": [
+        ("conv0", 3, 2, 1, 1, 8, True),
+        ("conv1", 3, 2, 1, 8, 8, True),
+    ] + _BASE[1:],
 }
+# Camera pixels per input pixel (each way) of each net; every other net 4.
+POOLS = {"fine160": 2}
 NET = "base"
 LAYERS = NETS[NET]
 HEAD_CHANNELS = 12
@@ -67,10 +81,12 @@ def select(name):
     """Make `name` (a key of NETS) the network every function here and the
     scripts describe; a checkpoint records its net (export.load_checkpoint
     selects it), the committed one has none and is "base"."""
-    global NET, LAYERS
+    global NET, LAYERS, POOL, INPUT
     if name not in NETS:
         raise ValueError(f"unknown network {name!r} (known: {', '.join(NETS)})")
     NET, LAYERS = name, NETS[name]
+    POOL = POOLS.get(name, 4)
+    INPUT = CAMERA // POOL
 
 # The head's int16 output units (in the float head's units): objectness in
 # 1/64 logit, offsets in 1/16 camera pixel (1/(16 CELL_PX) cell), distance
@@ -125,15 +141,16 @@ def read_pgm(path):
 
 
 def downsample(images):
-    """(n, 320, 320) uint8 -> (n, 80, 80) uint8: the rounded mean of each 4x4
-    block, (sum + 8) >> 4, exactly as the firmware does it."""
-    n = images.shape[0]
+    """(n, 320, 320) uint8 -> (n, INPUT, INPUT) uint8: the rounded mean of
+    each POOL x POOL block, (sum + POOL^2 / 2) >> log2(POOL^2): for the 80x80
+    input (sum + 8) >> 4, exactly as the firmware does it."""
+    n, area = images.shape[0], POOL * POOL
     s = images.reshape(n, INPUT, POOL, INPUT, POOL).astype(np.int32).sum(axis=(2, 4))
-    return ((s + 8) >> 4).astype(np.uint8)
+    return ((s + area // 2) // area).astype(np.uint8)
 
 
 def to_int8(small):
-    """(n, 80, 80) uint8 -> (n, 80, 80, 1) int8: pixel - 128."""
+    """(n, INPUT, INPUT) uint8 -> (n, INPUT, INPUT, 1) int8: pixel - 128."""
     return (small.astype(np.int16) - 128).astype(np.int8)[..., None]
 
 
@@ -178,7 +195,7 @@ def read_gates(directory, files):
 
 
 def load_dataset(directory, limit=None):
-    """(inputs (n, 80, 80) uint8, labels) of a `cosim dataset` directory."""
+    """(inputs (n, INPUT, INPUT) uint8, labels) of a `cosim dataset` directory."""
     labels = read_labels(directory)[:limit]
     small = np.empty((len(labels), INPUT, INPUT), dtype=np.uint8)
     for i, r in enumerate(labels):

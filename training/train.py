@@ -4,11 +4,12 @@ CPU with JAX + optax, seeded; writes the float checkpoint (framework-neutral
 
     python3 training/train.py --data DIR [DIR ...] --out training/checkpoint.npz \
         [--epochs 12] [--seed 0] [--heldout DIR] [--bn] [--init NPZ] [--max-seconds S] \
-        [--net base|wide]
+        [--net base|wide|fine160]
 
 --net picks the shape (netdef.NETS; "base" is the committed network); a
 checkpoint of another shape records it, and export.py, evaluate.py and the
-others then describe that shape.
+others then describe that shape (fine160: a 160x160 input, cached as
+DIR/inputs160.npy).
 
 --init starts from a checkpoint (or a --bn run's OUT-bn.npz), layer by layer
 where the shapes match, so a new shape can reuse an older network's first
@@ -187,7 +188,7 @@ def conv(x, w, s, p):
 
 
 def forward(params, x, keep=False):
-    """x: (n, 80, 80, 1) float (int8 input / 128). Returns the head (n, 5, 5, 12)
+    """x: (n, INPUT, INPUT, 1) float (int8 input / 128). Returns the head (n, 5, 5, 12)
     and, with keep, every ReLU output."""
     acts = []
     for name, _, s, p, _, _, relu in netdef.LAYERS:
@@ -267,14 +268,49 @@ def embed(fresh, stored):
     return out
 
 
-def load_init(path, params):
+def refine(params, calib):
+    """fine160's conv0 and conv1 (netdef) started from an 80x80 network's
+    conv1, already embedded by load_init in conv1's input channel 0: conv0's
+    channels 0 and 1 compute +- the 2x2 mean of the 160x160 input under the
+    window's lower-right 2x2 taps (for output pixel i, input rows 2i and
+    2i+1: the 4x4 block of the 80x80 input pixel i), so that
+    relu(c0) - relu(c1) is the 80x80 input, and conv1 weighs channel 1 with
+    minus the stored weights. The network then computes the 80x80 network's
+    function on the 160x160 input (up to the 80x80 input's rounding, and
+    with batch norm to conv0's batch statistics: gamma and beta are set from
+    `calib`'s so that conv0's normalisation is about the identity). conv0's
+    other 6 channels reach conv1 through zero weights, as embed's new
+    channels do."""
+    w0 = np.array(params["conv0"]["w"])  # HWIO (3, 3, 1, 8), fresh
+    w0[..., :2] = 0.0
+    w0[1:, 1:, 0, 0] = 0.25
+    w0[1:, 1:, 0, 1] = -0.25
+    layer0 = {"w": jnp.asarray(w0), "b": np.array(params["conv0"]["b"])}
+    if "gamma" in params["conv0"]:
+        gamma = np.array(params["conv0"]["gamma"])
+        z = np.asarray(conv(jnp.asarray(calib), jnp.asarray(w0[..., :1]), 2, 1)).astype(np.float64)
+        mean, std = z.mean(), np.sqrt(z.var() + BN_EPS)
+        gamma[:2] = std
+        layer0["b"][:2] = (mean, -mean)
+        layer0["gamma"] = jnp.asarray(gamma)
+    else:
+        layer0["b"][:2] = 0.0
+    layer0["b"] = jnp.asarray(layer0["b"])
+    w1 = np.array(params["conv1"]["w"])  # (3, 3, 8, 8), the stored in input channel 0
+    w1[:, :, 1, :] = -w1[:, :, 0, :]
+    return {**params, "conv0": layer0, "conv1": {**params["conv1"], "w": jnp.asarray(w1)}}
+
+
+def load_init(path, params, calib=None):
     """params with every layer that `path` holds in the same shape replaced
     by the stored one (a further cycle, or a new shape started from an older
     network's matching layers), and every layer it holds narrower (fewer
     input or output channels, same kernel) embedded in the new one (embed;
     the per-channel bias and gamma of the new channels fresh); the others
     keep their fresh initialisation. `path` is a checkpoint (OHWI weights)
-    or a --bn run's unfolded network (raw_path's file, HWIO and gamma)."""
+    or a --bn run's unfolded network (raw_path's file, HWIO and gamma).
+    A fine160 network (a conv0) from an 80x80 one (none) is refined (refine,
+    with the float inputs `calib`) to start as the stored network's function."""
     out, loaded, widened = {}, [], []
     with np.load(path) as z:
         raw = "conv1.gamma" in z.files
@@ -299,16 +335,21 @@ def load_init(path, params):
                 widened.append(name)
             else:
                 out[name] = layer
+    refined = "conv0" in params and "conv0" not in loaded and "conv1" in widened
+    if refined:
+        out = refine(out, calib)
     print(f"from {path}: {', '.join(loaded) or 'no layer'}"
-          + (f"; widened: {', '.join(widened)}" if widened else ""), flush=True)
+          + (f"; widened: {', '.join(widened)}" if widened else "")
+          + ("; conv0 and conv1 refined from conv1" if refined else ""), flush=True)
     return out
 
 
 def load_inputs(directory):
-    """A dataset's 80x80 inputs, cached beside it (inputs80.npy) after the
-    first read: 100,000 PGMs take minutes to decode, the cache a second."""
+    """A dataset's inputs at the selected net's resolution, cached beside it
+    (inputs80.npy, inputs160.npy) after the first read: 100,000 PGMs take
+    minutes to decode, the cache a second."""
     labels = netdef.read_labels(directory)
-    cache = os.path.join(directory, "inputs80.npy")
+    cache = os.path.join(directory, f"inputs{netdef.INPUT}.npy")
     if os.path.exists(cache):
         small = np.load(cache)
         if len(small) == len(labels):
@@ -321,8 +362,8 @@ def load_inputs(directory):
 def batch_inputs(small, idx, n, rng, gain, offset):
     """The float inputs of samples idx (idx >= n: image idx - n mirrored
     left-right), each with a random brightness gain and offset (photometric
-    augmentation) applied to the 80x80 uint8 image, rounded and clipped as
-    a real image would be."""
+    augmentation) applied to the input's uint8 image, rounded and clipped as
+    a real image would be. `rng` may be None without augmentation."""
     x = small[idx % n].astype(np.float32)
     flip = idx >= n
     x[flip] = x[flip, :, ::-1]
@@ -383,7 +424,8 @@ def main():
     key = jax.random.PRNGKey(a.seed)
     params = init(key, a.bn)
     if a.init:
-        params = load_init(a.init, params)
+        calib = batch_inputs(small, np.arange(min(n, 1024)), n, None, 0.0, 0.0)
+        params = load_init(a.init, params, calib)
     steps_per_epoch = 2 * n // a.batch
     total_steps = a.epochs * steps_per_epoch
     if a.warmup:

@@ -199,12 +199,7 @@ def test_a_checkpoint_selects_its_network(tmp_path, base_net):
     export.load_checkpoint(export.DEFAULT_CHECKPOINT)
     assert netdef.NET == "base" and sum(netdef.macs()) == 3_360_000
     netdef.select("wide")
-    rng = np.random.default_rng(0)
-    ckpt = {f"{n}.{p}": rng.normal(0.0, 0.1, s).astype(np.float32)
-            for n, k, _, _, cin, cout, _ in netdef.LAYERS
-            for p, s in (("w", (cout, k, k, cin)), ("b", (cout,)))}
-    ckpt["act_max"] = np.ones(len(netdef.LAYERS) - 1)
-    ckpt["net"] = np.array("wide")
+    ckpt = _random_checkpoint("wide")
     ckpt["meta"] = np.array(json.dumps({"command": "test"}))
     np.savez(tmp_path / "wide.npz", **ckpt)
     netdef.select("base")
@@ -246,3 +241,92 @@ def test_widening_keeps_the_network(tmp_path, base_net):
     assert np.any(np.asarray(wide["conv6"]["w"])[..., 64:] != 0)  # new channels are not dead
     got = np.asarray(train.forward(wide, x))
     assert np.abs(got - want).max() < 1e-4 * np.abs(want).max()
+
+
+def test_the_fine_net_takes_a_160_input_of_2x2_means(base_net):
+    """NETS["fine160"]: the 160x160 input (the rounded mean of each 2x2
+    block, half up), within DESIGN.md §13's 5 MMAC, the base network's 5x5
+    grid and 12 head channels; selecting "base" again gives the 80x80."""
+    netdef.select("fine160")
+    assert (netdef.POOL, netdef.INPUT, netdef.GRID) == (2, 160, 5)
+    assert sum(netdef.macs()) == 4_627_200 <= 5_000_000
+    assert netdef.geometry()[-1][2:] == (5, 5) and netdef.LAYERS[-1][5] == 12
+    img = np.zeros((1, 320, 320), np.uint8)
+    img[0, :2, 0] = 1  # sum 2 -> (2+2)>>2 = 1 (half up)
+    img[0, 0, 2] = 1  # sum 1 -> (1+2)>>2 = 0
+    img[0, :2, 4:6] = 255  # sum 1020 -> 255
+    small = netdef.downsample(img)
+    assert small.shape == (1, 160, 160) and small[0, 0, :3].tolist() == [1, 0, 255]
+    head = int8_ref.head_int8(export.quantize(_random_checkpoint("fine160")),
+                              netdef.to_int8(small))
+    assert head.shape == (1, 5, 5, netdef.HEAD_CHANNELS)
+    netdef.select("base")
+    assert (netdef.POOL, netdef.INPUT) == (4, 80)
+
+
+def _random_checkpoint(net):
+    """A checkpoint of netdef's selected shape with random weights."""
+    rng = np.random.default_rng(0)
+    ckpt = {f"{n}.{p}": rng.normal(0.0, 0.1, s).astype(np.float32)
+            for n, k, _, _, cin, cout, _ in netdef.LAYERS
+            for p, s in (("w", (cout, k, k, cin)), ("b", (cout,)))}
+    ckpt["act_max"] = np.ones(len(netdef.LAYERS) - 1)
+    ckpt["net"] = np.array(net)
+    return ckpt
+
+
+def test_refining_keeps_the_network(tmp_path, base_net):
+    """train.load_init of a base network's unfolded checkpoint into the
+    fine160 shape (train.refine): on a 160x160 input the fine network
+    computes what the base network computes on its 2x2 means (the 80x80
+    input), batch norm included when conv0's statistics are those of the
+    batch (needs JAX)."""
+    pytest.importorskip("jax")
+    import jax
+    import jax.numpy as jnp
+
+    import train
+
+    netdef.select("base")
+    params = train.init(jax.random.PRNGKey(0), bn=True)
+    rng = np.random.default_rng(1)
+    for layer in params.values():
+        layer["b"] = jnp.asarray(rng.normal(0.0, 0.3, layer["b"].shape), jnp.float32)
+        if "gamma" in layer:
+            layer["gamma"] = jnp.asarray(rng.uniform(0.5, 2.0, layer["gamma"].shape), jnp.float32)
+    np.savez(tmp_path / "base-bn.npz", **{f"{n}.{k}": np.asarray(v)
+                                         for n, layer in params.items() for k, v in layer.items()})
+    fine_x = rng.normal(0.0, 0.5, (16, 160, 160, 1)).astype(np.float32)
+    coarse_x = fine_x.reshape(16, 80, 2, 80, 2, 1).mean(axis=(2, 4))
+    want = np.asarray(train.forward(params, coarse_x))
+    netdef.select("fine160")
+    fine = train.load_init(str(tmp_path / "base-bn.npz"),
+                           train.init(jax.random.PRNGKey(2), bn=True), fine_x)
+    assert np.any(np.asarray(fine["conv0"]["w"])[..., 2:] != 0)  # new channels are not dead
+    got = np.asarray(train.forward(fine, fine_x))
+    assert np.abs(got - want).max() < 1e-3 * np.abs(want).max()
+
+
+def test_quant_loss_emulates_the_exports_grids():
+    """quant_loss.py: the weights it rounds are export.quantize's int8
+    weights times their scale; nothing rounded is the float network; every
+    layer rounded comes four times nearer the int8 reference's head on the
+    golden images than the float network does (the bias and head roundings
+    are not emulated)."""
+    import quant_loss
+
+    ckpt = export.load_checkpoint(export.DEFAULT_CHECKPOINT)
+    q = export.quantize(ckpt)
+    for (name, *_), layer in zip(netdef.LAYERS, q):
+        w = ckpt[f"{name}.w"].astype(np.float64)
+        s = np.abs(w).reshape(len(w), -1).max(axis=1) / 127.0
+        assert np.allclose(quant_loss.rounded_weights(w) / s[:, None, None, None], layer["w"])
+    small, _ = netdef.load_dataset(make_golden.GOLDEN)
+    x = netdef.to_int8(small)
+    float_head = int8_ref.float_forward(ckpt, x.astype(np.float64) / 128)
+    assert np.allclose(quant_loss.forward(ckpt, x), float_head)
+    every = set(range(len(netdef.LAYERS)))
+    emulated = quant_loss.forward(ckpt, x, weights=every, outputs=every)
+    int8_head = int8_ref.heads_batch(q, x) * netdef.HEAD_UNITS
+    # Measured: 0.19 against the float network's 1.25 (objectness logits).
+    assert np.abs(emulated - int8_head).max() < 0.25 * np.abs(float_head - int8_head).max()
