@@ -213,12 +213,11 @@ def test_a_checkpoint_selects_its_network(tmp_path, base_net):
         netdef.select("huge")
 
 
-def test_widening_keeps_the_network(tmp_path, base_net):
-    """train.load_init from a narrower network's unfolded checkpoint: the
-    wide network computes what the stored one does (the new channels reach
-    the head through zero weights), batch norm's batch statistics included
-    (needs JAX; skipped where only numpy is installed)."""
-    pytest.importorskip("jax")
+def _saved_base_bn(path):
+    """A base network with batch normalisation, random non-zero biases and
+    scales, saved unfolded at `path` as train.py saves OUT-bn.npz (needs
+    JAX): its parameters and the generator that drew them, for the test's
+    further draws."""
     import jax
     import jax.numpy as jnp
 
@@ -231,8 +230,22 @@ def test_widening_keeps_the_network(tmp_path, base_net):
         layer["b"] = jnp.asarray(rng.normal(0.0, 0.3, layer["b"].shape), jnp.float32)
         if "gamma" in layer:
             layer["gamma"] = jnp.asarray(rng.uniform(0.5, 2.0, layer["gamma"].shape), jnp.float32)
-    np.savez(tmp_path / "base-bn.npz", **{f"{n}.{k}": np.asarray(v)
-                                         for n, layer in params.items() for k, v in layer.items()})
+    np.savez(path, **{f"{n}.{k}": np.asarray(v)
+                      for n, layer in params.items() for k, v in layer.items()})
+    return params, rng
+
+
+def test_widening_keeps_the_network(tmp_path, base_net):
+    """train.load_init from a narrower network's unfolded checkpoint: the
+    wide network computes what the stored one does (the new channels reach
+    the head through zero weights), batch norm's batch statistics included
+    (needs JAX; skipped where only numpy is installed)."""
+    pytest.importorskip("jax")
+    import jax
+
+    import train
+
+    params, rng = _saved_base_bn(tmp_path / "base-bn.npz")
     x = rng.normal(0.0, 0.5, (16, netdef.INPUT, netdef.INPUT, 1)).astype(np.float32)
     want = np.asarray(train.forward(params, x))
     netdef.select("wide")
@@ -283,19 +296,10 @@ def test_refining_keeps_the_network(tmp_path, base_net):
     batch (needs JAX)."""
     pytest.importorskip("jax")
     import jax
-    import jax.numpy as jnp
 
     import train
 
-    netdef.select("base")
-    params = train.init(jax.random.PRNGKey(0), bn=True)
-    rng = np.random.default_rng(1)
-    for layer in params.values():
-        layer["b"] = jnp.asarray(rng.normal(0.0, 0.3, layer["b"].shape), jnp.float32)
-        if "gamma" in layer:
-            layer["gamma"] = jnp.asarray(rng.uniform(0.5, 2.0, layer["gamma"].shape), jnp.float32)
-    np.savez(tmp_path / "base-bn.npz", **{f"{n}.{k}": np.asarray(v)
-                                         for n, layer in params.items() for k, v in layer.items()})
+    params, rng = _saved_base_bn(tmp_path / "base-bn.npz")
     fine_x = rng.normal(0.0, 0.5, (16, 160, 160, 1)).astype(np.float32)
     coarse_x = fine_x.reshape(16, 80, 2, 80, 2, 1).mean(axis=(2, 4))
     want = np.asarray(train.forward(params, coarse_x))

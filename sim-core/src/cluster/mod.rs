@@ -695,7 +695,6 @@ impl Cluster {
                 if let Some(t) = mem.tcdm.as_mut() {
                     t.retire(self.sh.arbiter_floor(self.cfg.clock.period()));
                 }
-                let core = &mut self.cores[who];
                 let mut bus = CoreBus {
                     sh: &mut self.sh,
                     core: who,

@@ -105,8 +105,8 @@ pub(crate) struct Ctx {
     pub l1_code_lo: u64,
     pub l1_code_hi: u64,
     /// The bank arbiter's masks and this core's port's counts
-    /// ([`Tcdm::raw_parts`](crate::cluster::tcdm::Tcdm::raw_parts)), for the inline grant (null: no arbitration,
-    /// the FC's view of L1).
+    /// ([`Tcdm::raw_parts`](crate::cluster::tcdm::Tcdm::raw_parts)), for
+    /// the inline grant (null: no arbitration, the FC's view of L1).
     pub l1_granted: *mut u16,
     pub l1_port_stats: *mut PortStats,
     /// Stall cycles of the conflicts translated code resolved itself
