@@ -565,6 +565,15 @@ impl Cluster {
         self.cores.iter().map(|c| c.stats()).collect()
     }
 
+    /// Each core's instructions retired in translated code
+    /// ([`Cpu::translated_instructions`]).
+    pub fn translated_instructions(&self) -> Vec<u64> {
+        self.cores
+            .iter()
+            .map(|c| c.translated_instructions())
+            .collect()
+    }
+
     /// Each core's figures so far.
     pub fn report(&self, mem: &Memory) -> Vec<CoreReport> {
         let l1 = mem.tcdm.as_ref().map(|t| t.stats).unwrap_or_default();

@@ -5,7 +5,7 @@
 
 use super::*;
 use crate::iss::jit::ctx::{Bounds, Ctx, L1_PATH, NO_TOHOST};
-use crate::iss::jit::JitCache;
+use crate::iss::jit::{Flavour, JitCache};
 
 /// Cycles the interpreter runs, having started on a block the translator
 /// does not take, before it hands back (a Rust round trip costs about a
@@ -64,14 +64,20 @@ impl Cpu {
             // interpreted.
             return Translated::Uncovered;
         }
-        let Some(e) = jit.entry(&mem.regions, &mem.insts, region, off as usize, first, l1) else {
+        // The FC and the cores each run their own flavour of a block they
+        // share (`jit::Flavour`).
+        let flavour = Flavour::of(l1);
+        let Some(e) = jit.entry(
+            &mem.regions,
+            &mem.insts,
+            region,
+            off as usize,
+            first,
+            flavour,
+        ) else {
             return Translated::Uncovered;
         };
-        if e.nmem & L1_PATH != 0 && !l1 {
-            // A cluster core's translation (its grants assume a port on
-            // the arbiter, `emit::mem::grant`): the FC interprets it.
-            return Translated::Uncovered;
-        }
+        debug_assert!(l1 || e.nmem & L1_PATH == 0, "the FC got a core's flavour");
         // The L1 (the cluster's TCDM): its data, bounds and cached code,
         // and the bank arbiter if this core has a port on it.
         let (l1_ptr, l1_size, l1_code) = match mem
@@ -144,7 +150,7 @@ impl Cpu {
             load_mask: 0,
             code_base: r.base as u64,
             code_size: r.size as u64,
-            table: jit.table(region),
+            table: jit.table(region, flavour),
             cycles: 0,
             retired: 0,
         };
@@ -164,13 +170,14 @@ impl Cpu {
         self.cycles = ctx.cycles;
         self.pc = ctx.exit_pc as u32;
         self.instret += retired;
+        self.translated += retired;
         self.jumps += ctx.jumps;
         if retired == 0 {
             // Left before the block's first instruction (an access the
             // fast path does not do): nothing happened, the interpreter
             // does this block.
             self.cycles = entry;
-            jit.demote(region, off as usize);
+            jit.demote(region, off as usize, flavour);
             return Translated::Uncovered;
         }
         self.load_mask = ctx.load_mask as u32;

@@ -98,6 +98,9 @@ pub struct Cpu {
     /// not in `Hot`: it changes only on taken transfers, and the hot loop
     /// is short of host registers already.
     jumps: u64,
+    /// Instructions retired in translated code (`jit_run.rs`); the rest of
+    /// `instret` the interpreter retired or idle skipping jumped over.
+    translated: u64,
     stats: CoreStats,
     /// One-hot mask of the register the previous instruction loaded (0 if
     /// it was not a load or loaded x0): the load-use stall check.
@@ -166,6 +169,7 @@ impl Cpu {
             cycles: 0,
             instret: 0,
             jumps: 0,
+            translated: 0,
             stats: CoreStats::default(),
             load_mask: 0,
             sleeping: false,
@@ -295,6 +299,14 @@ impl Cpu {
             cycles: self.cycles,
             ..self.stats
         }
+    }
+
+    /// Instructions retired in translated code so far (0 under the
+    /// interpreter): how much of a run the translator took, for tests and
+    /// profiling. Not part of [`CoreStats`], which both back ends give
+    /// alike.
+    pub fn translated_instructions(&self) -> u64 {
+        self.translated
     }
 
     /// Whether the core is asleep in `wfi`.

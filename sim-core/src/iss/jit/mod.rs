@@ -90,13 +90,14 @@ pub(crate) struct JitCache {
     enter: usize,
     /// Bytes of the stubs at the buffer's start (kept on a flush).
     stub_bytes: usize,
-    /// Per RAM region, one [`Entry`] per halfword (empty until used),
-    /// stored as its two little-endian words so the allocation is a
-    /// zeroed one (`calloc`: the OS backs only the pages that get code).
-    tables: Vec<Vec<[u64; 2]>>,
-    /// Jumps waiting for a target to be translated: target pc → host
-    /// addresses of their rel32 fields.
-    pending: std::collections::HashMap<u32, Vec<usize>>,
+    /// Per flavour ([`Flavour`]), per RAM region, one [`Entry`] per
+    /// halfword (empty until used), stored as its two little-endian words
+    /// so the allocation is a zeroed one (`calloc`: the OS backs only the
+    /// pages that get code).
+    tables: [Vec<Vec<[u64; 2]>>; 2],
+    /// Per flavour, jumps waiting for a target to be translated: target
+    /// pc → host addresses of their rel32 fields.
+    pending: [std::collections::HashMap<u32, Vec<usize>>; 2],
     /// `COSIM_PERF_MAP` set: every translation is listed in
     /// `/tmp/perf-PID.map` (the format `perf report` reads for JIT code),
     /// named by its guest pc, so a profile shows which guest code the
@@ -114,6 +115,29 @@ impl std::fmt::Debug for JitCache {
             .field("buf", &self.buf)
             .field("translated", &self.translated)
             .finish_non_exhaustive()
+    }
+}
+
+/// Which of a block's two translations: with an L1 path (a cluster core's,
+/// its loads and stores granted by the bank arbiter inline) or without
+/// (the FC's, whose L1 accesses are another region's). Code the FC and
+/// the cores share (`memset`, `memcpy`) gets both: with one table, the
+/// flavour translated first served the other badly (a core's `memset`
+/// into L1 left the FC's translation at its first store, was demoted and
+/// ran interpreted from then on).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Flavour {
+    Plain = 0,
+    L1 = 1,
+}
+
+impl Flavour {
+    pub fn of(l1: bool) -> Flavour {
+        if l1 {
+            Flavour::L1
+        } else {
+            Flavour::Plain
+        }
     }
 }
 
@@ -188,7 +212,7 @@ impl JitCache {
                 leave,
             },
             enter,
-            tables: Vec::new(),
+            tables: Default::default(),
             pending: Default::default(),
             translated: 0,
             flushes: 0,
@@ -217,15 +241,19 @@ impl JitCache {
 
     /// Drop every translation (the block cache was flushed).
     pub fn flush(&mut self) {
-        self.tables.clear();
-        self.pending.clear();
+        for t in &mut self.tables {
+            t.clear();
+        }
+        for p in &mut self.pending {
+            p.clear();
+        }
         self.buf.truncate(self.stub_bytes);
         self.flushes += 1;
     }
 
     /// The region table's base (for [`Ctx::table`]); null if unused yet.
-    pub fn table(&self, region: usize) -> *const Entry {
-        self.tables
+    pub fn table(&self, region: usize, flavour: Flavour) -> *const Entry {
+        self.tables[flavour as usize]
             .get(region)
             .filter(|t| !t.is_empty())
             .map_or(std::ptr::null(), |t| t.as_ptr() as *const Entry)
@@ -243,16 +271,16 @@ impl JitCache {
         region: usize,
         off: usize,
         first: usize,
-        l1: bool,
+        flavour: Flavour,
     ) -> Option<Entry> {
-        if self.tables.len() <= region {
-            self.tables
-                .resize_with(regions.len().max(region + 1), Vec::new);
+        let f = flavour as usize;
+        if self.tables[f].len() <= region {
+            self.tables[f].resize_with(regions.len().max(region + 1), Vec::new);
         }
-        if self.tables[region].is_empty() {
-            self.tables[region] = vec![[0u64; 2]; regions[region].size as usize / 2];
+        if self.tables[f][region].is_empty() {
+            self.tables[f][region] = vec![[0u64; 2]; regions[region].size as usize / 2];
         }
-        let e = unpack(self.tables[region][off >> 1]);
+        let e = unpack(self.tables[f][region][off >> 1]);
         if e.code != 0 {
             return Some(e);
         }
@@ -265,9 +293,9 @@ impl JitCache {
         // with the careful variant).
         if !self.buf.fits(128 * 1024) {
             self.flush();
-            return self.entry(regions, insts, region, off, first, l1);
+            return self.entry(regions, insts, region, off, first, flavour);
         }
-        let tables = &self.tables;
+        let tables = &self.tables[f];
         let known = |pc: u32| {
             let r = regions.iter().position(|r| r.offset_of(pc, 2).is_some())?;
             let o = pc.wrapping_sub(regions[r].base) as usize;
@@ -285,9 +313,9 @@ impl JitCache {
             self.stubs,
             &known,
             &first_reads,
-            l1,
+            flavour == Flavour::L1,
         ) else {
-            self.tables[region][off >> 1] = pack(UNCOVERED);
+            self.tables[f][region][off >> 1] = pack(UNCOVERED);
             return None;
         };
         let code = self.buf.push(&t.code);
@@ -306,11 +334,11 @@ impl JitCache {
             }
         }
         for (to, off) in t.patches {
-            self.pending.entry(to).or_default().push(code + off);
+            self.pending[f].entry(to).or_default().push(code + off);
         }
         // Jumps that waited for this block now go straight to it.
         let pc = regions[region].base.wrapping_add(off as u32);
-        for site in self.pending.remove(&pc).unwrap_or_default() {
+        for site in self.pending[f].remove(&pc).unwrap_or_default() {
             self.buf.patch_rel32(site, code);
         }
         let code = code as u64;
@@ -320,7 +348,7 @@ impl JitCache {
             nmem: t.nmem,
             careful: t.careful,
         };
-        self.tables[region][off >> 1] = pack(e);
+        self.tables[f][region][off >> 1] = pack(e);
         self.translated += 1;
         Some(e)
     }
@@ -330,9 +358,8 @@ impl JitCache {
     /// not do (a device, another RAM region, cached code), which would
     /// otherwise leave translated code at once every time. Jumps already
     /// patched to it still enter it, and leave at once as before.
-    pub fn demote(&mut self, region: usize, off: usize) {
-        if let Some(e) = self
-            .tables
+    pub fn demote(&mut self, region: usize, off: usize, flavour: Flavour) {
+        if let Some(e) = self.tables[flavour as usize]
             .get_mut(region)
             .and_then(|t| t.get_mut(off >> 1))
         {
