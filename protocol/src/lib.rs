@@ -44,6 +44,7 @@ pub mod dump;
 mod endpoint;
 mod error;
 pub mod frame;
+pub mod heap;
 mod image;
 mod message;
 pub mod radio;

@@ -38,6 +38,7 @@ fn init_logs(default_directive: &str) {
 }
 
 fn main() {
+    protocol::heap::keep_freed_memory();
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::RunElf(args)) => {

@@ -32,7 +32,16 @@ pub(super) enum Translated {
 impl Cpu {
     /// Run the block at `self.pc` (`mem.insts[first]` its first
     /// instruction) and the translated blocks it chains to.
-    pub(super) fn run_translated(&mut self, mem: &mut Memory, first: usize) -> Translated {
+    ///
+    /// `window`: the device registers that read like memory
+    /// (`Mmio::plain_window`), which the FC's translations read as the
+    /// interpreter does (`emit::mem::window_load`).
+    pub(super) fn run_translated(
+        &mut self,
+        mem: &mut Memory,
+        first: usize,
+        window: Option<(u32, &[u8])>,
+    ) -> Translated {
         // `lookup` has just put the pc's region in the code window.
         let off = self.pc.wrapping_sub(self.code_base);
         if off >= self.code_size {
@@ -105,6 +114,21 @@ impl Cpu {
         } else {
             extra
         };
+        // A window load costs the device latency (no extra, no split
+        // cycle): without the L1 path every access is counted at no less
+        // (`emit::mem::window_load`).
+        let (win, win_latency) = match window {
+            Some((base, bytes)) if !l1 => (
+                (Bounds::new(base, bytes.len() as u64), bytes.as_ptr()),
+                self.latency,
+            ),
+            _ => ((Bounds::new(0, 0), std::ptr::null()), 0),
+        };
+        let (extra_counted, worst_extra) = if l1 {
+            (extra, worst_extra)
+        } else {
+            (extra.max(win_latency), worst_extra.max(win_latency))
+        };
         let stall = self.entry_stall(&mem.insts, first);
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
@@ -112,14 +136,15 @@ impl Cpu {
         // cluster core's translation) runs to the deadline itself: the
         // interpreter's test for this first instruction, `entry <
         // deadline`, is `run_block`'s loop condition.
-        let code = if cycles.saturating_add(e.worst_case(extra, worst_extra)) < self.deadline {
-            e.code
-        } else if e.careful != 0 {
-            debug_assert!(entry < self.deadline);
-            e.code + e.careful as u64
-        } else {
-            return Translated::TooLong;
-        };
+        let code =
+            if cycles.saturating_add(e.worst_case(extra_counted, worst_extra)) < self.deadline {
+                e.code
+            } else if e.careful != 0 {
+                debug_assert!(entry < self.deadline);
+                e.code + e.careful as u64
+            } else {
+                return Translated::TooLong;
+            };
         let fast = Bounds::new(r.base, if banked { 0 } else { r.size as u64 });
         let l1 = Bounds::new(t.l1.0, l1_size);
         let mut ctx = Ctx {
@@ -140,6 +165,10 @@ impl Cpu {
             l1_last: l1.last,
             l1_code_lo: l1_code.0 as u64,
             l1_code_hi: l1_code.1 as u64,
+            win_ptr: win.1,
+            win_base: win.0.base,
+            win_last: win.0.last,
+            win_latency,
             l1_granted,
             l1_port_stats,
             l1_stalls: 0,

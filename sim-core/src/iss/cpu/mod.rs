@@ -503,7 +503,13 @@ impl Cpu {
         // reports short backward branches as the interpreter does).
         #[cfg(target_arch = "x86_64")]
         let deadline = if self.cfg.iss == Backend::Jit && !self.poll.active {
-            match self.run_translated(mem, first) {
+            // The FC's translations read the device window (a core has none).
+            let window = if self.mem_timing.l1_port.is_none() {
+                dev.plain_window()
+            } else {
+                None
+            };
+            match self.run_translated(mem, first, window) {
                 jit_run::Translated::Ran => return Exit::Paused,
                 jit_run::Translated::Poll { from, to } => return Exit::Poll { from, to },
                 // The interpreter does what the translator does not take,

@@ -104,6 +104,16 @@ pub(crate) struct Ctx {
     pub l1_last: [u64; 3],
     pub l1_code_lo: u64,
     pub l1_code_hi: u64,
+    /// The device registers that read like memory (`Mmio::plain_window`,
+    /// the camera's image): host address of their bytes, guest base and
+    /// last offsets ([`Bounds`]; base [`NO_REGION`]: none), and what a
+    /// load there costs beyond its cycle (`Cpu::latency`, as
+    /// `exec::Run::window_load` charges). Only the FC's translations read
+    /// it (`emit::mem::window_load`).
+    pub win_ptr: *const u8,
+    pub win_base: u64,
+    pub win_last: [u64; 3],
+    pub win_latency: u64,
     /// The bank arbiter's masks and this core's port's counts
     /// ([`Tcdm::raw_parts`](crate::cluster::tcdm::Tcdm::raw_parts)), for
     /// the inline grant (null: no arbitration, the FC's view of L1).
@@ -226,6 +236,10 @@ pub(crate) const L1_SIZE: i32 = offset_of!(Ctx, l1_size) as i32;
 pub(crate) const L1_LAST: i32 = offset_of!(Ctx, l1_last) as i32;
 pub(crate) const L1_CODE_LO: i32 = offset_of!(Ctx, l1_code_lo) as i32;
 pub(crate) const L1_CODE_HI: i32 = offset_of!(Ctx, l1_code_hi) as i32;
+pub(crate) const WIN_PTR: i32 = offset_of!(Ctx, win_ptr) as i32;
+pub(crate) const WIN_BASE: i32 = offset_of!(Ctx, win_base) as i32;
+pub(crate) const WIN_LAST: i32 = offset_of!(Ctx, win_last) as i32;
+pub(crate) const WIN_LATENCY: i32 = offset_of!(Ctx, win_latency) as i32;
 pub(crate) const POLL_ARMED: i32 = offset_of!(Ctx, poll_armed) as i32;
 pub(crate) const POLL_FROM: i32 = offset_of!(Ctx, poll_from) as i32;
 pub(crate) const L1_GRANTED: i32 = offset_of!(Ctx, l1_granted) as i32;

@@ -28,7 +28,7 @@ use super::super::xcv::alu;
 use super::super::xcv::mem::base_op;
 use super::ctx::*;
 use super::helpers::{helper, is_div, MAX_DIV_EXTRA};
-use mem::{mem_op, out_of_line, L1Site};
+use mem::{mem_op, out_of_line, window_load, L1Site};
 
 mod mem;
 
@@ -61,6 +61,10 @@ pub(crate) fn covered(o: u8) -> bool {
 
 fn is_mem(o: u8) -> bool {
     (op::LB..=op::SW).contains(&o) || base_op(o).is_some()
+}
+
+fn is_store(o: u8) -> bool {
+    (op::SB..=op::SW).contains(&base_op(o).unwrap_or(o))
 }
 
 /// Offset of guest register `r` in the register file.
@@ -336,7 +340,11 @@ impl Block<'_> {
             self.taken_sides(a);
         }
         for (i, site) in &l1_sites {
-            out_of_line(a, i, site);
+            if self.l1 {
+                out_of_line(a, i, site);
+            } else {
+                window_load(a, i, site);
+            }
         }
     }
 
@@ -478,8 +486,11 @@ impl Block<'_> {
                     }
                 };
                 let back = a.new_dynamic_label();
+                // Without the L1 path a load may still read the device
+                // window out of line (`mem::window_load`); a store leaves.
+                let out = self.l1 || !is_store(o);
                 let site = L1Site {
-                    other: if self.l1 {
+                    other: if out {
                         a.new_dynamic_label()
                     } else {
                         self.exits[k]
@@ -498,7 +509,7 @@ impl Block<'_> {
                 };
                 mem_op(a, i, &site, self.l1);
                 dynasm!(a ; .arch x64 ; =>back);
-                if self.l1 {
+                if out {
                     l1_sites.push((*i, site));
                 }
             }

@@ -100,7 +100,7 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
     );
     grant(a, site);
     dynasm!(a ; .arch x64 ; mov r8, [rbx + L1_PTR]);
-    access(a, i, 8, Some(site));
+    access(a, i, 8, Some(site), true);
 }
 
 /// The fast region's access (`eax` = address; `rcx` = its offset there):
@@ -113,7 +113,7 @@ fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site) {
         site,
         (FAST_BASE, FAST_SIZE, FAST_LAST, CODE_LO, CODE_HI),
     );
-    access(a, i, 14, None);
+    access(a, i, 14, None, true);
     dynasm!(a ; .arch x64 ; add r13, rbp);
 }
 
@@ -162,7 +162,7 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
             ; =>site.ool
             ; mov r8, [rbx + L1_PTR]
         );
-        access(a, i, 8, None);
+        access(a, i, 8, None, true);
         recheck(a, site);
         dynasm!(a ; .arch x64 ; jmp =>site.back);
     }
@@ -185,6 +185,30 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
         recheck(a, site);
     }
     dynasm!(a ; .arch x64 ; jmp =>site.back);
+}
+
+/// A load outside the fast region in a translation without the L1 path
+/// (the FC's), out of line at `site.other`: from the device registers that
+/// read like memory (`Mmio::plain_window`: the camera's image, which the
+/// race firmware copies a word at a time) as `exec::Run::window_load`
+/// reads them: [`Ctx::win_latency`] cycles, no split cycle; elsewhere
+/// leave just before it. The checked entry counts every access at no less
+/// than the window's latency (`Cpu::run_translated`), so the block still
+/// fits. Rejoins at `site.back`.
+pub(super) fn window_load(a: &mut Asm, i: &Inst, site: &L1Site) {
+    let (_, n, store, _, _) = shape(i);
+    debug_assert!(!store, "stores do not go to the window");
+    let last = WIN_LAST + 8 * Bounds::index(n);
+    dynasm!(a ; .arch x64
+        ; =>site.other
+        ; mov ecx, eax
+        ; sub rcx, [rbx + WIN_BASE]
+        ; cmp rcx, [rbx + last]
+        ; ja =>site.exit
+        ; mov r8, [rbx + WIN_PTR]
+    );
+    access(a, i, 8, None, false);
+    dynasm!(a ; .arch x64 ; add r13, [rbx + WIN_LATENCY] ; jmp =>site.back);
 }
 
 /// The L1's extra cycles of an access at `eax` issued at `r13 + issue`
@@ -274,7 +298,7 @@ fn watched(a: &mut Asm, lo: i32, hi: i32, exit: dynasmrt::DynamicLabel) {
 /// The access itself at host address `base + rcx` (`eax` = the guest
 /// address), the base register's write-back, the loaded value and the
 /// split cycle.
-fn access(a: &mut Asm, i: &Inst, base: u8, site: Option<&L1Site>) {
+fn access(a: &mut Asm, i: &Inst, base: u8, site: Option<&L1Site>, split: bool) {
     let (o, n, store, m, opnd) = shape(i);
     let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
     let imm = i.imm as i32;
@@ -311,7 +335,8 @@ fn access(a: &mut Asm, i: &Inst, base: u8, site: Option<&L1Site>) {
     // word, any misaligned one (out of line at `site.split` where there
     // is one); else ((addr & 3) + n + 3) >> 3 is 1 exactly when
     // (addr & 3) + n > 4.
-    if let (4, Some(site)) = (n, site) {
+    if !split {
+    } else if let (4, Some(site)) = (n, site) {
         dynasm!(a ; .arch x64 ; test al, 3 ; jnz =>site.split ; =>site.split_back);
     } else if n > 1 {
         dynasm!(a ; .arch x64
