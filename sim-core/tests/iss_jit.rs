@@ -329,6 +329,20 @@ fn dot_product_runs_agree_with_the_interpreter() {
         dot(sdotsp, 29, 11, 0), // with x0
         i(1, 11, 0, 11, 0x13),  // addi x11, x11, 1 between two
         dot(sdotsp, 30, 11, 12),
+        // Pairs done together (`emit::dot_b_pair`), and the ones that must
+        // not be: the second reads what the first writes,
+        dot(sdotsp, 5, 12, 13),
+        dot(sdotsp, 6, 12, 5),
+        // both accumulate into one register,
+        dot(sdotsp, 7, 13, 14),
+        dot(sdotsp, 7, 13, 15),
+        // unsigned second operands,
+        dot(sdotup, 8, 14, 15),
+        dot(sdotup, 9, 14, 10),
+        // the second writes the shared operand, which the third reads.
+        dot(dotsp, 4, 15, 12),
+        dot(dotsp, 15, 15, 13),
+        dot(dotsp, 31, 15, 14),
         0x0000_006f, // j .
     ]);
     let jit = straight_line_agrees(&prog);

@@ -152,6 +152,7 @@ pub(crate) fn translate(
     let mut blk = Block {
         b,
         xmm2: None,
+        paired: false,
         n,
         at,
         stubs,
@@ -241,6 +242,9 @@ struct Block<'a> {
     /// operand (`dot_b`); only in the checked variant, which is entered
     /// at its start alone.
     xmm2: Option<(u8, bool)>,
+    /// The dot product just emitted did the next instruction too
+    /// (`dot_b_pair`): the body skips it.
+    paired: bool,
     /// Its covered instructions.
     n: usize,
     at: usize,
@@ -296,7 +300,16 @@ impl Block<'_> {
         // The loads and stores' other-region paths, emitted after the body.
         let mut l1_sites: Vec<(Inst, L1Site)> = Vec::new();
         self.xmm2 = None;
+        let mut skip = false;
         for (k, i) in b[..n].iter().enumerate() {
+            if std::mem::take(&mut skip) {
+                // Done with the dot product before it (`dot_b_pair`).
+                if k + 1 == n {
+                    self.used[n] = true;
+                    dynasm!(a ; jmp =>self.exits[n]);
+                }
+                continue;
+            }
             // Only consecutive dot products share `xmm2` (anything else may
             // write the register or call a helper, which clobbers it).
             let dot = self.sse41 && is_dot_b(i.op);
@@ -330,7 +343,8 @@ impl Block<'_> {
             if self.inst(a, k, i, careful, &mut l1_sites) {
                 break;
             }
-            if k + 1 == n {
+            skip = std::mem::take(&mut self.paired);
+            if !skip && k + 1 == n {
                 // The next instruction is not covered: leave before it.
                 self.used[n] = true;
                 dynasm!(a ; jmp =>self.exits[n]);
@@ -434,9 +448,29 @@ impl Block<'_> {
             o if self.sse41 && is_dot_b(o) => {
                 let first = (i.rs1, matches!(o, op::CV_SDOTUP_B | op::CV_SDOTUSP_B));
                 let cached = self.xmm2 == Some(first);
-                dot_b(a, i, cached);
-                // The next one may reuse it, unless this one wrote it.
-                self.xmm2 = (!careful && i.rd != i.rs1).then_some(first);
+                // The next instruction, done with this one when it is the
+                // same dot product of the same first operand and reads
+                // nothing this one writes (checked variant only: the
+                // careful one may leave between the two).
+                let next = self.b[..self.n].get(k + 1).filter(|j| {
+                    !careful
+                        && j.op == i.op
+                        && j.rs1 == i.rs1
+                        && i.rd != i.rs1
+                        && (i.rd == 0 || j.rs2 != i.rd)
+                });
+                match next {
+                    Some(j) => {
+                        dot_b_pair(a, i, j, cached);
+                        self.paired = true;
+                        self.xmm2 = (j.rd != j.rs1).then_some(first);
+                    }
+                    None => {
+                        dot_b(a, i, cached);
+                        // The next one may reuse it, unless this one wrote it.
+                        self.xmm2 = (!careful && i.rd != i.rs1).then_some(first);
+                    }
+                }
             }
             // `cv.min`, `cv.max` and their unsigned forms inline (the
             // network's requantization clamps with them; `xcv::alu::exec`
@@ -706,6 +740,55 @@ fn dot_b(a: &mut Asm, i: &Inst, cached: bool) {
     }
     if i.rd != 0 {
         dynasm!(a ; .arch x64 ; mov [r12 + rd], eax);
+    }
+}
+
+/// Two consecutive byte dot products `i` and `j` of the same kind and
+/// first operand, `j` reading nothing `i` writes (`Block::inst` checks):
+/// one `pmaddwd` for both. The first operand's widened bytes in both
+/// halves of `xmm2`, the two second operands' bytes side by side in
+/// `xmm1`, widened to eight lanes; `phaddd` adds each one's two pair
+/// sums; then `i`'s result is written before `j`'s (which may accumulate
+/// into the same register), as one after the other would. Every sum
+/// fits in 32 bits, as in [`dot_b`]. The network's kernels do eight dot
+/// products per pair of loaded rows, four per first operand: this halves
+/// their widening and summing (`cosim nn eval`).
+fn dot_b_pair(a: &mut Asm, i: &Inst, j: &Inst, cached: bool) {
+    let (rs1, rs2a, rs2b) = (reg(i.rs1), reg(i.rs2), reg(j.rs2));
+    if !cached {
+        widen(
+            a,
+            2,
+            rs1,
+            matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B),
+        );
+    }
+    dynasm!(a ; .arch x64
+        ; punpcklqdq xmm2, xmm2
+        ; movd xmm1, [r12 + rs2a]
+        ; movd xmm3, [r12 + rs2b]
+        ; punpckldq xmm1, xmm3
+    );
+    if i.op == op::CV_SDOTUP_B {
+        dynasm!(a ; .arch x64 ; pmovzxbw xmm1, xmm1);
+    } else {
+        dynasm!(a ; .arch x64 ; pmovsxbw xmm1, xmm1);
+    }
+    dynasm!(a ; .arch x64
+        ; pmaddwd xmm1, xmm2
+        ; phaddd xmm1, xmm1
+        ; movd eax, xmm1
+    );
+    for (k, d) in [(0, i.rd), (1, j.rd)] {
+        if k == 1 {
+            dynasm!(a ; .arch x64 ; pextrd eax, xmm1, 1);
+        }
+        if i.op != op::CV_DOTSP_B {
+            dynasm!(a ; .arch x64 ; add eax, [r12 + reg(d)]);
+        }
+        if d != 0 {
+            dynasm!(a ; .arch x64 ; mov [r12 + reg(d)], eax);
+        }
     }
 }
 
