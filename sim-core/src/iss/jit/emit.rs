@@ -152,6 +152,7 @@ pub(crate) fn translate(
     let mut blk = Block {
         b,
         xmm2: None,
+        xmm2_both: false,
         paired: false,
         n,
         at,
@@ -242,6 +243,8 @@ struct Block<'a> {
     /// operand (`dot_b`); only in the checked variant, which is entered
     /// at its start alone.
     xmm2: Option<(u8, bool)>,
+    /// `xmm2` holds those bytes in both halves (a pair left them so).
+    xmm2_both: bool,
     /// The dot product just emitted did the next instruction too
     /// (`dot_b_pair`): the body skips it.
     paired: bool,
@@ -461,12 +464,14 @@ impl Block<'_> {
                 });
                 match next {
                     Some(j) => {
-                        dot_b_pair(a, i, j, cached);
+                        dot_b_pair(a, i, j, cached, cached && self.xmm2_both);
                         self.paired = true;
                         self.xmm2 = (j.rd != j.rs1).then_some(first);
+                        self.xmm2_both = true;
                     }
                     None => {
                         dot_b(a, i, cached);
+                        self.xmm2_both &= cached;
                         // The next one may reuse it, unless this one wrote it.
                         self.xmm2 = (!careful && i.rd != i.rs1).then_some(first);
                     }
@@ -753,7 +758,10 @@ fn dot_b(a: &mut Asm, i: &Inst, cached: bool) {
 /// fits in 32 bits, as in [`dot_b`]. The network's kernels do eight dot
 /// products per pair of loaded rows, four per first operand: this halves
 /// their widening and summing (`cosim nn eval`).
-fn dot_b_pair(a: &mut Asm, i: &Inst, j: &Inst, cached: bool) {
+///
+/// `both`: `xmm2` already holds the first operand in both halves (the
+/// previous pair's).
+fn dot_b_pair(a: &mut Asm, i: &Inst, j: &Inst, cached: bool, both: bool) {
     let (rs1, rs2a, rs2b) = (reg(i.rs1), reg(i.rs2), reg(j.rs2));
     if !cached {
         widen(
@@ -763,8 +771,10 @@ fn dot_b_pair(a: &mut Asm, i: &Inst, j: &Inst, cached: bool) {
             matches!(i.op, op::CV_SDOTUP_B | op::CV_SDOTUSP_B),
         );
     }
+    if !both {
+        dynasm!(a ; .arch x64 ; punpcklqdq xmm2, xmm2);
+    }
     dynasm!(a ; .arch x64
-        ; punpcklqdq xmm2, xmm2
         ; movd xmm1, [r12 + rs2a]
         ; movd xmm3, [r12 + rs2b]
         ; punpckldq xmm1, xmm3
