@@ -163,10 +163,10 @@ pub fn run_scenario(
     }
     let status = launch(scenario, bins, out, opts)?;
     let summary = report::read_summary(out);
-    let power: Vec<report::PowerRow> =
-        report::read_csv(&out.join(sim_core::power::log::POWER_CSV)).unwrap_or_default();
-    let soc_init = report::initial_soc(&power);
-    drop(power);
+    // Only the first row's SOC is needed here (the plots read the rest).
+    let first: Option<report::PowerRow> =
+        report::read_first(&out.join(sim_core::power::log::POWER_CSV)).unwrap_or_default();
+    let soc_init = report::initial_soc(first.as_slice());
     let mut report_error = None;
     let mut plots = Vec::new();
     let summary = match summary {

@@ -54,6 +54,16 @@ pub fn read_csv<T: DeserializeOwned>(path: &Path) -> Result<Vec<T>, ReportError>
         .map_err(|e| read_err(path, e))
 }
 
+/// The first row of a CSV file (`None`: no rows), without reading the rest:
+/// a race's `power.csv` is tens of MB.
+pub fn read_first<T: DeserializeOwned>(path: &Path) -> Result<Option<T>, ReportError> {
+    let mut r = csv::Reader::from_path(path).map_err(|e| read_err(path, e))?;
+    r.deserialize()
+        .next()
+        .transpose()
+        .map_err(|e| read_err(path, e))
+}
+
 /// The columns of `power.csv` the report uses.
 #[derive(Debug, Clone, Deserialize)]
 pub struct PowerRow {
