@@ -153,6 +153,7 @@ pub(crate) fn translate(
         b,
         xmm2: None,
         xmm2_both: false,
+        eax: None,
         paired: false,
         n,
         at,
@@ -245,6 +246,13 @@ struct Block<'a> {
     xmm2: Option<(u8, bool)>,
     /// `xmm2` holds those bytes in both halves (a pair left them so).
     xmm2_both: bool,
+    /// The guest register whose value `eax` still holds after the
+    /// previous instruction's template stored it (an ALU result), so the
+    /// next one need not load it back: a load of what was just stored
+    /// waits for the store to forward (~5 host cycles) on the chain it is
+    /// on. Checked variant only (its instructions are entered only in
+    /// sequence; the careful variant's can be entered at each one).
+    eax: Option<u8>,
     /// The dot product just emitted did the next instruction too
     /// (`dot_b_pair`): the body skips it.
     paired: bool,
@@ -377,14 +385,28 @@ impl Block<'_> {
         let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
         let imm = i.imm as i32;
         let (at, stubs) = (self.at, self.stubs);
+        // What eax holds on entry, and whether this template leaves rd's
+        // new value there (`Block::eax`).
+        let eax = std::mem::take(&mut self.eax).filter(|_| !careful);
+        let keeps = !careful && i.rd != 0;
+        let load_rs1 = |a: &mut Asm| {
+            if eax != Some(i.rs1) || i.rs1 == 0 {
+                dynasm!(a ; .arch x64 ; mov eax, [r12 + rs1]);
+            }
+        };
         match i.op {
             op::NOP | op::FENCE | op::FENCE_I => {}
             op::LUI => dynasm!(a ; mov DWORD [r12 + rd], imm),
             // `li` and `mv`: one store, or a copy.
             op::ADDI if i.rs1 == 0 => dynasm!(a ; mov DWORD [r12 + rd], imm),
-            op::ADDI if imm == 0 => dynasm!(a ; mov eax, [r12 + rs1] ; mov [r12 + rd], eax),
+            op::ADDI if imm == 0 => {
+                load_rs1(a);
+                dynasm!(a ; mov [r12 + rd], eax);
+                self.eax = keeps.then_some(i.rd);
+            }
             op::ADDI | op::XORI | op::ORI | op::ANDI | op::SLLI | op::SRLI | op::SRAI => {
-                dynasm!(a ; mov eax, [r12 + rs1]);
+                load_rs1(a);
+                self.eax = keeps.then_some(i.rd);
                 match i.op {
                     op::ADDI => dynasm!(a ; add eax, imm),
                     op::XORI => dynasm!(a ; xor eax, imm),
@@ -406,7 +428,8 @@ impl Block<'_> {
                 dynasm!(a ; mov [r12 + rd], eax);
             }
             op::ADD | op::SUB | op::XOR | op::OR | op::AND | op::MUL => {
-                dynasm!(a ; mov eax, [r12 + rs1]);
+                load_rs1(a);
+                self.eax = keeps.then_some(i.rd);
                 match i.op {
                     op::ADD => dynasm!(a ; add eax, [r12 + rs2]),
                     op::SUB => dynasm!(a ; sub eax, [r12 + rs2]),
@@ -546,7 +569,7 @@ impl Block<'_> {
                     exit: self.exits[k],
                     after,
                 };
-                mem_op(a, i, &site, self.l1);
+                mem_op(a, i, &site, self.l1, eax == Some(i.rs1) && i.rs1 != 0);
                 dynasm!(a ; .arch x64 ; =>back);
                 if out {
                     l1_sites.push((*i, site));

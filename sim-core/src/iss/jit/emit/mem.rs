@@ -77,12 +77,17 @@ fn shape(i: &Inst) -> (u8, i32, bool, Mode, i32) {
 /// to the interpreter. So an access that cost more (an L2 one, or an L1
 /// one that stalled on its bank) tests the deadline again for the rest of
 /// the block (`recheck`).
-pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool) {
+///
+/// `eax_is_rs1`: the previous template left the base register's value in
+/// `eax` (`Block::eax`).
+pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool, eax_is_rs1: bool) {
     let (_, _, _, m, opnd) = shape(i);
     let rs1 = reg(i.rs1);
     let imm = i.imm as i32;
     // eax = address.
-    dynasm!(a ; .arch x64 ; mov eax, [r12 + rs1]);
+    if !eax_is_rs1 {
+        dynasm!(a ; .arch x64 ; mov eax, [r12 + rs1]);
+    }
     match m {
         Mode::Offset if imm != 0 => dynasm!(a ; .arch x64 ; add eax, imm),
         Mode::RegReg => dynasm!(a ; .arch x64 ; add eax, [r12 + opnd]),
