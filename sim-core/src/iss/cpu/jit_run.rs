@@ -35,7 +35,7 @@ impl Cpu {
     ///
     /// `window`: the device registers that read like memory
     /// (`Mmio::plain_window`), which the FC's translations read as the
-    /// interpreter does (`emit::mem::window_load`).
+    /// interpreter does (`emit::mem::plain_out_of_line`).
     pub(super) fn run_translated(
         &mut self,
         mem: &mut Memory,
@@ -116,7 +116,7 @@ impl Cpu {
         };
         // A window load costs the device latency (no extra, no split
         // cycle): without the L1 path every access is counted at no less
-        // (`emit::mem::window_load`).
+        // (`emit::mem::plain_out_of_line`).
         let (win, win_latency) = match window {
             Some((base, bytes)) if !l1 => (
                 (Bounds::new(base, bytes.len() as u64), bytes.as_ptr()),

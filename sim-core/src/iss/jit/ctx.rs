@@ -109,7 +109,7 @@ pub(crate) struct Ctx {
     /// last offsets ([`Bounds`]; base [`NO_REGION`]: none), and what a
     /// load there costs beyond its cycle (`Cpu::latency`, as
     /// `exec::Run::window_load` charges). Only the FC's translations read
-    /// it (`emit::mem::window_load`).
+    /// it (`emit::mem::plain_out_of_line`).
     pub win_ptr: *const u8,
     pub win_base: u64,
     pub win_last: [u64; 3],

@@ -28,7 +28,7 @@ use super::super::xcv::alu;
 use super::super::xcv::mem::base_op;
 use super::ctx::*;
 use super::helpers::{helper, is_div, MAX_DIV_EXTRA};
-use mem::{mem_op, out_of_line, window_load, L1Site};
+use mem::{mem_op, out_of_line, plain_out_of_line, L1Site};
 
 mod mem;
 
@@ -368,7 +368,7 @@ impl Block<'_> {
             if self.l1 {
                 out_of_line(a, i, site);
             } else {
-                window_load(a, i, site);
+                plain_out_of_line(a, i, site);
             }
         }
     }
@@ -549,7 +549,7 @@ impl Block<'_> {
                 };
                 let back = a.new_dynamic_label();
                 // Without the L1 path a load may still read the device
-                // window out of line (`mem::window_load`); a store leaves.
+                // window out of line (`mem::plain_out_of_line`); a store leaves.
                 let out = self.l1 || !is_store(o);
                 let site = L1Site {
                     other: if out {
@@ -571,16 +571,19 @@ impl Block<'_> {
                 };
                 mem_op(a, i, &site, self.l1, eax == Some(i.rs1) && i.rs1 != 0);
                 dynasm!(a ; .arch x64 ; =>back);
-                if out {
-                    l1_sites.push((*i, site));
-                }
+                // Every access has out-of-line parts: the L1 path's, or
+                // without it the window and a word's split cycle.
+                l1_sites.push((*i, site));
             }
             op::BEQ | op::BNE | op::BLT | op::BGE | op::BLTU | op::BGEU => {
                 let l = self.taken_label(a, k);
-                if i.rs2 == 0 {
-                    dynasm!(a ; cmp DWORD [r12 + rs1], 0);
-                } else {
-                    dynasm!(a ; mov eax, [r12 + rs1] ; cmp eax, [r12 + rs2]);
+                let in_eax = eax == Some(i.rs1) && i.rs1 != 0;
+                match (i.rs2 == 0, in_eax) {
+                    // `test` sets the flags `cmp` with 0 would (CF = OF = 0).
+                    (true, true) => dynasm!(a ; test eax, eax),
+                    (true, false) => dynasm!(a ; cmp DWORD [r12 + rs1], 0),
+                    (false, true) => dynasm!(a ; cmp eax, [r12 + rs2]),
+                    (false, false) => dynasm!(a ; mov eax, [r12 + rs1] ; cmp eax, [r12 + rs2]),
                 }
                 match i.op {
                     op::BEQ => dynasm!(a ; je =>l),

@@ -94,7 +94,7 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool, eax_is_rs1:
         _ => {}
     }
     if !l1 {
-        fast_access(a, i, site);
+        fast_access(a, i, site, Some(site));
         return;
     }
     in_region(
@@ -110,15 +110,16 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool, eax_is_rs1:
 
 /// The fast region's access (`eax` = address; `rcx` = its offset there):
 /// outside it, on to `site.other`; a store near code or `tohost` leaves at
-/// `site.exit`.
-fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site) {
+/// `site.exit`. With `split`, a misaligned word's split cycle is added out
+/// of line at its `split` (`plain_out_of_line`), else computed inline.
+fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site, split: Option<&L1Site>) {
     in_region(
         a,
         i,
         site,
         (FAST_BASE, FAST_SIZE, FAST_LAST, CODE_LO, CODE_HI),
     );
-    access(a, i, 14, None, true);
+    access(a, i, 14, split, true);
     dynasm!(a ; .arch x64 ; add r13, rbp);
 }
 
@@ -179,7 +180,7 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
         other: site.exit,
         ..*site
     };
-    fast_access(a, i, &fast);
+    fast_access(a, i, &fast, None);
     // Not an L1 access: no grant (the block's exits count one per load or
     // store, `emit::Block::retired`).
     dynasm!(a ; .arch x64 ; sub r15, GRANT_ONE);
@@ -200,9 +201,16 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
 /// leave just before it. The checked entry counts every access at no less
 /// than the window's latency (`Cpu::run_translated`), so the block still
 /// fits. Rejoins at `site.back`.
-pub(super) fn window_load(a: &mut Asm, i: &Inst, site: &L1Site) {
+///
+/// Also, for a word access, its split cycle (misaligned words are rare).
+pub(super) fn plain_out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
     let (_, n, store, _, _) = shape(i);
-    debug_assert!(!store, "stores do not go to the window");
+    if n == 4 {
+        dynasm!(a ; .arch x64 ; =>site.split ; add r13, 1 ; jmp =>site.split_back);
+    }
+    if store {
+        return;
+    }
     let last = WIN_LAST + 8 * Bounds::index(n);
     dynasm!(a ; .arch x64
         ; =>site.other
