@@ -4,7 +4,7 @@
 //! would have left it.
 
 use super::*;
-use crate::iss::jit::ctx::{Bounds, Ctx, L1_PATH, NO_TOHOST};
+use crate::iss::jit::ctx::{Bounds, Ctx, NO_TOHOST};
 use crate::iss::jit::{Flavour, JitCache};
 
 /// Cycles the interpreter runs, having started on a block the translator
@@ -61,8 +61,8 @@ impl Cpu {
         let t = self.mem_timing;
         // A cluster core's translations have an L1 path and check the
         // deadline after every access (`emit::mem_op`); the FC's do not.
-        // The code is shared, and each block's checked entry counts its
-        // accesses its own way (`ctx::L1_PATH`), so it is right for either.
+        // Each has its own translation of a block they share
+        // (`jit::Flavour`), whose checked entry counts accesses its way.
         let has_l1 = mem.tcdm.is_some() && t.l1.1 != 0;
         let jit = mem.jit.as_mut().expect("made above");
         let l1 = t.l1_port.is_some() && mem.tcdm.is_some();
@@ -86,7 +86,6 @@ impl Cpu {
         ) else {
             return Translated::Uncovered;
         };
-        debug_assert!(l1 || e.nmem & L1_PATH == 0, "the FC got a core's flavour");
         // The L1 (the cluster's TCDM): its data, bounds and cached code,
         // and the bank arbiter if this core has a port on it.
         let (l1_ptr, l1_size, l1_code) = match mem
@@ -107,8 +106,8 @@ impl Cpu {
         let banked = t.l1_port.is_some() && r.base == t.l1.0;
         let extra = t.extra(None, r.base, 0);
         // What the checked entries of translations with the L1 path count
-        // per access (`ctx::L1_PATH`): the cheaper region's (every access
-        // re-checks after itself).
+        // per access: the cheaper region's (every access re-checks after
+        // itself).
         let worst_extra = if mem.tcdm.is_some() {
             extra.min(t.l1_extra)
         } else {
@@ -124,8 +123,8 @@ impl Cpu {
             ),
             _ => ((Bounds::new(0, 0), std::ptr::null()), 0),
         };
-        let (extra_counted, worst_extra) = if l1 {
-            (extra, worst_extra)
+        let (per_access, worst_extra) = if l1 {
+            (worst_extra, worst_extra)
         } else {
             (extra.max(win_latency), worst_extra.max(win_latency))
         };
@@ -136,15 +135,14 @@ impl Cpu {
         // cluster core's translation) runs to the deadline itself: the
         // interpreter's test for this first instruction, `entry <
         // deadline`, is `run_block`'s loop condition.
-        let code =
-            if cycles.saturating_add(e.worst_case(extra_counted, worst_extra)) < self.deadline {
-                e.code
-            } else if e.careful != 0 {
-                debug_assert!(entry < self.deadline);
-                e.code + e.careful as u64
-            } else {
-                return Translated::TooLong;
-            };
+        let code = if cycles.saturating_add(e.worst_case(per_access)) < self.deadline {
+            e.code
+        } else if e.careful != 0 {
+            debug_assert!(entry < self.deadline);
+            e.code + e.careful as u64
+        } else {
+            return Translated::TooLong;
+        };
         let fast = Bounds::new(r.base, if banked { 0 } else { r.size as u64 });
         let l1 = Bounds::new(t.l1.0, l1_size);
         let mut ctx = Ctx {

@@ -28,9 +28,9 @@ pub(crate) struct Entry {
     /// instruction costs, a taken branch and the longest divisions, one
     /// split cycle per access.
     pub worst: u32,
-    /// Loads and stores in it, each of which may cost [`Ctx::worst_extra`]
-    /// more (an L1 bank's stall aside: translated code checks the deadline
-    /// again after each L1 access); [`L1_PATH`] is its flag bit.
+    /// Loads and stores in it, each of which may cost more than its cycle
+    /// ([`Entry::worst_case`]; an L1 bank's stall aside: translated code
+    /// checks the deadline again after each L1 access).
     pub nmem: u16,
     /// Offset from `code` of the careful variant's entry past its first
     /// deadline test (0: none), for a core whose deadline is nearer than
@@ -43,24 +43,14 @@ pub(crate) struct Entry {
     pub careful: u16,
 }
 
-/// Set in [`Entry::nmem`] for a translation with the L1 path (made for a
-/// cluster core, `emit::translate`'s `l1`): its checked entry counts each
-/// access at [`Ctx::worst_extra`] and re-checks after each; the others
-/// count [`Ctx::extra`] (their L1 accesses leave). The FC's code has no
-/// L1 path, so it stays as compact as without a cluster.
-pub(crate) const L1_PATH: u16 = 1 << 15;
-
 impl Entry {
-    /// The most cycles the block can take (apart from an L1 bank's stall,
-    /// see [`L1_PATH`]) for a core whose fast-region accesses cost `extra`
-    /// more each and whose cheapest access costs `worst_extra` more.
-    pub fn worst_case(&self, extra: u64, worst_extra: u64) -> u64 {
-        let per = if self.nmem & L1_PATH != 0 {
-            worst_extra
-        } else {
-            extra
-        };
-        self.worst as u64 + (self.nmem & !L1_PATH) as u64 * per
+    /// The most cycles the block can take (apart from an L1 bank's stall)
+    /// when each of its loads and stores costs at most `per` more: for a
+    /// cluster core's translation (`jit::Flavour::L1`) the cheaper
+    /// region's extra, [`Ctx::worst_extra`], since it checks again after
+    /// every access; for the FC's, every access's.
+    pub fn worst_case(&self, per: u64) -> u64 {
+        self.worst as u64 + self.nmem as u64 * per
     }
 }
 

@@ -28,7 +28,7 @@ use super::super::xcv::alu;
 use super::super::xcv::mem::base_op;
 use super::ctx::*;
 use super::helpers::{helper, is_div, MAX_DIV_EXTRA};
-use mem::{mem_op, out_of_line, plain_out_of_line, L1Site};
+use mem::{is_store, mem_op, out_of_line, plain_out_of_line, L1Site};
 
 mod mem;
 
@@ -63,10 +63,6 @@ fn is_mem(o: u8) -> bool {
     (op::LB..=op::SW).contains(&o) || base_op(o).is_some()
 }
 
-fn is_store(o: u8) -> bool {
-    (op::SB..=op::SW).contains(&base_op(o).unwrap_or(o))
-}
-
 /// Offset of guest register `r` in the register file.
 fn reg(r: u8) -> i32 {
     4 * (r & 31) as i32
@@ -89,7 +85,7 @@ pub(crate) struct Translation {
 /// at a guest pc, for direct jumps, and `first_reads` the registers the
 /// first instruction of the cached block at a pc reads; `l1`: the memory has a cluster L1,
 /// whose accesses get a path of their own (`mem::mem_op`; the cluster cores'
-/// translations, marked [`L1_PATH`] in `nmem`). `None` when its first
+/// flavour, `jit::Flavour`). `None` when its first
 /// instruction is not covered.
 ///
 /// The code starts with its checked entry: it goes on only if the block's
@@ -139,7 +135,7 @@ pub(crate) fn translate(
     // The byte dot products inline need SSE4.1 (`pmovsxbd`, `pmulld`);
     // without, the helpers do them.
     let sse41 = std::arch::is_x86_feature_detected!("sse4.1");
-    let nmem = u16::try_from(nmem).ok().filter(|&m| m < L1_PATH)?;
+    let nmem = u16::try_from(nmem).ok()?;
     let mut a = Asm::new(at);
     let start = a.new_dynamic_label();
     // A cluster core's translation has a careful variant (`Entry::careful`):
@@ -230,7 +226,7 @@ pub(crate) fn translate(
     Some(Translation {
         code,
         worst,
-        nmem: nmem | if l1 { L1_PATH } else { 0 },
+        nmem,
         careful,
         patches: blk.patches,
     })

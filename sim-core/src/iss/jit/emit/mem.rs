@@ -48,12 +48,17 @@ pub(super) struct L1Site {
     pub after: dynasmrt::DynamicLabel,
 }
 
+/// Whether `o` (an RV32I or XCV load or store) is a store.
+pub(super) fn is_store(o: u8) -> bool {
+    (op::SB..=op::SW).contains(&base_op(o).unwrap_or(o))
+}
+
 /// What a load or store does: its base op, size in bytes, whether a store,
 /// its addressing mode and the field of its register operand (rs2 for
 /// loads, rs3 = the rd field for stores).
 fn shape(i: &Inst) -> (u8, i32, bool, Mode, i32) {
     let o = base_op(i.op).unwrap_or(i.op);
-    let store = (op::SB..=op::SW).contains(&o);
+    let store = is_store(o);
     let n: i32 = match o {
         op::LB | op::LBU | op::SB => 1,
         op::LH | op::LHU | op::SH => 2,
@@ -94,7 +99,7 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool, eax_is_rs1:
         _ => {}
     }
     if !l1 {
-        fast_access(a, i, site, Some(site));
+        fast_access(a, i, site, Split::OutOfLine(site));
         return;
     }
     in_region(
@@ -105,21 +110,21 @@ pub(super) fn mem_op(a: &mut Asm, i: &Inst, site: &L1Site, l1: bool, eax_is_rs1:
     );
     grant(a, site);
     dynasm!(a ; .arch x64 ; mov r8, [rbx + L1_PTR]);
-    access(a, i, 8, Some(site), true);
+    access(a, i, 8, Split::OutOfLine(site));
 }
 
 /// The fast region's access (`eax` = address; `rcx` = its offset there):
 /// outside it, on to `site.other`; a store near code or `tohost` leaves at
-/// `site.exit`. With `split`, a misaligned word's split cycle is added out
-/// of line at its `split` (`plain_out_of_line`), else computed inline.
-fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site, split: Option<&L1Site>) {
+/// `site.exit`. `split`: out of line in the FC's translations
+/// (`plain_out_of_line`), inline in the L1 path's out-of-line code.
+fn fast_access(a: &mut Asm, i: &Inst, site: &L1Site, split: Split) {
     in_region(
         a,
         i,
         site,
         (FAST_BASE, FAST_SIZE, FAST_LAST, CODE_LO, CODE_HI),
     );
-    access(a, i, 14, split, true);
+    access(a, i, 14, split);
     dynasm!(a ; .arch x64 ; add r13, rbp);
 }
 
@@ -168,7 +173,7 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
             ; =>site.ool
             ; mov r8, [rbx + L1_PTR]
         );
-        access(a, i, 8, None, true);
+        access(a, i, 8, Split::Inline);
         recheck(a, site);
         dynasm!(a ; .arch x64 ; jmp =>site.back);
     }
@@ -180,7 +185,7 @@ pub(super) fn out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
         other: site.exit,
         ..*site
     };
-    fast_access(a, i, &fast, None);
+    fast_access(a, i, &fast, Split::Inline);
     // Not an L1 access: no grant (the block's exits count one per load or
     // store, `emit::Block::retired`).
     dynasm!(a ; .arch x64 ; sub r15, GRANT_ONE);
@@ -220,7 +225,7 @@ pub(super) fn plain_out_of_line(a: &mut Asm, i: &Inst, site: &L1Site) {
         ; ja =>site.exit
         ; mov r8, [rbx + WIN_PTR]
     );
-    access(a, i, 8, None, false);
+    access(a, i, 8, Split::No);
     dynasm!(a ; .arch x64 ; add r13, [rbx + WIN_LATENCY] ; jmp =>site.back);
 }
 
@@ -308,10 +313,22 @@ fn watched(a: &mut Asm, lo: i32, hi: i32, exit: dynasmrt::DynamicLabel) {
     );
 }
 
+/// How an access charges a split cycle (one crossing a word boundary).
+#[derive(Clone, Copy)]
+enum Split<'a> {
+    /// Not at all: a device window read (`exec::Run::window_load`).
+    No,
+    /// Computed inline.
+    Inline,
+    /// A word's out of line at the site's `split` (misaligned words are
+    /// rare); other sizes inline.
+    OutOfLine(&'a L1Site),
+}
+
 /// The access itself at host address `base + rcx` (`eax` = the guest
 /// address), the base register's write-back, the loaded value and the
 /// split cycle.
-fn access(a: &mut Asm, i: &Inst, base: u8, site: Option<&L1Site>, split: bool) {
+fn access(a: &mut Asm, i: &Inst, base: u8, split: Split) {
     let (o, n, store, m, opnd) = shape(i);
     let (rd, rs1, rs2) = (reg(i.rd), reg(i.rs1), reg(i.rs2));
     let imm = i.imm as i32;
@@ -348,15 +365,16 @@ fn access(a: &mut Asm, i: &Inst, base: u8, site: Option<&L1Site>, split: bool) {
     // word, any misaligned one (out of line at `site.split` where there
     // is one); else ((addr & 3) + n + 3) >> 3 is 1 exactly when
     // (addr & 3) + n > 4.
-    if !split {
-    } else if let (4, Some(site)) = (n, site) {
-        dynasm!(a ; .arch x64 ; test al, 3 ; jnz =>site.split ; =>site.split_back);
-    } else if n > 1 {
-        dynasm!(a ; .arch x64
+    match (split, n) {
+        (Split::No, _) | (_, 1) => {}
+        (Split::OutOfLine(site), 4) => {
+            dynasm!(a ; .arch x64 ; test al, 3 ; jnz =>site.split ; =>site.split_back)
+        }
+        _ => dynasm!(a ; .arch x64
             ; and eax, 3
             ; add eax, n + 3
             ; shr eax, 3
             ; add r13, rax
-        );
+        ),
     }
 }
