@@ -1,8 +1,9 @@
 //! The cluster control unit (docs/CLUSTER.md "CTRL"): power, the cores'
-//! boot address and fetch enable, the FC mailbox and the cluster-to-FC
-//! event counter (gap_sdk's cluster control unit and FC event line, with
-//! our layout).
+//! boot address and fetch enable, the FC mailbox (a task written there
+//! raises core 0's mailbox event) and the cluster-to-FC event counter
+//! (gap_sdk's cluster control unit and FC event line, with our layout).
 
+use super::event_unit::EVENT_MAILBOX;
 use super::{CoreState, Shared};
 use crate::units::Picos;
 
@@ -101,7 +102,13 @@ impl Shared {
                 self.halt(i);
                 self.stop = true;
             }
-            (MAILBOX, _) => self.ctrl.mailbox = v,
+            (MAILBOX, who) => {
+                self.ctrl.mailbox = v;
+                // A task for core 0: wake it if it sleeps on the event.
+                if who == Who::Fc && v != 0 && self.ctrl.is_on() {
+                    self.eu.trigger(EVENT_MAILBOX, 1, t);
+                }
+            }
             _ => return false,
         }
         true

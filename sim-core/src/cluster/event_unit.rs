@@ -30,6 +30,13 @@ pub const DISPATCH_DEPTH: usize = 8;
 /// The DMA completion event (docs/CLUSTER.md: bit 8).
 pub const EVENT_DMA: u32 = 8;
 
+/// The mailbox event (docs/CLUSTER.md: bit 9): set in core 0's buffer
+/// when the FC writes a task to CTRL's `MAILBOX`, so core 0 waits for its
+/// next task asleep, clock-gated, as DESIGN.md §12 asks of an idle core
+/// (the GAP8's FC reaches the cluster's event unit through its software
+/// event lines; gap_sdk's cluster runtime waits for tasks the same way).
+pub const EVENT_MAILBOX: u32 = 9;
+
 pub const EVT_MASK: u32 = 0x00;
 pub const EVT_BUFFER: u32 = 0x04;
 pub const EVT_WAIT: u32 = 0x08;

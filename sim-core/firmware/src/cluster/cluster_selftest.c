@@ -3,9 +3,9 @@
  * (docs/CLUSTER.md): forks of 1/2/4/8 cores, the barrier, the critical
  * section, DMA 1D and 2D round trips through the API (from one core and
  * from all at once), the performance counters, the allocators (out of
- * memory gives NULL) and asynchronous tasks. Every check runs on the FC or
- * on core 0 (the harness's counters are not shared); the other cores
- * record what they saw. Prints one summary line; exit status = failures.
+ * memory gives NULL), asynchronous tasks and core 0 asleep between tasks.
+ * Every check runs on the FC or on core 0 (the harness's counters are not
+ * shared); the other cores record what they saw. Prints one summary line; exit status = failures.
  */
 #include <pmsis.h>
 #include <stdio.h>
@@ -305,6 +305,37 @@ static void test_async(void)
     check("async: in order", order[0] << 16 | order[1] << 8 | order[2], 1 << 16 | 2 << 8 | 3);
 }
 
+/* ---- an idle core 0 sleeps between tasks --------------------------------- */
+
+/* Core 0's wall cycles (`time`) and awake cycles (mcycle) at the start of
+ * two tasks the FC sends a while apart. */
+static volatile uint32_t stamp_wall[2], stamp_awake[2];
+
+static void stamp(void *arg)
+{
+    uint32_t i = (uint32_t)arg, wall, awake;
+    __asm__ volatile("csrr %0, time" : "=r"(wall));
+    __asm__ volatile("csrr %0, mcycle" : "=r"(awake));
+    stamp_wall[i] = wall;
+    stamp_awake[i] = awake;
+}
+
+static void test_idle_core_sleeps(void)
+{
+    struct pi_cluster_task task;
+    pi_cluster_send_task_to_cl(&cluster, pi_cluster_task(&task, stamp, (void *)0));
+    /* The FC works a while (about 100,000 of its cycles): core 0, between
+     * tasks, must be clock-gated meanwhile (DESIGN.md §12), not polling. */
+    for (volatile uint32_t i = 0; i < 10000; i++)
+        ;
+    pi_cluster_send_task_to_cl(&cluster, pi_cluster_task(&task, stamp, (void *)1));
+    uint32_t wall = stamp_wall[1] - stamp_wall[0], awake = stamp_awake[1] - stamp_awake[0];
+    check("idle: the FC's work lasted (> 20,000 cluster cycles)", wall > 20000, 1);
+    /* Awake: the end of the first task, the wake-up, taking the second
+     * (a few hundred cycles at most). */
+    check("idle: core 0 slept between the tasks (awake < 2 % of them)", awake * 50 < wall, 1);
+}
+
 int main(void)
 {
     struct pi_cluster_conf conf;
@@ -319,6 +350,7 @@ int main(void)
                       &cluster, pi_cluster_task(&task, cluster_tests, NULL)),
           0);
     test_async();
+    test_idle_core_sleeps();
     pi_cluster_task(&task, note, NULL);
     task.stack_size = 1u << 20;
     check("task with a stack larger than the cluster's",

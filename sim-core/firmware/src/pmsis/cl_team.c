@@ -1,7 +1,7 @@
 /*
  * The cluster cores' side: core 0, the master, takes tasks from the FC's
- * mailbox; cores 1..N-1 wait on the event unit's dispatch FIFO for the
- * forks. A fork dispatches (entry, arg) to the team, runs the master's
+ * mailbox, asleep on the mailbox event between them; cores 1..N-1 wait on
+ * the event unit's dispatch FIFO for the forks. A fork dispatches (entry, arg) to the team, runs the master's
  * share, then meets the team at the barrier (docs/CLUSTER.md, EU).
  */
 #include <picolibc.h> /* defines PICOLIBC_TLS, which picotls.h needs */
@@ -18,9 +18,13 @@ static void __attribute__((noreturn)) master_loop(void)
 {
     for (;;) {
         struct pi_cluster_task *task;
-        /* Loads and a branch: idle-skip friendly (NOTES-for-cluster 3). */
+        /* Between tasks core 0 sleeps, clock-gated, until the FC's write to
+         * MAILBOX raises the mailbox event (DESIGN.md §12: an idle core
+         * costs no dynamic energy). A task sent while core 0 was busy left
+         * the event in the buffer: the first wait returns at once, the
+         * loop finds the mailbox empty and waits again. */
         while ((task = (struct pi_cluster_task *)cl_read(CL_CTRL_BASE, CL_CTRL_MAILBOX)) == 0)
-            ;
+            (void)cl_read(CL_EU_BASE, CL_EU_EVT_WAIT_CLR);
         cl_write(CL_CTRL_BASE, CL_CTRL_MAILBOX, 0); /* taken: the FC may send the next */
         __pi_cl_current_task = task;
         task->entry(task->arg);
@@ -46,8 +50,12 @@ void __pi_cl_main(uint32_t core)
         _init_tls(__pi_cl_tls[core]);
         _set_tls(__pi_cl_tls[core]);
     }
-    /* The DMA's completions wake this core in pi_cl_dma_cmd_wait. */
-    cl_write(CL_EU_BASE, CL_EU_EVT_MASK, 1u << CL_EVT_DMA);
+    /* The DMA's completions wake this core in pi_cl_dma_cmd_wait, and
+     * core 0 also wakes on a task in the mailbox. Both waits look at their
+     * condition again after a wake-up, so each tolerates the other's
+     * event. */
+    cl_write(CL_EU_BASE, CL_EU_EVT_MASK,
+             1u << CL_EVT_DMA | (core == 0 ? 1u << CL_EVT_MAILBOX : 0));
     if (core == 0)
         master_loop();
     worker_loop();

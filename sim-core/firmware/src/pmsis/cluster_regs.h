@@ -43,6 +43,8 @@
 #define CL_EU_DISPATCH_POP 0x98
 /* Event bit 8: a DMA command this core enqueued completed. */
 #define CL_EVT_DMA 8
+/* Event bit 9 (core 0): the FC wrote a task to CTRL's MAILBOX. */
+#define CL_EVT_MAILBOX 9
 
 /* DMA: this core's staging registers and the shared queue. */
 #define CL_DMA_EXT 0x00
