@@ -45,7 +45,8 @@ mod r {
     pub const FC_L2: usize = 66;
     pub const CORE_L1: usize = 67;
     pub const CORE_L2: usize = 68;
-    pub const WORDS: usize = 69;
+    pub const MAILBOX_SEEN: usize = 69;
+    pub const WORDS: usize = 70;
 }
 
 struct Outcome {
@@ -206,6 +207,15 @@ fn a_sleeping_core_is_gated_wait_and_trigger() {
     assert!(c1.gated_cycles > (w[r::OVERLAP_END] - w[r::DMA_START]) as u64);
     // Gated cycles are not in mcycle (active) and add no instructions.
     assert!(c1.active_cycles < 10_000 && c1.instructions < 3_000);
+}
+
+/// The FC's write of a task to MAILBOX: core 0, polling it, reads it; the
+/// write also raises core 0's mailbox event (the PMSIS runtime's core 0
+/// sleeps on it: cluster_runtime.rs, `runtime_selftest_passes`).
+#[test]
+fn core_0_sees_the_fcs_mailbox_write() {
+    let o = run(8);
+    assert_eq!(o.words[r::MAILBOX_SEEN], 1);
 }
 
 #[test]

@@ -364,8 +364,10 @@ impl Mmio for CoreBus<'_> {
     /// another runnable core at its time, or a DMA completion. Cores that
     /// sleep in the event unit wake only on what those do, and a read is
     /// only made once every other agent is later (`Shared::synced`). So
-    /// a core polling the mailbox (`master_loop`) while the FC works skips
-    /// to the FC's time instead of reading it every few cycles.
+    /// a core polling the mailbox while the FC works skips to the FC's
+    /// time instead of reading it every few cycles (the PMSIS runtime's
+    /// core 0 sleeps on the mailbox event instead; a user's runtime may
+    /// poll).
     fn stable_until(&self, addr: u32, size: AccessSize, now: Picos) -> Picos {
         use ctrl::{BOOT_ADDR, FREQ_HZ, MAILBOX, NB_CORES, POWER, RUNNING};
         let off = addr.wrapping_sub(WINDOW_BASE);

@@ -26,6 +26,8 @@ struct results {
     uint32_t fc_hartid;
     /* mcycle around one load from L1 and from L2: by the FC, by core 0. */
     uint32_t fc_l1, fc_l2, core_l1, core_l2;
+    /* What core 0's last poll of MAILBOX read (the FC's write). */
+    uint32_t mailbox_seen;
 };
 volatile struct results results;
 
@@ -225,8 +227,17 @@ void cl_main(uint32_t id)
         EU_SW_EVT_TRIG(3) = 1u << 1;
     }
     barrier();
-    if (id == 0)
+    if (id == 0) {
         CTRL_FC_EVENT = 1;
+        /* A core polling a plain CTRL register while the FC works: idle
+         * skipping jumps it to the FC's write, exactly
+         * (sim-core/tests/cluster_idle.rs). The PMSIS runtime no longer
+         * polls (its core 0 sleeps on the mailbox event); a user's may. */
+        uint32_t m;
+        while ((m = CTRL_MAILBOX) == 0)
+            ;
+        results.mailbox_seen = m;
+    }
 }
 
 /* REPEAT > 1 (the kernel test's variant): run the whole test that many
@@ -251,8 +262,12 @@ int main(void)
         CTRL_FETCH_EN = all;
         while (CTRL_FC_EVENT == 0)
             ;
+        for (volatile int k = 0; k < 2000; k++) /* the FC works a while */
+            ;
+        CTRL_MAILBOX = (uint32_t)rep + 1;
         while (CTRL_RUNNING != 0)
             ;
+        CTRL_MAILBOX = 0;
         CTRL_POWER = 0;
     }
     printf("cluster: %lu cores, counter %lu, dma %lu cycles\n",
