@@ -5,7 +5,8 @@
 //! (the int8 network on the AI deck's cluster, the shared guidance) passes
 //! the gate without a collision; summary.json's `nn` block is there and
 //! consistent with itself and with the platform; a second run gives the same
-//! bytes; bad cluster settings are one line and exit code 2.
+//! bytes; the cluster kept open flies the same and costs its leakage; bad
+//! cluster settings are one line and exit code 2.
 
 use std::path::Path;
 
@@ -93,6 +94,22 @@ fn the_network_on_the_cluster_flies_through_the_displaced_gate() {
     );
     assert_eq!(summary(&b)["nn"], s["nn"]);
 
+    // The cluster kept open between inferences (`firmware.nn_keep_open`):
+    // the same flight, and the energy of a powered, sleeping cluster. Its
+    // cores sleep between tasks, so what it adds is about the leakage
+    // (4.8 mW, docs/CLUSTER.md "Power"); core 0 awake and polling would
+    // add 8.4 mW more (48 pJ x 175 MHz).
+    let k = dir.path().join("k");
+    let o = run(&bins, &k, &["--set", "firmware.nn_keep_open=1"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let sk = summary(&k);
+    assert_eq!(sk["gates_passed"], 1, "{sk:#}");
+    assert_same_files(&a, &k, &["trajectory.csv"], "kept open or not");
+    assert_eq!(sk["nn"]["inferences"], nn["inferences"]);
+    let extra_w =
+        (f(&sk["energy_j"]["cluster"]) - f(&s["energy_j"]["cluster"])) / f(&sk["platform_time_s"]);
+    assert!(extra_w > 1e-3 && extra_w < 6e-3, "{extra_w} W");
+
     // Fewer cores (`cluster.cores`, a run key): more cycles per inference.
     let c = dir.path().join("c");
     let o = run(&bins, &c, &["--set", "cluster.cores=2"]);
@@ -118,4 +135,14 @@ fn bad_cluster_settings_are_one_line_and_exit_code_2() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(err.contains(needle), "{set}: {err}");
     }
+    // A firmware parameter the start file would zero (in .bss) is refused
+    // by sim-core, not silently lost.
+    let bad = dir.path().join("bss");
+    let o = run(&bins, &bad, &["--set", "firmware.nn_race_stats=1"]);
+    assert!(!o.status.success(), "{}", text(&o));
+    let err = summary(&bad)["error"]
+        .as_str()
+        .unwrap_or_default()
+        .to_string();
+    assert!(err.contains("nn_race_stats is in .bss"), "{err}");
 }

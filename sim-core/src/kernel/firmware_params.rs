@@ -6,8 +6,9 @@
 //! error, never a silent no-op. An initialised global lives twice: at its
 //! run address in `.data` and in the load image that the start file copies
 //! there (`__data_source` → `__data_start`, `start.S`); both are written.
-//! A global in `.bss` would be zeroed by the start file: parameters must be
-//! initialised (to a non-zero value, or placed in `.data`).
+//! A global in `.bss` would be zeroed by the start file after the write:
+//! setting one is an error (initialise it to a non-zero value, or place it
+//! in `.data`).
 
 use std::collections::BTreeMap;
 
@@ -25,6 +26,12 @@ pub fn apply(
                 "firmware.{name}: the firmware has no global named {name}"
             ))
         })?;
+        if in_bss(elf, addr) {
+            return Err(KernelError::Config(format!(
+                "firmware.{name}: {name} is in .bss, which the start file clears: \
+                 the firmware must initialise it or place it in .data"
+            )));
+        }
         let mut write = |at: u32| {
             mem.write_bytes(at, &value.to_le_bytes())
                 .map_err(|e| KernelError::Config(format!("firmware.{name} at {at:#x}: {e}")))
@@ -35,6 +42,15 @@ pub fn apply(
         }
     }
     Ok(())
+}
+
+/// Whether an address lies in `.bss` (`start.S` zeroes `__bss_size` bytes
+/// from `__bss_start`).
+fn in_bss(elf: &LoadedElf, addr: u32) -> bool {
+    match (elf.symbol("__bss_start"), elf.symbol("__bss_size")) {
+        (Some(start), Some(size)) => addr.wrapping_sub(start) < size,
+        _ => false,
+    }
 }
 
 /// Where the start file copies an address of `.data` from.

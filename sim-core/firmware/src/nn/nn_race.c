@@ -24,7 +24,8 @@
  * The cluster is powered up for each inference and down after it
  * (pi_cluster_open ... pi_cluster_close, GAP8's cluster power gating): it
  * works about 3.5 ms of every 120 ms, and an open idle cluster would leak
- * the rest of the time. The power-up, the cores' boot and the L1
+ * the rest of the time (8.6 times the cluster's energy over the race with
+ * nn_keep_open = 1, docs/NN.md "Power gating"). The power-up, the cores' boot and the L1
  * allocation are in the latency, not in the cluster cycles of the
  * network (network.c measures from the input's DMA).
  *
@@ -62,6 +63,12 @@
  * on the AI deck, and keeps the ISS's work (about 18 ms of host CPU per
  * inference) within the 10x-real-time budget (docs/NN.md "nn-race"). */
 int32_t nn_look_every = 5;
+/* 0: the cluster is powered for each inference only (see the top); 1: it
+ * is opened at the first look and kept open, its cores asleep between
+ * inferences: `--set firmware.nn_keep_open=1` measures what the power
+ * gating saves (docs/NN.md "Power gating"). */
+/* In .data although 0: a scenario sets it in the ELF's image (firmware_params.rs). */
+__attribute__((section(".data"))) int32_t nn_keep_open = 0;
 /* Sightings are used from nn_min_range_mm to nn_max_range_mm: the training
  * images' poses were 0.8-7 m from a gate (docs/NN.md "The data"), the
  * distance error grows with the distance. */
@@ -152,20 +159,28 @@ static void look(int wp, guidance_sighting_t *s)
     uint32_t t0 = fc_now();
     copy_frame();
     nn_downsample(frame, input);
-    /* The cluster is powered for the inference only (see the top). */
-    struct pi_cluster_conf conf;
-    pi_cluster_conf_init(&conf);
-    pi_open_from_conf(&cluster, &conf);
-    if (pi_cluster_open(&cluster) != 0) {
-        printf("[nn] cannot open the cluster\n");
-        nn_race_stats[NN_RS_STATUS] = 1;
-        return;
+    /* The cluster is powered for the inference only (see the top), unless
+     * nn_keep_open. */
+    static int open;
+    if (!open) {
+        struct pi_cluster_conf conf;
+        pi_cluster_conf_init(&conf);
+        pi_open_from_conf(&cluster, &conf);
+        if (pi_cluster_open(&cluster) != 0) {
+            printf("[nn] cannot open the cluster\n");
+            nn_race_stats[NN_RS_STATUS] = 1;
+            return;
+        }
+        open = 1;
     }
     job = (nn_job_t){.cluster = &cluster, .input = input, .head = head};
     struct pi_cluster_task task;
     pi_cluster_send_task_to_cl(&cluster, pi_cluster_task(&task, nn_network_run, &job));
-    pi_cluster_close(&cluster);
-    nn_network_release();
+    if (!nn_keep_open) {
+        pi_cluster_close(&cluster);
+        nn_network_release(); /* the next open's L1 heap is new */
+        open = 0;
+    }
     nn_output_t o;
     nn_decode(head, &o);
     uint32_t latency = fc_now() - t0;
