@@ -334,3 +334,31 @@ def test_quant_loss_emulates_the_exports_grids():
     int8_head = int8_ref.heads_batch(q, x) * netdef.HEAD_UNITS
     # Measured: 0.19 against the float network's 1.25 (objectness logits).
     assert np.abs(emulated - int8_head).max() < 0.25 * np.abs(float_head - int8_head).max()
+
+
+def test_analyse_lines_finds_the_gates_at_the_rules_lines():
+    import analyse_lines as al
+
+    def gate(u, v, d, a, inside=None):
+        c = netdef.CAMERA
+        inside = 0 <= u < c and 0 <= v < c if inside is None else inside
+        return {"u": u, "v": v, "distance_m": d, "off_normal_deg": a, "in_image": inside}
+
+    assert al.edge_px(gate(5, 160, 3, 0)) == 5
+    assert al.edge_px(gate(-7, 160, 3, 0)) == -7
+    assert al.edge_px(gate(160, 318, 3, 0)) == 2
+    band = (16, 0.5, 5)
+    assert al.near_a_line(gate(-10, 160, 3, 20), *band)       # just outside the edge
+    assert al.near_a_line(gate(12, 160, 3, 20), *band)        # just inside
+    assert not al.near_a_line(gate(40, 160, 3, 20), *band)    # well inside, near, square
+    assert al.near_a_line(gate(160, 160, 8.3, 20), *band)     # just beyond 8 m
+    assert not al.near_a_line(gate(160, 160, 9.0, 20), *band)  # well beyond
+    assert al.near_a_line(gate(160, 160, 4, 73), *band)       # just beyond 70 degrees
+    assert not al.near_a_line(gate(-40, 160, 8.2, 20), *band)  # far outside: no line near
+    # A false positive's cause is the listed gate nearest the report.
+    report = (True, 5.0, 160.0, 3.0)
+    assert al.why_reported(report, [gate(-6, 160, 3, 20)]) == "its centre outside the image"
+    assert al.why_reported(report, [gate(20, 150, 8.4, 20)]) == "beyond 8 m"
+    assert al.why_reported(report, [gate(20, 150, 5, 75)]) == "beyond 70 degrees"
+    assert al.why_reported(report, [gate(200, 160, 5, 20)]) == "no listed gate near the report"
+    assert al.why_reported(report, []) == "no listed gate near the report"
