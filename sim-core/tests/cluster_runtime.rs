@@ -52,7 +52,7 @@ fn cluster_hello_prints_each_core_once() {
 /// runtime sizes its forks, stacks and teams from `NB_CORES`).
 #[test]
 fn runtime_selftest_passes() {
-    for (cores, checks) in [("8", 52), ("1", 46), ("3", 48)] {
+    for (cores, checks) in [("8", 54), ("1", 48), ("3", 50)] {
         let o = run_elf(&firmware("cluster_selftest"), &["--cluster-cores", cores]);
         let out = stdout(&o);
         assert_eq!(

@@ -109,9 +109,13 @@ pub struct NnMachine {
     pub shape: Shape,
     n_layers: usize,
     meter: Meter,
-    /// FC power while it runs (the platform's `core.states.running`
-    /// current at `core.vref`; it polls, never sleeps, during a frame).
+    /// FC power while it runs and while it sleeps in `wfi` (the platform's
+    /// `core.states.running` and `sleeping` currents at `core.vref`): it
+    /// sleeps while the cluster infers (pmsis `pi_task_wait_on`).
     fc_running_w: f64,
+    fc_sleeping_w: f64,
+    /// The FC's clock period, s.
+    fc_period_s: f64,
     done: bool,
 }
 
@@ -141,6 +145,11 @@ impl NnMachine {
             .states
             .get("running")
             .with_context(|| format!("{}: no core state `running`", platform.display()))?;
+        let sleeping = plat
+            .core
+            .states
+            .get("sleeping")
+            .with_context(|| format!("{}: no core state `sleeping`", platform.display()))?;
         let vref = plat.cluster.as_ref().map_or(1.2, |c| c.vref);
         let sym = Symbols {
             image: symbol(&elf, "nn_image")?,
@@ -189,6 +198,8 @@ impl NnMachine {
             n_layers: 0,
             meter: Meter::new(vref, cfg.clock),
             fc_running_w: running.current().0 * plat.core.vref,
+            fc_sleeping_w: sleeping.current().0 * plat.core.vref,
+            fc_period_s: 1.0 / plat.core.frequency as f64,
             done: false,
         };
         m.run_to_stop()?;
@@ -254,13 +265,16 @@ impl NnMachine {
             })
     }
 
-    /// FC + cluster energy since the meter's last sample, J.
-    fn energy_since(&mut self, t0: Picos) -> f64 {
+    /// FC + cluster energy since the meter's last sample (at `t0`, when the
+    /// FC had slept `slept0` cycles), J.
+    fn energy_since(&mut self, t0: Picos, slept0: u64) -> f64 {
         let now = self.fc.now();
         let before = self.meter.energy_j;
         self.meter
             .sample(Totals::of(&self.cluster, &self.mem, now), now);
-        let fc = self.fc_running_w * now.saturating_sub(t0).as_secs_f64();
+        let elapsed = now.saturating_sub(t0).as_secs_f64();
+        let asleep = (self.fc.stats().sleep_cycles - slept0) as f64 * self.fc_period_s;
+        let fc = self.fc_running_w * (elapsed - asleep).max(0.0) + self.fc_sleeping_w * asleep;
         self.meter.energy_j - before + fc
     }
 
@@ -273,14 +287,15 @@ impl NnMachine {
         // Energy and latency from the frame's arrival: what came before
         // (boot, the previous frame's stop) is not this inference's.
         let t0 = self.fc.now();
-        self.energy_since(t0);
+        let slept0 = self.fc.stats().sleep_cycles;
+        self.energy_since(t0, slept0);
         let counts0 = self.core_counts();
         self.mem.write_bytes(self.sym.image, image)?;
         self.mem
             .write_bytes(self.sym.command, &CMD_INFER.to_le_bytes())?;
         self.run_to_stop()?;
         let latency = self.fc.now().saturating_sub(t0);
-        let energy_j = self.energy_since(t0);
+        let energy_j = self.energy_since(t0, slept0);
         let counts = self.core_counts();
         let stat = |i: usize| self.word(self.sym.stats + 4 * i as u32);
         if stat(0)? != 0 {

@@ -16,12 +16,15 @@ pub const RUNNING: u32 = 0x14;
 pub const FC_EVENT: u32 = 0x18;
 pub const HALT: u32 = 0x1C;
 pub const MAILBOX: u32 = 0x20;
+pub const FC_IRQ: u32 = 0x24;
 
 /// The unit's own registers.
 #[derive(Debug, Clone, Default)]
 pub struct Ctrl {
     pub boot_addr: u32,
     pub fc_events: u32,
+    /// `FC_IRQ`: a pending FC event drives the FC's external interrupt.
+    pub fc_irq: bool,
     pub mailbox: u32,
     pub freq_hz: u32,
     /// Powered time before the current power-on, and when it began
@@ -45,6 +48,13 @@ pub enum Who {
 }
 
 impl Shared {
+    /// The cluster's level on the FC's external interrupt line: FC events
+    /// pending and `FC_IRQ` set (ORed with the platform's radios by
+    /// [`Cluster::run_until`](super::Cluster::run_until)).
+    pub fn fc_irq_level(&self) -> bool {
+        self.ctrl.fc_irq && self.ctrl.fc_events != 0
+    }
+
     /// Bit i: core i started and not halted (asleep counts as running).
     pub fn running_mask(&self) -> u32 {
         (0..self.n)
@@ -61,8 +71,15 @@ impl Shared {
             (FREQ_HZ, _) => c.freq_hz,
             (BOOT_ADDR, _) => c.boot_addr,
             (RUNNING, _) => self.running_mask(),
-            (FC_EVENT, Who::Fc) => std::mem::take(&mut c.fc_events),
+            (FC_EVENT, Who::Fc) => {
+                let level = self.fc_irq_level();
+                let v = std::mem::take(&mut self.ctrl.fc_events);
+                // The line drops: the FC's run stops so that it follows.
+                self.fc_irq_changed |= level;
+                v
+            }
             (MAILBOX, _) => c.mailbox,
+            (FC_IRQ, _) => c.fc_irq as u32,
             _ => return None,
         })
     }
@@ -98,6 +115,11 @@ impl Shared {
                 }
             }
             (FC_EVENT, Who::Core(_)) => self.ctrl.fc_events += 1,
+            (FC_IRQ, Who::Fc) => {
+                let level = self.fc_irq_level();
+                self.ctrl.fc_irq = v & 1 != 0;
+                self.fc_irq_changed |= level != self.fc_irq_level();
+            }
             (HALT, Who::Core(i)) => {
                 self.halt(i);
                 self.stop = true;

@@ -144,6 +144,11 @@ pub struct Shared {
     pub stop: bool,
     /// Cores asleep until the DMA queue has room.
     dma_full: u32,
+    /// An FC access changed the cluster's level on the FC's interrupt
+    /// line: its run stops after the access so the line follows.
+    fc_irq_changed: bool,
+    /// The platform's devices asked the FC's run to stop (for the caller).
+    platform_stop: bool,
 }
 
 const FC: usize = 8;
@@ -334,7 +339,9 @@ impl Mmio for FcBus<'_> {
         self.dev.next_event()
     }
     fn take_stop_request(&mut self) -> bool {
-        self.dev.take_stop_request()
+        let platform = self.dev.take_stop_request();
+        self.sh.platform_stop |= platform;
+        platform | std::mem::take(&mut self.sh.fc_irq_changed)
     }
     fn plain_window(&mut self) -> Option<(u32, &[u8])> {
         // The cluster's window is never plain (every access is a
@@ -493,6 +500,8 @@ impl Cluster {
                 dma: Dma::new(period, (L1_BASE, L1_SIZE), L2),
                 stop: false,
                 dma_full: 0,
+                fc_irq_changed: false,
+                platform_stop: false,
             },
         })
     }
@@ -514,6 +523,8 @@ impl Cluster {
             l1_extra: FC_L1_EXTRA_CYCLES,
             ..MemTiming::default()
         });
+        // The scheduler bounds the FC's sleeps ([`Cluster::run_until`]).
+        fc.set_stop_on_sleep(true);
     }
 
     /// The cores' console (semihosting output of cluster code).
@@ -641,6 +652,9 @@ impl Cluster {
         dev: &mut dyn Mmio,
         limit: Picos,
     ) -> StopReason {
+        // The platform's level on the FC's interrupt line (the caller set
+        // it); the cluster's FC event line is ORed in before each FC turn.
+        let platform_irq = fc.external_irq();
         loop {
             self.sh.fc_time = fc.now();
             // The earliest runnable agent in `(time, rank)` order. A rank
@@ -685,12 +699,31 @@ impl Cluster {
                 horizon = horizon.min(Picos(o.0.saturating_add(q.0)));
             }
             if who == FC {
+                let line = self.sh.fc_irq_level();
+                fc.set_external_irq(platform_irq || line);
+                if fc.is_sleeping() && self.sh.ctrl.fc_irq && !line {
+                    // Asleep in wfi, a core's FC_EVENT may wake it: it
+                    // sleeps only past the earliest time a core (or a DMA
+                    // completion, which wakes cores) may act, so that its
+                    // wake-up is its first clock edge after the event,
+                    // whatever the quantum (docs/CLUSTER.md, FC_IRQ).
+                    let earliest = self
+                        .sh
+                        .min_core_time()
+                        .min(self.sh.dma.next_completion().unwrap_or(Picos::MAX));
+                    if earliest < Picos::MAX {
+                        horizon = horizon.min(Picos(earliest.0 + 1));
+                    }
+                }
                 let mut bus = FcBus {
                     sh: &mut self.sh,
                     dev,
                 };
                 match fc.run_until(mem, &mut bus, horizon) {
                     StopReason::Limit | StopReason::Wait => {}
+                    // The cluster's own request (its line changed): the
+                    // next FC turn sets it.
+                    StopReason::DeviceRequest if !std::mem::take(&mut self.sh.platform_stop) => {}
                     other => return other,
                 }
             } else {

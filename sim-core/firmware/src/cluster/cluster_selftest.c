@@ -3,9 +3,11 @@
  * (docs/CLUSTER.md): forks of 1/2/4/8 cores, the barrier, the critical
  * section, DMA 1D and 2D round trips through the API (from one core and
  * from all at once), the performance counters, the allocators (out of
- * memory gives NULL), asynchronous tasks and core 0 asleep between tasks.
+ * memory gives NULL), asynchronous tasks, core 0 asleep between tasks and
+ * the FC asleep while it waits for one.
  * Every check runs on the FC or on core 0 (the harness's counters are not
- * shared); the other cores record what they saw. Prints one summary line; exit status = failures.
+ * shared); the other cores record what they saw. Prints one summary line;
+ * exit status = failures.
  */
 #include <pmsis.h>
 #include <stdio.h>
@@ -336,6 +338,34 @@ static void test_idle_core_sleeps(void)
     check("idle: core 0 slept between the tasks (awake < 2 % of them)", awake * 50 < wall, 1);
 }
 
+/* ---- the FC sleeps while it waits for a task ------------------------------ */
+
+static void busy(void *arg)
+{
+    (void)arg;
+    uint32_t t0, t;
+    __asm__ volatile("csrr %0, time" : "=r"(t0));
+    do
+        __asm__ volatile("csrr %0, time" : "=r"(t));
+    while (t - t0 < 50000);
+}
+
+static void test_fc_sleeps_while_waiting(void)
+{
+    struct pi_cluster_task task;
+    uint32_t wall0, awake0, wall1, awake1;
+    __asm__ volatile("csrr %0, time" : "=r"(wall0));
+    __asm__ volatile("csrr %0, mcycle" : "=r"(awake0));
+    pi_cluster_send_task_to_cl(&cluster, pi_cluster_task(&task, busy, NULL));
+    __asm__ volatile("csrr %0, time" : "=r"(wall1));
+    __asm__ volatile("csrr %0, mcycle" : "=r"(awake1));
+    uint32_t wall = wall1 - wall0, awake = awake1 - awake0;
+    /* 50,000 cluster cycles at 175 MHz: about 71,000 FC cycles at 250. */
+    check("fc wait: the task lasted (> 50,000 FC cycles)", wall > 50000, 1);
+    /* Awake: sending, the wake-up, the completion (a few hundred cycles). */
+    check("fc wait: the FC slept through it (awake < 2 % of it)", awake * 50 < wall, 1);
+}
+
 int main(void)
 {
     struct pi_cluster_conf conf;
@@ -351,6 +381,7 @@ int main(void)
           0);
     test_async();
     test_idle_core_sleeps();
+    test_fc_sleeps_while_waiting();
     pi_cluster_task(&task, note, NULL);
     task.stack_size = 1u << 20;
     check("task with a stack larger than the cluster's",

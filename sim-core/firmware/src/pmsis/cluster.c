@@ -79,6 +79,9 @@ int pi_cluster_open(struct pi_device *device)
     cl.pending_first = cl.pending_last = NULL;
     cl_write(CL_CTRL_BASE, CL_CTRL_MAILBOX, 0);
     (void)cl_read(CL_CTRL_BASE, CL_CTRL_FC_EVENT); /* clears stale events */
+    /* Pending FC events drive the FC's external interrupt: the FC sleeps
+     * in wfi while it waits for a task (pi_task_wait_on). */
+    cl_write(CL_CTRL_BASE, CL_CTRL_FC_IRQ, 1);
     cl_write(CL_CTRL_BASE, CL_CTRL_BOOT_ADDR, (uint32_t)&__pi_cl_boot);
     cl_write(CL_CTRL_BASE, CL_CTRL_FETCH_EN, (1u << n) - 1);
     cl.opened = 1;
@@ -111,12 +114,19 @@ void pi_task_wait_on(pi_task_t *task)
     while (!task->done) {
         if (!cl.pending_first)
             __pi_fatal("waiting on a task that was never sent");
-        /* Loads and a branch: an idle-skip friendly poll, which the ISS
-         * jumps over until core 0 posts (docs/CLUSTER.md, FC_EVENT). The
-         * read clears the count it returns. */
-        uint32_t events;
+        /* Asleep, clock-gated, until core 0 posts: with FC_IRQ set a pending
+         * FC event raises the FC's external interrupt, which ends a wfi.
+         * Interrupts stay off (mstatus.MIE clear: wfi wakes on a pending
+         * enabled interrupt without taking it), so a program's own
+         * handlers never see the cluster's line. The read clears the count
+         * it returns (docs/CLUSTER.md, FC_EVENT and FC_IRQ). */
+        uint32_t mstatus, mie, events;
+        __asm__ volatile("csrrc %0, mstatus, 8" : "=r"(mstatus));
+        __asm__ volatile("csrrs %0, mie, %1" : "=r"(mie) : "r"(1u << 11));
         while ((events = cl_read(CL_CTRL_BASE, CL_CTRL_FC_EVENT)) == 0)
-            ;
+            __asm__ volatile("wfi");
+        __asm__ volatile("csrw mie, %0" ::"r"(mie));
+        __asm__ volatile("csrs mstatus, %0" ::"r"(mstatus & 8u));
         complete(events);
     }
 }
@@ -157,6 +167,7 @@ int pi_cluster_close(struct pi_device *device)
         return -1;
     while (cl.pending_last)
         pi_task_wait_on(cl.pending_last);
+    cl_write(CL_CTRL_BASE, CL_CTRL_FC_IRQ, 0);
     cl_write(CL_CTRL_BASE, CL_CTRL_POWER, 0);
     cl.opened = 0;
     device->data = NULL;

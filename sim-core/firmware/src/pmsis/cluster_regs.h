@@ -25,6 +25,7 @@
 #define CL_CTRL_FC_EVENT 0x18
 #define CL_CTRL_HALT 0x1C
 #define CL_CTRL_MAILBOX 0x20
+#define CL_CTRL_FC_IRQ 0x24
 
 /* EU: event unit, the accessing core's view. */
 #define CL_EU_EVT_MASK 0x00

@@ -106,6 +106,8 @@ pub struct Cpu {
     /// it was not a load or loaded x0): the load-use stall check.
     load_mask: u32,
     sleeping: bool,
+    /// `wfi` ends the run slice ([`Cpu::set_stop_on_sleep`]).
+    stop_on_sleep: bool,
     // Run control.
     deadline: u64,
     instr_deadline: u64,
@@ -173,6 +175,7 @@ impl Cpu {
             stats: CoreStats::default(),
             load_mask: 0,
             sleeping: false,
+            stop_on_sleep: false,
             deadline: 0,
             instr_deadline: u64::MAX,
             event_cycle: u64::MAX,
@@ -317,6 +320,19 @@ impl Cpu {
     /// The level of the external interrupt line (mip.MEIP).
     pub fn set_external_irq(&mut self, level: bool) {
         self.meip = level;
+    }
+
+    /// The level [`Cpu::set_external_irq`] last set.
+    pub fn external_irq(&self) -> bool {
+        self.meip
+    }
+
+    /// With `true`, a `wfi` that puts the core to sleep ends the current
+    /// run slice ([`StopReason::Wait`]) instead of sleeping to its end: the
+    /// cluster's scheduler then decides how far the FC may sleep, since a
+    /// cluster core may wake it (docs/CLUSTER.md, `FC_IRQ`).
+    pub fn set_stop_on_sleep(&mut self, on: bool) {
+        self.stop_on_sleep = on;
     }
 
     /// Read a CSR as machine mode would (tests, debugging).

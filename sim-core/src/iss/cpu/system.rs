@@ -69,6 +69,9 @@ impl Cpu {
                 if self.mip() & self.mie == 0 {
                     self.sleeping = true;
                     self.break_block();
+                    if self.stop_on_sleep {
+                        self.stop(StopReason::Wait);
+                    }
                 }
                 Sys::Next(None)
             }
