@@ -35,6 +35,14 @@
 //! A core asleep in the event unit, halted or off is not an agent: it costs
 //! no host time until a wake-up makes it runnable at the wake-up's time,
 //! its cycle counter jumping there as gated cycles.
+//!
+//! The FC asleep in `wfi` with `FC_IRQ` set (the runtime waiting for a
+//! task) stays an agent, but its `wfi` ends its run slice
+//! ([`Cpu::set_stop_on_sleep`]) and, asleep, it may only advance just past
+//! the earliest runnable core or DMA completion: the first core to post an
+//! FC event at `t` then finds the FC at its first clock edge after `t`
+//! (the write is a synchronisation point, made once the FC is later), and
+//! the FC wakes there, whatever the quantum.
 
 pub mod ctrl;
 pub mod dma;
