@@ -653,6 +653,10 @@ impl Cluster {
     /// anything else (a device event, a request, its exit...), or a
     /// cluster core ends the program or fails. See the module docs for the
     /// order in which the agents run.
+    ///
+    /// The FC's external interrupt level the caller set is the platform's;
+    /// the cluster ORs its own line (`FC_IRQ`) in before each FC turn and
+    /// puts the caller's level back before it returns.
     pub fn run_until(
         &mut self,
         fc: &mut Cpu,
@@ -660,9 +664,21 @@ impl Cluster {
         dev: &mut dyn Mmio,
         limit: Picos,
     ) -> StopReason {
-        // The platform's level on the FC's interrupt line (the caller set
-        // it); the cluster's FC event line is ORed in before each FC turn.
         let platform_irq = fc.external_irq();
+        let stop = self.run_agents(fc, mem, dev, limit, platform_irq);
+        fc.set_external_irq(platform_irq);
+        stop
+    }
+
+    /// [`Cluster::run_until`]'s loop.
+    fn run_agents(
+        &mut self,
+        fc: &mut Cpu,
+        mem: &mut Memory,
+        dev: &mut dyn Mmio,
+        limit: Picos,
+        platform_irq: bool,
+    ) -> StopReason {
         loop {
             self.sh.fc_time = fc.now();
             // The earliest runnable agent in `(time, rank)` order. A rank
