@@ -20,6 +20,7 @@ those lines looks like one just inside it, so this script
 DIR needs `gates.csv` (every `cosim dataset` since it was added).
 """
 
+import argparse
 import collections
 import os
 import sys
@@ -66,17 +67,21 @@ def why_reported(p, listed):
 
 
 def main():
-    ckpt, small, labels = export.checkpoint_and_dataset()
-    data = sys.argv[1]
-    listed = netdef.read_gates(data, [r["file"] for r in labels])
+    ap = argparse.ArgumentParser()
+    ap.add_argument("data")
+    ap.add_argument("--checkpoint", default=export.DEFAULT_CHECKPOINT)
+    a = ap.parse_args()
+    ckpt, small, labels = export.checkpoint_and_dataset([a.data, "--checkpoint", a.checkpoint])
+    listed = netdef.read_gates(a.data, [r["file"] for r in labels])
     x = netdef.to_int8(small)
     res = int8_ref.infer_batch(export.quantize(ckpt), x, export.decode_rule(ckpt))
     pred = [(r["visible"], r["u_q4"] / 16, r["v_q4"] / 16, r["distance_mm"] / 1000) for r in res]
 
-    fps = [(p, g) for p, r, g in zip(pred, labels, listed) if p[0] and not r["visible"]]
-    causes = collections.Counter(why_reported(p, g) for p, g in fps)
-    outside = [min(abs(edge_px(g)) for g in gs if not g["in_image"]) for p, gs in fps
-               if why_reported(p, gs) == "its centre outside the image"]
+    fps = [(p, g, why_reported(p, g))
+           for p, r, g in zip(pred, labels, listed) if p[0] and not r["visible"]]
+    causes = collections.Counter(why for _, _, why in fps)
+    outside = [min(abs(edge_px(g)) for g in gs if not g["in_image"]) for _, gs, why in fps
+               if why == "its centre outside the image"]
     print(f"false positives (int8): {len(fps)} of {sum(not r['visible'] for r in labels)} "
           "images without a visible gate; the listed gate nearest the report:")
     for why, n in causes.most_common():

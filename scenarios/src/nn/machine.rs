@@ -114,8 +114,8 @@ pub struct NnMachine {
     /// sleeps while the cluster infers (pmsis `pi_task_wait_on`).
     fc_running_w: f64,
     fc_sleeping_w: f64,
-    /// The FC's clock period, s.
-    fc_period_s: f64,
+    /// The FC's clock period (its sleep is counted in cycles).
+    fc_period: Picos,
     done: bool,
 }
 
@@ -199,7 +199,7 @@ impl NnMachine {
             meter: Meter::new(vref, cfg.clock),
             fc_running_w: running.current().0 * plat.core.vref,
             fc_sleeping_w: sleeping.current().0 * plat.core.vref,
-            fc_period_s: 1.0 / plat.core.frequency as f64,
+            fc_period: Hertz(plat.core.frequency).period(),
             done: false,
         };
         m.run_to_stop()?;
@@ -273,7 +273,8 @@ impl NnMachine {
         self.meter
             .sample(Totals::of(&self.cluster, &self.mem, now), now);
         let elapsed = now.saturating_sub(t0).as_secs_f64();
-        let asleep = (self.fc.stats().sleep_cycles - slept0) as f64 * self.fc_period_s;
+        let slept = self.fc.stats().sleep_cycles - slept0;
+        let asleep = Picos(slept.saturating_mul(self.fc_period.0)).as_secs_f64();
         let fc = self.fc_running_w * (elapsed - asleep).max(0.0) + self.fc_sleeping_w * asleep;
         self.meter.energy_j - before + fc
     }

@@ -25,9 +25,9 @@
  * (pi_cluster_open ... pi_cluster_close, GAP8's cluster power gating): it
  * works about 3.5 ms of every 120 ms, and an open idle cluster would leak
  * the rest of the time (8.6 times the cluster's energy over the race with
- * nn_keep_open = 1, docs/NN.md "Power gating"). The power-up, the cores' boot and the L1
- * allocation are in the latency, not in the cluster cycles of the
- * network (network.c measures from the input's DMA).
+ * nn_keep_open = 1, docs/NN.md "Power gating"). The power-up, the cores'
+ * boot and the L1 allocation are in the latency, not in the cluster
+ * cycles of the network (network.c measures from the input's DMA).
  *
  * Inference time: the FC's time CSR (it counts while the FC waits for the
  * cluster) from the capture's end to the decoded head, rounded up to whole
@@ -66,8 +66,8 @@ int32_t nn_look_every = 5;
 /* 0: the cluster is powered for each inference only (see the top); 1: it
  * is opened at the first look and kept open, its cores asleep between
  * inferences: `--set firmware.nn_keep_open=1` measures what the power
- * gating saves (docs/NN.md "Power gating"). */
-/* In .data although 0: a scenario sets it in the ELF's image (firmware_params.rs). */
+ * gating saves (docs/NN.md "Power gating"). In .data although 0, since a
+ * scenario sets it in the ELF's image (kernel/firmware_params.rs). */
 __attribute__((section(".data"))) int32_t nn_keep_open = 0;
 /* Sightings are used from nn_min_range_mm to nn_max_range_mm: the training
  * images' poses were 0.8-7 m from a gate (docs/NN.md "The data"), the

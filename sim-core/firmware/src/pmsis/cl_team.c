@@ -1,8 +1,9 @@
 /*
  * The cluster cores' side: core 0, the master, takes tasks from the FC's
  * mailbox, asleep on the mailbox event between them; cores 1..N-1 wait on
- * the event unit's dispatch FIFO for the forks. A fork dispatches (entry, arg) to the team, runs the master's
- * share, then meets the team at the barrier (docs/CLUSTER.md, EU).
+ * the event unit's dispatch FIFO for the forks. A fork dispatches (entry,
+ * arg) to the team, runs the master's share, then meets the team at the
+ * barrier (docs/CLUSTER.md, EU).
  */
 #include <picolibc.h> /* defines PICOLIBC_TLS, which picotls.h needs */
 #include <picotls.h>
