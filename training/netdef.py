@@ -16,7 +16,8 @@ grid cell (one cell = 16x16 input pixels = 64x64 camera pixels):
 That is NETS["base"], the committed network; NETS["wide"] widens conv4-conv6
 (same input, grid and head channels, so decode.c and nn_race.c are
 unchanged); NETS["fine160"] takes a 160x160 input (2x2 block means, POOLS)
-through two stride-2 layers into the base network's conv2-head. A
+through two stride-2 layers into the base network's conv2-head;
+NETS["teacher"] is a large network (26 MMAC) that only trains and teaches. A
 checkpoint records its net and export.load_checkpoint selects it
 (select()), so every script follows the checkpoint's shape, input
 resolution included.
@@ -69,6 +70,20 @@ NETS = {
         ("conv0", 3, 2, 1, 1, 8, True),
         ("conv1", 3, 2, 1, 8, 8, True),
     ] + _BASE[1:],
+    # Not for the cluster: a network five times over DESIGN.md §13's 5 MMAC
+    # (26.1 MMAC, 745,068 parameters), trained to measure what capacity buys
+    # on these labels and to teach the small networks (train.py --teacher;
+    # docs/NN.md "A large network").
+    "teacher": [
+        ("conv1", 3, 2, 1, 1, 16, True),
+        ("conv2", 3, 2, 1, 16, 32, True),
+        ("conv3", 3, 2, 1, 32, 64, True),
+        ("conv4", 3, 1, 1, 64, 96, True),
+        ("conv5", 3, 2, 1, 96, 128, True),
+        ("conv6", 3, 1, 1, 128, 192, True),
+        ("conv7", 3, 1, 1, 192, 192, True),
+        ("head", 1, 1, 0, 192, 12, False),
+    ],
 }
 # Camera pixels per input pixel (each way) of each net; every other net 4.
 POOLS = {"fine160": 2}

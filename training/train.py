@@ -210,6 +210,52 @@ def smooth_l1(d, beta=0.02):
     return jnp.where(a < beta, 0.5 * a * a / beta, a - 0.5 * beta)
 
 
+def teacher_logits(path, small, n, chunk=512):
+    """Distillation's targets: the objectness logits (2n, G, G) of the folded
+    checkpoint `path` (any net; the one it records) on every sample, mirrored
+    ones included, without the brightness augmentation (the student is to
+    answer as the teacher does whatever the brightness)."""
+    with np.load(path) as z:
+        net = str(z["net"]) if "net" in z.files else "base"
+        layers = netdef.NETS[net]
+        w = {name: (jnp.asarray(np.transpose(z[f"{name}.w"], (1, 2, 3, 0))), jnp.asarray(z[f"{name}.b"]))
+             for name, *_ in layers}
+    if netdef.POOLS.get(net, 4) != netdef.POOL:
+        raise SystemExit(f"the teacher {net} takes another input resolution than {netdef.NET}")
+
+    @jax.jit
+    def fwd(x):
+        for name, _, st, p, _, _, relu in layers:
+            x = conv(x, w[name][0], st, p) + w[name][1]
+            if relu:
+                x = jax.nn.relu(x)
+        return x[..., 0]
+
+    out = []
+    for s in range(0, 2 * n, chunk):
+        idx = np.arange(s, min(s + chunk, 2 * n))
+        out.append(np.asarray(fwd(batch_inputs(small, idx, n, None, 0.0, 0.0))).astype(np.float32))
+    return np.concatenate(out)
+
+
+def kd_loss_fn(params, x, obj, w_obj, reg, mask, tlog, kd):
+    """loss_fn plus kd x the binary cross-entropy of the objectness against
+    the teacher's probabilities (sigmoid of `tlog`) over every cell, the
+    ignored ones included: where the labels leave a cell free (the rules'
+    lines, the positives' neighbours), the teacher still says how much a
+    gate is there (knowledge distillation, Hinton et al. 2015)."""
+    out = forward(params, x)
+    bce = (optax.sigmoid_binary_cross_entropy(out[..., 0], obj) * w_obj).sum(axis=(1, 2))
+    kdl = optax.sigmoid_binary_cross_entropy(out[..., 0], jax.nn.sigmoid(tlog)).sum(axis=(1, 2))
+    return jnp.mean(bce) + kd * jnp.mean(kdl) + 4.0 * jnp.mean(regression_loss(out, reg, mask))
+
+
+def regression_loss(out, reg, mask):
+    """Per sample: the weighted smooth-L1 of the regression over the masked cells."""
+    w = jnp.array([1.0, 1.0, 0.5] + [0.25] * 8)
+    return ((smooth_l1(out[..., 1:] - reg) * w).sum(-1) * mask).sum(axis=(1, 2))
+
+
 def loss_fn(params, x, obj, w_obj, reg, mask):
     """BCE of the objectness over the cells (weighted by w_obj: 0 leaves a
     cell out) plus the weighted smooth-L1 of the regression over the masked
@@ -219,9 +265,7 @@ def loss_fn(params, x, obj, w_obj, reg, mask):
     between them (each below 0.5, a miss at the decoding's threshold)."""
     out = forward(params, x)
     bce = (optax.sigmoid_binary_cross_entropy(out[..., 0], obj) * w_obj).sum(axis=(1, 2))
-    w = jnp.array([1.0, 1.0, 0.5] + [0.25] * 8)
-    r = (smooth_l1(out[..., 1:] - reg) * w).sum(-1) * mask
-    return jnp.mean(bce) + 4.0 * jnp.mean(r.sum(axis=(1, 2)))
+    return jnp.mean(bce) + 4.0 * jnp.mean(regression_loss(out, reg, mask))
 
 
 def fold_bn(params, calib, chunk=256):
@@ -399,6 +443,9 @@ def main():
                     help="with --gates: leave gates near the labelling rules' lines out of the objectness")
     ap.add_argument("--net", default="base", choices=sorted(netdef.NETS),
                     help="the network's shape (netdef.NETS; the checkpoint records it)")
+    ap.add_argument("--teacher", help="a folded checkpoint whose objectness the network also "
+                    "learns (distillation; docs/NN.md \"A large network\")")
+    ap.add_argument("--kd", type=float, default=1.0, help="the distillation term's weight")
     a = ap.parse_args()
     netdef.select(a.net)
     t0 = time.time()
@@ -421,6 +468,11 @@ def main():
         wobj = 1.0 - (1.0 if a.ignore_neighbours else 0.0) * (mask - obj)
     print(f"loaded {n} images (x2 mirrored) in {time.time() - t0:.1f} s", flush=True)
 
+    tlog = None
+    if a.teacher:
+        t0 = time.time()
+        tlog = teacher_logits(a.teacher, small, n)
+        print(f"teacher's objectness on {2 * n} samples in {time.time() - t0:.0f} s", flush=True)
     key = jax.random.PRNGKey(a.seed)
     params = init(key, a.bn)
     if a.init:
@@ -436,8 +488,11 @@ def main():
     state = opt.init(params)
 
     @jax.jit
-    def step(params, state, xb, ob, wb, rb, mb):
-        loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, wb, rb, mb)
+    def step(params, state, xb, ob, wb, rb, mb, tb):
+        if tb is None:
+            loss, g = jax.value_and_grad(loss_fn)(params, xb, ob, wb, rb, mb)
+        else:
+            loss, g = jax.value_and_grad(kd_loss_fn)(params, xb, ob, wb, rb, mb, tb, a.kd)
         upd, state = opt.update(g, state, params)
         return optax.apply_updates(params, upd), state, loss
 
@@ -452,7 +507,8 @@ def main():
                 break
             idx = np.sort(perm[s * a.batch:(s + 1) * a.batch])
             xb = batch_inputs(small, idx, n, rng, a.gain, a.offset)
-            params, state, loss = step(params, state, xb, obj[idx], wobj[idx], reg[idx], mask[idx])
+            params, state, loss = step(params, state, xb, obj[idx], wobj[idx], reg[idx], mask[idx],
+                                       None if tlog is None else tlog[idx])
             total += float(loss)
             done += 1
             if s % 100 == 0:
@@ -492,7 +548,8 @@ def main():
     meta = {"net": a.net, "command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
             "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn,
             "ignore_neighbours": a.ignore_neighbours, "gates": a.gates,
-            "ambiguous": a.ambiguous, "train_seconds": round(train_s, 1),
+            "ambiguous": a.ambiguous, "teacher": a.teacher, "kd": a.kd if a.teacher else None,
+            "train_seconds": round(train_s, 1),
             "steps": done, "scheduled_steps": total_steps,
             "jax": jax.__version__, "optax": optax.__version__}
     ckpt["meta"] = np.array(json.dumps(meta))

@@ -362,3 +362,59 @@ def test_analyse_lines_finds_the_gates_at_the_rules_lines():
     assert al.why_reported(report, [gate(20, 150, 5, 75)]) == "beyond 70 degrees"
     assert al.why_reported(report, [gate(200, 160, 5, 20)]) == "no listed gate near the report"
     assert al.why_reported(report, []) == "no listed gate near the report"
+    # Unambiguous images: every listed gate clearly visible or clearly not.
+    assert al.unambiguous([gate(160, 160, 3, 20), gate(-80, 160, 5, 20), gate(100, 100, 12, 20)])
+    assert not al.unambiguous([gate(160, 160, 3, 20), gate(-20, 160, 5, 20)])  # near the edge
+    assert not al.unambiguous([gate(160, 160, 1.2, 20)])  # close up
+    assert not al.unambiguous([gate(160, 160, 7.5, 20)])  # near 8 m
+    assert not al.unambiguous([gate(160, 160, 4, 68)])  # near 70 degrees
+    assert al.unambiguous([])
+    assert [al.distance_band(d) for d in (0.9, 1.7, 4.0, 7.9)] == \
+        ["0-1.5 m", "1.5-2 m", "2-6 m", "6-8 m"]
+    # A detection's error cause: what lies at the reported centre.
+    label = {"u": 100.0, "v": 100.0, "distance_m": 4.0}
+    at = gate(100, 100, 4.0, 10)  # the label's own row
+    other = dict(gate(250, 100, 3.0, 10), visible=True)
+    hidden = dict(gate(250, 100, 3.0, 75), visible=False)
+    assert al.error_cause((True, 110.0, 105.0, 4.0), label, [at, other]) == "placed"
+    assert al.error_cause((True, 245.0, 100.0, 3.0), label, [at, other]) == "gross: another visible gate"
+    assert al.error_cause((True, 245.0, 100.0, 3.0), label, [at, hidden]) == \
+        "gross: a gate not visible, nearer"
+    assert al.error_cause((True, 160.0, 250.0, 3.0), label, [at, other]) == \
+        "gross: no listed gate at the report"
+
+
+def test_distillation_targets_are_the_teachers_objectness(tmp_path, base_net):
+    """train.teacher_logits: the objectness of a folded checkpoint of another
+    net (the "teacher", 26 MMAC, over DESIGN.md §13's 5: it only teaches) on
+    every sample, mirrored ones included, is the float network's
+    (int8_ref.float_forward); kd_loss_fn with kd = 0 is loss_fn (needs JAX)."""
+    pytest.importorskip("jax")
+    import jax
+
+    import train
+
+    netdef.select("teacher")
+    assert sum(netdef.macs()) == 26_092_800 and netdef.params() == 745_068
+    teacher = _random_checkpoint("teacher")
+    np.savez(tmp_path / "teacher.npz", **teacher)
+    rng = np.random.default_rng(3)
+    small = rng.integers(0, 256, (3, netdef.INPUT, netdef.INPUT)).astype(np.uint8)
+    netdef.select("base")
+    got = train.teacher_logits(str(tmp_path / "teacher.npz"), small, 3, chunk=4)
+    x = train.batch_inputs(small, np.arange(6), 3, None, 0.0, 0.0).astype(np.float64)
+    netdef.select("teacher")
+    want = int8_ref.float_forward(teacher, x)[..., 0]
+    netdef.select("base")
+    assert got.shape == (6, netdef.GRID, netdef.GRID)
+    assert np.abs(got - want).max() < 1e-4 * np.abs(want).max()
+    mirrored = train.teacher_logits(str(tmp_path / "teacher.npz"), small[:, :, ::-1].copy(), 3)
+    assert np.allclose(got[3:], mirrored[:3], rtol=0, atol=1e-5 * np.abs(want).max())
+    params = train.init(jax.random.PRNGKey(0))
+    xb = x[:2].astype(np.float32)
+    obj = np.zeros((2, 5, 5), np.float32)
+    obj[0, 2, 3] = 1
+    w, reg, mask = np.ones_like(obj), np.zeros((2, 5, 5, 11), np.float32), obj.copy()
+    plain = float(train.loss_fn(params, xb, obj, w, reg, mask))
+    assert float(train.kd_loss_fn(params, xb, obj, w, reg, mask, got[:2], 0.0)) == plain
+    assert float(train.kd_loss_fn(params, xb, obj, w, reg, mask, got[:2], 1.0)) > plain
