@@ -38,13 +38,14 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import analyse_errors  # noqa: E402
 import evaluate  # noqa: E402
 import export  # noqa: E402
 import int8_ref  # noqa: E402
 import netdef  # noqa: E402
 
 NEAR_REPORT_PX = 60
-GROSS_PX = 40  # analyse_errors.py's gross error
+GROSS_PX = analyse_errors.GROSS_PX
 # An unambiguous image's gates: clearly visible or clearly not (item 3).
 CLEAR_IN = {"m": (2.0, 6.0), "px": 32, "deg": 60.0}
 CLEAR_OUT = {"m": 9.0, "px": 48, "deg": 80.0}

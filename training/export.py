@@ -44,7 +44,7 @@ def load_checkpoint(path):
     `net` entry, like the committed one, is netdef's "base")."""
     with np.load(path) as z:
         ckpt = {k: z[k] for k in z.files}
-    netdef.select(str(ckpt["net"]) if "net" in ckpt else "base")
+    netdef.select(netdef.checkpoint_net(ckpt))
     return ckpt
 
 

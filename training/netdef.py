@@ -92,6 +92,12 @@ LAYERS = NETS[NET]
 HEAD_CHANNELS = 12
 
 
+def checkpoint_net(ckpt):
+    """The net a checkpoint (its arrays, or the open .npz) records; one
+    without a `net` entry, like the committed one, is "base"."""
+    return str(ckpt["net"]) if "net" in ckpt else "base"
+
+
 def select(name):
     """Make `name` (a key of NETS) the network every function here and the
     scripts describe; a checkpoint records its net (export.load_checkpoint

@@ -187,11 +187,12 @@ def conv(x, w, s, p):
         x, w, (s, s), ((p, p), (p, p)), dimension_numbers=("NHWC", "HWIO", "NHWC"))
 
 
-def forward(params, x, keep=False):
+def forward(params, x, keep=False, layers=None):
     """x: (n, INPUT, INPUT, 1) float (int8 input / 128). Returns the head (n, 5, 5, 12)
-    and, with keep, every ReLU output."""
+    and, with keep, every ReLU output. `layers`: another net's (netdef.NETS
+    entry) than the selected one, e.g. a distillation teacher's."""
     acts = []
-    for name, _, s, p, _, _, relu in netdef.LAYERS:
+    for name, _, s, p, _, _, relu in layers or netdef.LAYERS:
         x = conv(x, params[name]["w"], s, p)
         if "gamma" in params[name]:
             # Training with batch normalisation: this batch's statistics.
@@ -216,20 +217,13 @@ def teacher_logits(path, small, n, chunk=512):
     ones included, without the brightness augmentation (the student is to
     answer as the teacher does whatever the brightness)."""
     with np.load(path) as z:
-        net = str(z["net"]) if "net" in z.files else "base"
+        net = netdef.checkpoint_net(z)
         layers = netdef.NETS[net]
-        w = {name: (jnp.asarray(np.transpose(z[f"{name}.w"], (1, 2, 3, 0))), jnp.asarray(z[f"{name}.b"]))
-             for name, *_ in layers}
+        params = {name: {"w": jnp.asarray(np.transpose(z[f"{name}.w"], (1, 2, 3, 0))),
+                         "b": jnp.asarray(z[f"{name}.b"])} for name, *_ in layers}
     if netdef.POOLS.get(net, 4) != netdef.POOL:
         raise SystemExit(f"the teacher {net} takes another input resolution than {netdef.NET}")
-
-    @jax.jit
-    def fwd(x):
-        for name, _, st, p, _, _, relu in layers:
-            x = conv(x, w[name][0], st, p) + w[name][1]
-            if relu:
-                x = jax.nn.relu(x)
-        return x[..., 0]
+    fwd = jax.jit(lambda x: forward(params, x, layers=layers)[..., 0])
 
     out = []
     for s in range(0, 2 * n, chunk):
