@@ -87,7 +87,7 @@ def quantize(ckpt):
     for i, (name, k, stride, pad, cin, cout, relu) in enumerate(netdef.LAYERS):
         w = ckpt[f"{name}.w"].astype(np.float64)
         b = ckpt[f"{name}.b"].astype(np.float64)
-        assert w.shape == (cout, k, k, cin), (name, w.shape)
+        assert w.shape == (cout, k, k, netdef.weight_cin(netdef.LAYERS[i])), (name, w.shape)
         s_w = np.abs(w).reshape(cout, -1).max(axis=1) / 127.0
         s_w[s_w == 0] = 1.0
         wq = np.clip(np.round(w / s_w[:, None, None, None]), -127, 127).astype(np.int8)
@@ -168,14 +168,17 @@ def c_sources(layers, meta, rule=None):
 /* One convolution: out[y][x][c] = clip((acc * mult[c] + (1 << (shift - 1)))
  * >> shift, out_min, out_max) with acc = bias[c] + sum over (ky, kx, ci) of
  * w[c][ky][kx][ci] * in[y*stride + ky - pad][x*stride + kx - pad][ci]
- * (0 outside the input), the product in 64 bits, >> arithmetic. */
+ * (0 outside the input), the product in 64 bits, >> arithmetic. A
+ * depthwise layer (in_c == out_c) has one input channel per output channel:
+ * ci runs over c alone and w is [out_c][k][k][1]. */
 typedef struct {{
     uint16_t in_h, in_w, in_c;
     uint16_t out_h, out_w, out_c;
-    uint8_t k, stride, pad, shift;
+    uint8_t k, stride, pad, shift, depthwise;
     int32_t out_min, out_max; /* [0, 127] after ReLU (int8); the head: int16 */
     uint32_t macs;
-    const int8_t *w;      /* [out_c][k][k][in_c] */
+    const int8_t *w;      /* [out_c][k][k][in_c]; depthwise [out_c][k][4]: a row's k
+                           * taps then 4 - k zero bytes, a word per row */
     const int32_t *bias;  /* [out_c] */
     const int32_t *mult;  /* [out_c] */
 }} nn_layer_t;
@@ -187,14 +190,20 @@ extern const nn_layer_t nn_layers[NN_N_LAYERS];
     c = origin + '\n#include "weights.h"\n\n'
     for L in layers:
         n = L["name"]
-        c += _array("int8_t", f"nn_{n}_w", L["w"]) + "\n"
+        w = L["w"]
+        if netdef.depthwise(n):
+            # One word per kernel row, as the firmware's depthwise kernel
+            # reads them (conv.c "Depthwise"): no repacking on the cluster.
+            w = np.pad(w.reshape(L["cout"], L["k"], L["k"]), ((0, 0), (0, 0), (0, 4 - L["k"])))
+        c += _array("int8_t", f"nn_{n}_w", w) + "\n"
         c += _array("int32_t", f"nn_{n}_bias", L["bias"], 8) + "\n"
         c += _array("int32_t", f"nn_{n}_mult", L["mult"], 8) + "\n"
     c += "const nn_layer_t nn_layers[NN_N_LAYERS] = {\n"
     for L, mac in zip(layers, macs):
         n = L["name"]
         c += (f"    {{{L['in_h']}, {L['in_w']}, {L['cin']}, {L['out_h']}, {L['out_w']}, {L['cout']}, "
-              f"{L['k']}, {L['stride']}, {L['pad']}, {L['shift']}, {L['lo']}, {L['hi']}, {mac}u, "
+              f"{L['k']}, {L['stride']}, {L['pad']}, {L['shift']}, {int(netdef.depthwise(n))}, "
+              f"{L['lo']}, {L['hi']}, {mac}u, "
               f"nn_{n}_w, nn_{n}_bias, nn_{n}_mult}}, /* {n} */\n")
     c += "};\n"
     return h, c

@@ -56,11 +56,24 @@ def _patches(x, k, stride, pad):
     return np.concatenate(cols, axis=-1)
 
 
+def apply_weights(p, w):
+    """Patches (n, oh, ow, k*k*cin) of _patches times weights
+    [cout][k][k][wcin]: the (n, oh, ow, cout) sums; a depthwise layer's
+    (wcin = 1 of cin = cout channels, netdef.depthwise) take each output
+    channel's taps from its own input channel."""
+    cout = w.shape[0]
+    taps = w.shape[1] * w.shape[2]
+    if p.shape[-1] == w[0].size:
+        return p @ w.reshape(cout, -1).T
+    p = p.reshape(p.shape[:-1] + (taps, cout))
+    return np.einsum("...tc,tc->...c", p, w.reshape(cout, taps).T)
+
+
 def layer_int8(layer, x):
     """One layer on int8/int16 activations (n, h, w, cin) -> (n, oh, ow, cout)."""
     p = _patches(x.astype(np.float64), layer["k"], layer["stride"], layer["pad"])
-    w = layer["w"].reshape(layer["cout"], -1).astype(np.float64)
-    acc = (p @ w.T).astype(np.int64) + layer["bias"].astype(np.int64)
+    acc = apply_weights(p, layer["w"].astype(np.float64)).astype(np.int64)
+    acc += layer["bias"].astype(np.int64)
     assert np.all(np.abs(acc) < 2**31), "int32 accumulator overflow"
     shift = layer["shift"]
     y = (acc * layer["mult"].astype(np.int64) + (1 << (shift - 1))) >> shift
@@ -136,7 +149,7 @@ def float_forward(ckpt, x, batch=256):
                                for s in range(0, len(x), batch)])
     for name, k, stride, pad, _, cout, relu in netdef.LAYERS:
         p = _patches(x, k, stride, pad)
-        x = p @ ckpt[f"{name}.w"].reshape(cout, -1).T.astype(np.float64) + ckpt[f"{name}.b"]
+        x = apply_weights(p, ckpt[f"{name}.w"].astype(np.float64)) + ckpt[f"{name}.b"]
         if relu:
             x = np.maximum(x, 0.0)
     return x

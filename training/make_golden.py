@@ -5,12 +5,15 @@ committed golden images (training/golden/*.pgm, made by
 for tests/test_nn.py (numpy only):
 
     python3 training/make_golden.py
+    python3 training/make_golden.py --checkpoint training/sep/checkpoint.npz \
+        --out training/sep/golden.json     # the depthwise-separable network's
 
 Per image: the int8 input's and every layer's output's SHA-256 (bytes in
 HWC order, int8, the head int16 little-endian), the head's 300 int16
 values and the decoded outputs.
 """
 
+import argparse
 import hashlib
 import json
 import os
@@ -58,8 +61,13 @@ def golden(checkpoint=export.DEFAULT_CHECKPOINT):
 
 
 def main():
-    g = golden()
-    with open(os.path.join(GOLDEN, "golden.json"), "w") as f:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--checkpoint", default=export.DEFAULT_CHECKPOINT)
+    ap.add_argument("--out", default=os.path.join(GOLDEN, "golden.json"),
+                    help="where to write (the golden images stay training/golden's)")
+    a = ap.parse_args()
+    g = golden(a.checkpoint)
+    with open(a.out, "w") as f:
         json.dump(g, f, indent=1)
         f.write("\n")
     for e in g["images"]:

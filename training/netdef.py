@@ -84,6 +84,30 @@ NETS = {
         ("conv7", 3, 1, 1, 192, 192, True),
         ("head", 1, 1, 0, 192, 12, False),
     ],
+    # The teacher's widths within DESIGN.md §13's 5 MMAC: after conv1,
+    # depthwise-separable layers (MobileNet's trade): a 3x3 per channel
+    # ("dw": cin == cout, one weight per tap and channel) then a 1x1
+    # across channels ("pw"), each with ReLU. 4.40 MMAC, 101,164
+    # parameters; the same 7 3x3 layers' receptive field as the teacher
+    # (docs/NN.md "Depthwise-separable").
+    "sep": [
+        ("conv1", 3, 2, 1, 1, 16, True),
+        ("dw2", 3, 2, 1, 16, 16, True),
+        ("pw2", 1, 1, 0, 16, 32, True),
+        ("dw3", 3, 2, 1, 32, 32, True),
+        ("pw3", 1, 1, 0, 32, 64, True),
+        ("dw4", 3, 1, 1, 64, 64, True),
+        ("pw4", 1, 1, 0, 64, 96, True),
+        ("dw4b", 3, 1, 1, 96, 96, True),
+        ("pw4b", 1, 1, 0, 96, 96, True),
+        ("dw5", 3, 2, 1, 96, 96, True),
+        ("pw5", 1, 1, 0, 96, 128, True),
+        ("dw6", 3, 1, 1, 128, 128, True),
+        ("pw6", 1, 1, 0, 128, 192, True),
+        ("dw7", 3, 1, 1, 192, 192, True),
+        ("pw7", 1, 1, 0, 192, 192, True),
+        ("head", 1, 1, 0, 192, 12, False),
+    ],
 }
 # Camera pixels per input pixel (each way) of each net; every other net 4.
 POOLS = {"fine160": 2}
@@ -126,16 +150,28 @@ def geometry():
     return out
 
 
+def depthwise(name):
+    """A depthwise layer ("dw..."): each output channel convolves its own
+    input channel alone (cin == cout; weights [cout][k][k][1])."""
+    return name.startswith("dw")
+
+
+def weight_cin(layer):
+    """The input channels one output channel's weights span."""
+    name, _, _, _, cin, _, _ = layer
+    return 1 if depthwise(name) else cin
+
+
 def macs():
     """Multiply-accumulates per inference, per layer."""
     return [
-        oh * ow * cout * k * k * cin
-        for (_, _, oh, ow), (_, k, _, _, cin, cout, _) in zip(geometry(), LAYERS)
+        oh * ow * layer[5] * layer[1] ** 2 * weight_cin(layer)
+        for (_, _, oh, ow), layer in zip(geometry(), LAYERS)
     ]
 
 
 def params():
-    return sum(k * k * cin * cout + cout for _, k, _, _, cin, cout, _ in LAYERS)
+    return sum(layer[1] ** 2 * weight_cin(layer) * layer[5] + layer[5] for layer in LAYERS)
 
 
 def read_pgm(path):

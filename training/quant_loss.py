@@ -40,11 +40,11 @@ def forward(ckpt, x, weights=(), outputs=(), batch=250):
     heads = []
     for s0 in range(0, len(x), batch):
         a = x[s0:s0 + batch].astype(np.float64) / 128
-        for i, (name, k, stride, pad, _, cout, relu) in enumerate(netdef.LAYERS):
+        for i, (name, k, stride, pad, _, _, relu) in enumerate(netdef.LAYERS):
             w = ckpt[f"{name}.w"].astype(np.float64)
             if i in weights:
                 w = rounded_weights(w)
-            a = int8_ref._patches(a, k, stride, pad) @ w.reshape(cout, -1).T + ckpt[f"{name}.b"]
+            a = int8_ref.apply_weights(int8_ref._patches(a, k, stride, pad), w) + ckpt[f"{name}.b"]
             if relu:
                 a = np.maximum(a, 0.0)
                 if i in outputs:

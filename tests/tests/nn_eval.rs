@@ -14,12 +14,19 @@ use e2e_tests::{binary, firmware, output_text as text, repo_root, CosimBins as B
 use serde_json::Value;
 
 fn eval(bins: &Bins, data: &Path, cores: &str, out: &Path, heads: &Path) -> Value {
+    eval_elf(bins, "nn_eval", data, cores, out, heads)
+}
+
+fn eval_elf(bins: &Bins, elf: &str, data: &Path, cores: &str, out: &Path, heads: &Path) -> Value {
+    let elf = firmware(elf);
     let o = bins.cosim(&[
         "nn",
         "eval",
         data.to_str().unwrap(),
         "--cores",
         cores,
+        "--elf",
+        elf.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
         "--heads",
@@ -36,8 +43,12 @@ fn read_json(p: &Path) -> Value {
 /// A `#define NAME value` of the committed weights.h (the network's shape
 /// is the export's, not this test's).
 fn weights_define(name: &str) -> u64 {
-    let h =
-        std::fs::read_to_string(repo_root().join("sim-core/firmware/src/nn/weights.h")).unwrap();
+    define_in("sim-core/firmware/src/nn/weights.h", name)
+}
+
+/// A `#define NAME value` of a generated weights.h (path from the repo root).
+fn define_in(weights_h: &str, name: &str) -> u64 {
+    let h = std::fs::read_to_string(repo_root().join(weights_h)).unwrap();
     let prefix = format!("#define {name} ");
     h.lines()
         .find_map(|l| l.strip_prefix(&prefix))
@@ -118,6 +129,40 @@ fn the_cluster_reproduces_the_int8_reference_bit_for_bit() {
         std::fs::read(p("e8.json")).unwrap(),
         std::fs::read(p("again.json")).unwrap()
     );
+}
+
+/// The depthwise-separable network (docs/NN.md "Depthwise-separable"):
+/// its depthwise layers run on the cluster's depthwise kernel, their
+/// inputs in CHW planes written by the layers before, and nn_eval_sep.elf
+/// reproduces its int8 reference (training/sep/golden.json) bit for bit,
+/// on 8 cores and on 3.
+#[test]
+fn the_depthwise_separable_network_reproduces_its_reference_bit_for_bit() {
+    let bins = Bins::new();
+    let tmp = tempfile::tempdir().unwrap();
+    let data = repo_root().join("training/golden");
+    let golden = read_json(&repo_root().join("training/sep/golden.json"));
+    let p = |f: &str| tmp.path().join(f);
+    let weights = "sim-core/firmware/src/nn/sep/weights.h";
+    let macs = define_in(weights, "NN_MACS");
+    let layers = define_in(weights, "NN_N_LAYERS") as usize;
+    for cores in ["8", "3"] {
+        let r = eval_elf(
+            &bins,
+            "nn_eval_sep",
+            &data,
+            cores,
+            &p("e.json"),
+            &p("h.json"),
+        );
+        assert_golden(
+            &read_json(&p("h.json")),
+            &golden,
+            &format!("sep, {cores} cores"),
+        );
+        assert_eq!(r["mac_per_inference"], macs);
+        assert_eq!(r["layer_cycles"].as_array().unwrap().len(), layers);
+    }
 }
 
 #[test]

@@ -24,21 +24,34 @@ import make_golden  # noqa: E402
 import netdef  # noqa: E402
 
 
-def test_committed_c_weights_are_the_export_of_the_checkpoint():
-    ckpt = export.load_checkpoint(export.DEFAULT_CHECKPOINT)
+# The committed networks: (checkpoint, C weights directory, golden outputs).
+# The depthwise-separable one (docs/NN.md "Depthwise-separable") is built
+# into nn_eval_sep.elf, whose e2e test checks it against its golden file.
+SEP = os.path.join(os.path.dirname(HERE), "sep")
+NETWORKS = [
+    (export.DEFAULT_CHECKPOINT, export.DEFAULT_OUT, os.path.join(make_golden.GOLDEN, "golden.json")),
+    (os.path.join(SEP, "checkpoint.npz"), os.path.join(export.DEFAULT_OUT, "sep"),
+     os.path.join(SEP, "golden.json")),
+]
+
+
+@pytest.mark.parametrize("checkpoint, out, _", NETWORKS)
+def test_committed_c_weights_are_the_export_of_the_checkpoint(checkpoint, out, _, base_net):
+    ckpt = export.load_checkpoint(checkpoint)
     h, c = export.c_sources(export.quantize(ckpt), json.loads(str(ckpt["meta"])),
                             export.decode_rule(ckpt))
     for name, want in (("weights.h", h), ("weights.c", c)):
-        with open(os.path.join(export.DEFAULT_OUT, name)) as f:
-            assert f.read() == want, f"{name} differs: run python3 training/export.py"
+        with open(os.path.join(out, name)) as f:
+            assert f.read() == want, f"{out}/{name} differs: run python3 training/export.py"
 
 
-def test_int8_reference_reproduces_the_golden_outputs():
-    with open(os.path.join(make_golden.GOLDEN, "golden.json")) as f:
+@pytest.mark.parametrize("checkpoint, _, golden", NETWORKS)
+def test_int8_reference_reproduces_the_golden_outputs(checkpoint, _, golden, base_net):
+    with open(golden) as f:
         committed = json.load(f)
     assert len(committed["images"]) >= 5
     assert any(e["outputs"]["visible"] for e in committed["images"])
-    assert committed == make_golden.golden()
+    assert committed == make_golden.golden(checkpoint)
 
 
 def test_requantization_rounds_half_up_and_pads_with_zeros():
@@ -281,7 +294,8 @@ def _random_checkpoint(net):
     """A checkpoint of netdef's selected shape with random weights."""
     rng = np.random.default_rng(0)
     ckpt = {f"{n}.{p}": rng.normal(0.0, 0.1, s).astype(np.float32)
-            for n, k, _, _, cin, cout, _ in netdef.LAYERS
+            for (n, k, _, _, _, cout, _), cin in ((layer, netdef.weight_cin(layer))
+                                                  for layer in netdef.LAYERS)
             for p, s in (("w", (cout, k, k, cin)), ("b", (cout,)))}
     ckpt["act_max"] = np.ones(len(netdef.LAYERS) - 1)
     ckpt["net"] = np.array(net)
@@ -418,3 +432,73 @@ def test_distillation_targets_are_the_teachers_objectness(tmp_path, base_net):
     plain = float(train.loss_fn(params, xb, obj, w, reg, mask))
     assert float(train.kd_loss_fn(params, xb, obj, w, reg, mask, got[:2], 0.0)) == plain
     assert float(train.kd_loss_fn(params, xb, obj, w, reg, mask, got[:2], 1.0)) > plain
+
+
+def test_depthwise_layers_convolve_each_channel_alone(base_net):
+    """NETS["sep"]'s depthwise layers ("dw..."): in the int8 reference each
+    output channel sums its own input channel's 3x3 window (checked against
+    a plain loop, stride 2 and padding included), the network stays within
+    DESIGN.md section 13's 5 MMAC, and the C export stores each kernel row
+    as a word (k taps, then zeros) for the cluster's depthwise kernel."""
+    netdef.select("sep")
+    assert sum(netdef.macs()) == 4_400_800 <= 5_000_000
+    rng = np.random.default_rng(3)
+    c, k = 8, 3
+    layer = {"k": k, "stride": 2, "pad": 1, "cout": c,
+             "w": rng.integers(-127, 128, (c, k, k, 1)).astype(np.int8),
+             "bias": rng.integers(-500, 500, c).astype(np.int32),
+             "mult": rng.integers(1, 32767, c).astype(np.int32),
+             "shift": 16, "lo": 0, "hi": 127}
+    x = rng.integers(0, 128, (2, 7, 7, c)).astype(np.int8)
+    got = int8_ref.layer_int8(layer, x)
+    assert got.shape == (2, 4, 4, c)
+    xp = np.pad(x.astype(np.int64), ((0, 0), (1, 1), (1, 1), (0, 0)))
+    for n in range(2):
+        for y in range(4):
+            for xx in range(4):
+                for ch in range(c):
+                    win = xp[n, 2 * y:2 * y + 3, 2 * xx:2 * xx + 3, ch]
+                    acc = int((win * layer["w"][ch, :, :, 0]).sum()) + int(layer["bias"][ch])
+                    want = min(max((acc * int(layer["mult"][ch]) + (1 << 15)) >> 16, 0), 127)
+                    assert got[n, y, xx, ch] == want
+    ckpt = _random_checkpoint("sep")
+    q = export.quantize(ckpt)
+    assert q[1]["name"] == "dw2" and q[1]["w"].shape == (16, 3, 3, 1)
+    _, c_text = export.c_sources(q, {"command": "test"})
+    row = q[1]["w"][0, 0, :, 0]
+    assert c_text.split("nn_dw2_w[192] = {")[1].split(",")[:4] == [
+        f"\n    {row[0]}", f" {row[1]}", f" {row[2]}", " 0"]
+    head = int8_ref.head_int8(q, rng.integers(-128, 128, (1, 80, 80, 1)).astype(np.int8))
+    assert head.shape == (1, netdef.GRID, netdef.GRID, netdef.HEAD_CHANNELS)
+
+
+def test_training_depthwise_is_the_grouped_convolution(base_net):
+    """train.conv computes a depthwise layer as the sum of shifted inputs
+    (XLA's grouped convolution trains 10x slower on CPU): it equals
+    lax.conv_general_dilated with one group per channel, stride 1 and 2,
+    and the float network trained this way is the one int8_ref.py and the
+    export describe (needs JAX)."""
+    pytest.importorskip("jax")
+    import jax
+    import jax.numpy as jnp
+
+    import train
+
+    rng = np.random.default_rng(4)
+    for stride, size in ((1, 10), (2, 9)):
+        x = jnp.asarray(rng.normal(size=(3, size, size, 12)).astype(np.float32))
+        w = jnp.asarray(rng.normal(size=(3, 3, 1, 12)).astype(np.float32))
+        want = jax.lax.conv_general_dilated(
+            x, w, (stride, stride), ((1, 1), (1, 1)), dimension_numbers=("NHWC", "HWIO", "NHWC"),
+            feature_group_count=12)
+        got = train.conv(x, w, stride, 1)
+        assert got.shape == want.shape
+        assert np.abs(np.asarray(got) - np.asarray(want)).max() < 1e-4
+    netdef.select("sep")
+    params = train.init(jax.random.PRNGKey(1))
+    x = rng.normal(0.0, 0.5, (4, 80, 80, 1)).astype(np.float32)
+    want = np.asarray(train.forward(params, x))
+    ckpt = {f"{n}.{k}": (np.transpose(np.asarray(v), (3, 0, 1, 2)) if k == "w" else np.asarray(v))
+            for n, layer in params.items() for k, v in layer.items()}
+    got = int8_ref.float_forward(ckpt, x.astype(np.float64))
+    assert np.abs(got - want).max() < 1e-3 * np.abs(want).max()

@@ -91,12 +91,13 @@ static inline __attribute__((always_inline)) void dot_2x4(const conv_tile_t *t, 
 }
 
 /* Items [first, last) of the tile (item = pair * quads + quad: a core's
- * consecutive items reuse the same two input windows). `out16` and `fast`
- * are constants at each call: the int16 or int8 output, nn_requant_fast
- * or nn_requant; inlined, each call is its own loop without those tests. */
+ * consecutive items reuse the same two input windows). `out16`, `fast`
+ * and `chw` are constants at each call: the int16 or int8 output,
+ * nn_requant_fast or nn_requant, a CHW output (for a depthwise layer) or
+ * HWC; inlined, each call is its own loop without those tests. */
 static inline __attribute__((always_inline)) void items(const conv_tile_t *t, int first,
                                                         int last, const int out16,
-                                                        const int fast)
+                                                        const int fast, const int chw)
 {
     int pixels = t->out_w * t->out_h, quads = t->channels / 4;
     int pair = first / quads, quad = first - pair * quads;
@@ -111,6 +112,8 @@ static inline __attribute__((always_inline)) void items(const conv_tile_t *t, in
         int c = 4 * quad;
         int32_t a[8];
         dot_2x4(t, q0.in, q1.in, c, a);
+        /* Channel c's output offset: c (HWC) or c planes on (CHW). */
+        int oc = chw ? c * t->out_cstep : c, cs = chw ? t->out_cstep : 1;
 #pragma clang loop unroll(full)
         for (int j = 0; j < 4; j++) {
             int32_t b = t->bias[c + j], m = t->mult[c + j];
@@ -123,9 +126,9 @@ static inline __attribute__((always_inline)) void items(const conv_tile_t *t, in
                 if (has1)
                     ((int16_t *)t->out)[q1.out + c + j] = (int16_t)v1;
             } else {
-                ((int8_t *)t->out)[q0.out + c + j] = (int8_t)v0;
+                ((int8_t *)t->out)[q0.out + oc + j * cs] = (int8_t)v0;
                 if (has1)
-                    ((int8_t *)t->out)[q1.out + c + j] = (int8_t)v1;
+                    ((int8_t *)t->out)[q1.out + oc + j * cs] = (int8_t)v1;
             }
         }
         if (++quad == quads) {
@@ -152,11 +155,94 @@ void conv_tile_share(void *arg)
     /* shift >= 15: no int32 overflow in the requantization (conv.h). */
     int fast = t->shift >= 15;
     if (t->out_int16 && fast)
-        items(t, first, last, 1, 1);
+        items(t, first, last, 1, 1, 0);
     else if (t->out_int16)
-        items(t, first, last, 1, 0);
+        items(t, first, last, 1, 0, 0);
     else if (fast)
-        items(t, first, last, 0, 1);
+        items(t, first, last, 0, 1, 0);
     else
-        items(t, first, last, 0, 0);
+        items(t, first, last, 0, 0, 0);
+}
+
+/* A separate entry for the CHW output (int8), so that the HWC layers'
+ * code is what it was without it (measured: one function for both cost
+ * the base network 2 % of its cycles). */
+void conv_tile_share_chw(void *arg)
+{
+    const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
+    int pairs = (t->out_w * t->out_h + 1) / 2;
+    int n_items = pairs * (t->channels / 4);
+    int n = pi_cl_team_nb_cores(), i = (int)pi_core_id();
+    int first = n_items * i / n, last = n_items * (i + 1) / n;
+    if (t->shift >= 15)
+        items(t, first, last, 0, 1, 1);
+    else
+        items(t, first, last, 0, 0, 1);
+}
+
+/*
+ * Depthwise (docs/NN.md "Depthwise-separable"): cv.sdotsp.b sums 4
+ * products into one accumulator, so over HWC data, where a word holds 4
+ * channels of one tap, it would mix channels. The layer before a depthwise
+ * one therefore writes CHW (items' chw), and here a word holds 4 taps of
+ * one channel's row: a 3x3 window is 3 loads and 3 cv.sdotsp.b against the
+ * channel's 3 weight words (taps 0-2 and a zero byte, which meets the
+ * row's fourth byte). The loads are often misaligned (x * stride + kx),
+ * which the CV32E40P does in two cycles (docs/CLUSTER.md, xcvmem). An
+ * item is one channel's output row: its weights and requantization
+ * constants stay in registers along the row, the three row pointers
+ * advance by the stride with post-increment loads. The output is HWC for
+ * the pointwise layer after.
+ */
+static inline __attribute__((always_inline)) void dw_items(const conv_tile_t *t, int first,
+                                                           int last, const int stride,
+                                                           const int fast)
+{
+    /* Item = c * out_h + y; (c, y) advanced without dividing. */
+    int c = first / t->out_h, y = first - c * t->out_h;
+    for (int it = first; it < last; it++, y++) {
+        if (y == t->out_h) {
+            y = 0;
+            c++;
+        }
+        const uint32_t *w = t->w + 3 * c;
+        uint32_t w0 = w[0], w1 = w[1], w2 = w[2];
+        int32_t b = t->bias[c], m = t->mult[c];
+        const int8_t *r0 = t->in + c * t->in_plane + y * stride * t->in_row;
+        const int8_t *r1 = r0 + t->in_row, *r2 = r1 + t->in_row;
+        int8_t *o = (int8_t *)t->out + y * t->out_row * t->out_pix + c;
+        for (int x = t->out_w; x > 0; x--) {
+            int32_t a = b;
+            /* cv.lw's increment is an immediate: one loop per stride. */
+            if (stride == 2) {
+                a = xcv_sdotsp_b(a, xcv_lw_inc(r0, 2), w0);
+                a = xcv_sdotsp_b(a, xcv_lw_inc(r1, 2), w1);
+                a = xcv_sdotsp_b(a, xcv_lw_inc(r2, 2), w2);
+            } else {
+                a = xcv_sdotsp_b(a, xcv_lw_inc(r0, 1), w0);
+                a = xcv_sdotsp_b(a, xcv_lw_inc(r1, 1), w1);
+                a = xcv_sdotsp_b(a, xcv_lw_inc(r2, 1), w2);
+            }
+            *o = (int8_t)(fast ? nn_requant_fast(a, m, t->shift, t->lo, t->hi)
+                               : nn_requant(a, m, t->shift, t->lo, t->hi));
+            o += t->out_pix;
+        }
+    }
+}
+
+void dw_tile_share(void *arg)
+{
+    const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
+    int n_items = t->channels * t->out_h;
+    int n = pi_cl_team_nb_cores(), i = (int)pi_core_id();
+    int first = n_items * i / n, last = n_items * (i + 1) / n;
+    int fast = t->shift >= 15;
+    if (t->stride == 2 && fast)
+        dw_items(t, first, last, 2, 1);
+    else if (t->stride == 2)
+        dw_items(t, first, last, 2, 0);
+    else if (fast)
+        dw_items(t, first, last, 1, 1);
+    else
+        dw_items(t, first, last, 1, 0);
 }

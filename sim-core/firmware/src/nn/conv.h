@@ -27,16 +27,29 @@ typedef struct {
     int32_t lo, hi;
     int channels; /* in this tile, a multiple of 4 */
     /* Output: `out_w` x `out_h` pixels; the tile's channel c goes to
-     * out + (y*out_row + x)*out_pix + c (elements, int8 or int16). */
+     * out + (y*out_row + x)*out_pix + c*out_cstep (elements, int8 or
+     * int16): HWC with out_cstep 1, or, for a depthwise layer to read, CHW
+     * (out_pix 1, out_cstep the padded plane). */
     int out_w, out_h;
     void *out;
-    int out_row, out_pix;
+    int out_row, out_pix, out_cstep;
     int out_int16;
+    /* Depthwise tiles only (dw_tile_share): the input is CHW, channel c's
+     * padded plane at in + c*in_plane, rows in_row bytes apart; `stride`
+     * 1 or 2 (in_pix and in_ystep are unused). */
+    int in_plane, stride;
 } conv_tile_t;
 
 /* The team's share of the tile (a pi_cl_team_fork entry): core i of n
  * computes items [items*i/n, items*(i+1)/n). */
 void conv_tile_share(void *tile);
+/* The same for a tile whose output is CHW (out_cstep != 1, int8). */
+void conv_tile_share_chw(void *tile);
+
+/* The same for a depthwise tile (conv.c "Depthwise"): each of its
+ * channels convolves its own input plane; weights one word per kernel row
+ * ([c][ky] words of 3 taps and a zero byte), k = 3. */
+void dw_tile_share(void *tile);
 
 /* The requantization of docs/NN.md step 2, exactly as training/int8_ref.py:
  * clip((acc * mult + 2^(shift-1)) >> shift, lo, hi), the product in 64 bits,

@@ -4,7 +4,7 @@
  * nearest of the cells above the threshold. */
 #include "decode.h"
 
-#include "weights.h"
+#include "net.h"
 
 void nn_decode(const int16_t *head, nn_output_t *o)
 {

@@ -4,7 +4,7 @@
 
 #include <stdint.h>
 
-#include "weights.h"
+#include "net.h"
 
 /* Bytes of the padded input nn_downsample writes. */
 #define NN_INPUT_PADDED_BYTES ((NN_INPUT + 2) * (NN_INPUT + 2))

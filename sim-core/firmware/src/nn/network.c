@@ -4,7 +4,9 @@
  *
  * L1 holds two activation buffers (a layer reads one and writes the
  * other), each activation HWC with a one-pixel zero border, so the kernel
- * needs no bounds checks (the border is the reference's zero padding).
+ * needs no bounds checks (the border is the reference's zero padding); a
+ * depthwise layer's input is CHW instead, one padded plane per channel
+ * (conv.h).
  * The weights do not fit in L1 (71 KB against 64 KB), so they come from L2
  * as tiles of whole output channels, with their biases and multipliers,
  * into two slots: while the team computes tile i from one slot, the DMA
@@ -15,15 +17,17 @@
 
 #include <pmsis.h>
 #include <stdio.h>
-#include <string.h>
 
 #include "conv.h"
 
 /* Bytes of weights per slot: a tile is the largest multiple of 4 output
  * channels (the kernel's quads) dividing out_c whose weights fit. 9 KiB
- * gives conv6 (576 bytes per channel) 16-channel tiles and leaves L1 room
- * for the two activation buffers and the 8 cores' stacks. */
-#define NN_SLOT_BYTES 9216
+ * gives the base network's conv6 (576 bytes per channel) 16-channel tiles
+ * and leaves L1 room for the two activation buffers and the 8 cores'
+ * stacks; a network whose activations leave less room (the depthwise-
+ * separable one's 40x40x16) takes the largest of the smaller sizes that
+ * fits (setup). */
+static const int slot_sizes[] = {9216, 6144, 4608, 3072, 2048};
 
 typedef struct {
     uint32_t *w;
@@ -41,25 +45,40 @@ static inline uint32_t cluster_now(void)
 /* Bytes of one padded activation (h + 2) x (w + 2) x c. */
 static int padded(int h, int w, int c) { return (h + 2) * (w + 2) * c; }
 
-/* A layer's weight row (one ky of a channel) in bytes as the layer stores
- * it, and in kernel words: k*cin bytes, used in place when they are whole
- * words; rows of at most 4 bytes (conv1: 3x1) are repacked one per word,
- * the spare bytes zero. 0: not supported. */
+/* Bytes of one kernel row of one channel's weights as weights.c stores
+ * them: k*in_c, or a whole word for a depthwise layer (weights.h). */
+static int stored_row(const nn_layer_t *l) { return l->depthwise ? 4 : l->k * l->in_c; }
+
+/* Layer i writes CHW planes when a depthwise layer reads them (conv.h). */
+static int writes_chw(int i) { return i + 1 < NN_N_LAYERS && nn_layers[i + 1].depthwise; }
+
+/* A layer's weight row (one ky of a channel) in kernel words: its stored
+ * bytes used in place when they are whole words; rows of at most 4 bytes
+ * (conv1: 3x1) are repacked one per word, the spare bytes zero. 0: not
+ * supported. */
 static int row_words(const nn_layer_t *l)
 {
-    int row = l->k * l->in_c;
+    int row = stored_row(l);
     if (row % 4 == 0)
         return row / 4;
     return row <= 4 ? 1 : 0;
 }
 
-static int tile_channels(const nn_layer_t *l)
+static int tile_channels(const nn_layer_t *l, int slot_bytes)
 {
-    int ch = l->k * l->k * l->in_c;
+    int ch = l->k * stored_row(l);
     for (int t = l->out_c; t >= 4; t--)
-        if (l->out_c % t == 0 && t % 4 == 0 && t * ch <= NN_SLOT_BYTES)
+        if (l->out_c % t == 0 && t % 4 == 0 && t * ch <= slot_bytes)
             return t;
     return 0;
+}
+
+/* What the depthwise kernel takes: 3x3, one channel per channel, a
+ * one-pixel pad, stride 1 or 2, an int8 output. */
+static int depthwise_ok(const nn_layer_t *l)
+{
+    return l->k == 3 && l->in_c == l->out_c && l->pad == 1 && (l->stride == 1 || l->stride == 2) &&
+           l->out_max <= 127;
 }
 
 /* Tiles in network order: (layer, first channel); the tile after the last
@@ -71,13 +90,14 @@ typedef struct {
 static tile_t tiles[64];
 static int n_tiles;
 
-static int plan(void)
+static int plan(int slot_bytes)
 {
     n_tiles = 0;
     for (int i = 0; i < NN_N_LAYERS; i++) {
         const nn_layer_t *l = &nn_layers[i];
-        int t = tile_channels(l);
-        if (!t || !row_words(l) || l->pad > 1 || l->shift < 1 || l->shift > 31)
+        int t = tile_channels(l, slot_bytes);
+        if (!t || !row_words(l) || l->pad > 1 || l->shift < 1 || l->shift > 31 ||
+            (l->depthwise && !depthwise_ok(l)))
             return -1;
         for (int c = 0; c < l->out_c; c += t) {
             if (n_tiles == (int)(sizeof tiles / sizeof tiles[0]))
@@ -91,7 +111,7 @@ static int plan(void)
 static void fetch(const tile_t *t, slot_t *s)
 {
     const nn_layer_t *l = &nn_layers[t->layer];
-    uint32_t ch = (uint32_t)l->k * l->k * l->in_c;
+    uint32_t ch = (uint32_t)l->k * stored_row(l);
     pi_cl_dma_cmd((uint32_t)(l->w + t->c0 * ch), (uint32_t)s->w, t->n * ch,
                   PI_CL_DMA_DIR_EXT2LOC, &s->cmd[0]);
     pi_cl_dma_cmd((uint32_t)(l->bias + t->c0), (uint32_t)s->bias, t->n * 4,
@@ -106,15 +126,48 @@ static void wait_slot(slot_t *s)
         pi_cl_dma_cmd_wait(&s->cmd[i]);
 }
 
+/* n zero bytes: words while 4 remain from an aligned address (every row
+ * and side of an HWC border with a multiple of 4 channels), bytes
+ * otherwise. Not memset: picolibc's, called per border piece, cost about
+ * 6 cycles a byte here (28,000 of the depthwise-separable network's dw7's
+ * 52,000 cycles, measured); no_builtin keeps clang from turning these
+ * loops back into memset calls. */
+__attribute__((no_builtin("memset"))) static void zero(int8_t *p, int n)
+{
+    for (; n > 0 && ((uintptr_t)p & 3); n--)
+        *p++ = 0;
+    uint32_t *w = (uint32_t *)p;
+    for (; n >= 4; n -= 4)
+        *w++ = 0;
+    for (p = (int8_t *)w; n > 0; n--)
+        *p++ = 0;
+}
+
 /* The zero border of a padded activation. */
 static void zero_border(int8_t *a, int h, int w, int c)
 {
     int row = (w + 2) * c;
-    memset(a, 0, row);
-    memset(a + (h + 1) * row, 0, row);
+    zero(a, row);
+    zero(a + (h + 1) * row, row);
     for (int y = 1; y <= h; y++) {
-        memset(a + y * row, 0, c);
-        memset(a + y * row + (w + 1) * c, 0, c);
+        zero(a + y * row, c);
+        zero(a + y * row + (w + 1) * c, c);
+    }
+}
+
+/* The zero borders of c padded planes (CHW): a plane's bottom row and the
+ * next one's top row are one run, so are a row's last byte and the next
+ * row's first. */
+__attribute__((no_builtin("memset"))) static void zero_border_chw(int8_t *a, int h, int w, int c)
+{
+    int row = w + 2, plane = (h + 2) * row;
+    zero(a, row);
+    for (int ch = 0; ch < c; ch++, a += plane) {
+        for (int y = 1; y <= h; y++) {
+            a[y * row] = 0;
+            a[y * row + w + 1] = 0;
+        }
+        zero(a + (h + 1) * row, ch + 1 < c ? 2 * row : row);
     }
 }
 
@@ -129,51 +182,93 @@ static void repack(uint32_t *dst, const uint32_t *src_words, int channels, int k
 }
 
 /* The L1 working set, allocated at the first inference and kept while the
- * cluster stays open (the allocation is not part of an inference). */
+ * cluster stays open (the allocation is not part of an inference). The
+ * two activation buffers are sized apart: layer i writes buffer (i+1)&1. */
 static struct {
     int ready;
-    int act_bytes, max_tile, repack_words, head_bytes;
+    int slot_bytes, act_bytes[2], max_tile, repack_words, head_bytes;
     int8_t *act[2];
     int16_t *head;
     uint32_t *packed;
     slot_t slot[2];
 } l1;
 
-static int setup(struct pi_device *cl)
+/* Every L1 block of the working set, (pointer, bytes), for a retry with a
+ * smaller slot. */
+static void *l1_blocks[16];
+static int l1_sizes[16], n_l1_blocks;
+
+static void *l1_alloc(struct pi_device *cl, int bytes)
 {
-    if (plan() != 0) {
-        printf("nn: a layer of weights.h does not fit the kernel (pad <= 1, shift 1-31) or a %d-byte slot\n",
-               NN_SLOT_BYTES);
-        return -1;
+    void *p = pi_l1_malloc(cl, bytes);
+    if (p) {
+        l1_blocks[n_l1_blocks] = p;
+        l1_sizes[n_l1_blocks++] = bytes;
     }
+    return p;
+}
+
+static void l1_free_all(struct pi_device *cl)
+{
+    while (n_l1_blocks > 0) {
+        n_l1_blocks--;
+        pi_l1_free(cl, l1_blocks[n_l1_blocks], l1_sizes[n_l1_blocks]);
+    }
+}
+
+/* Plans the tiles for `slot_bytes` and allocates the working set: 0, or -1
+ * (nothing left allocated) when a layer does not fit the kernels or the
+ * set does not fit in L1. */
+static int try_setup(struct pi_device *cl, int slot_bytes)
+{
+    if (plan(slot_bytes) != 0)
+        return -1;
     const nn_layer_t *first = &nn_layers[0], *last = &nn_layers[NN_N_LAYERS - 1];
-    l1.act_bytes = padded(first->in_h, first->in_w, first->in_c);
+    l1.slot_bytes = slot_bytes;
+    l1.act_bytes[0] = padded(first->in_h, first->in_w, first->in_c);
+    l1.act_bytes[1] = 0;
+    l1.max_tile = l1.repack_words = 0;
     for (int i = 0; i < n_tiles; i++) {
         const nn_layer_t *l = &nn_layers[tiles[i].layer];
-        int out = padded(l->out_h, l->out_w, l->out_c);
-        l1.act_bytes = l1.act_bytes > out ? l1.act_bytes : out;
+        int b = (tiles[i].layer + 1) & 1, out = padded(l->out_h, l->out_w, l->out_c);
+        if (tiles[i].layer != NN_N_LAYERS - 1 && out > l1.act_bytes[b])
+            l1.act_bytes[b] = out;
         l1.max_tile = l1.max_tile > tiles[i].n ? l1.max_tile : tiles[i].n;
-        if ((l->k * l->in_c) % 4 && l->k * tiles[i].n > l1.repack_words)
+        if (stored_row(l) % 4 && l->k * tiles[i].n > l1.repack_words)
             l1.repack_words = l->k * tiles[i].n;
     }
     l1.head_bytes = last->out_h * last->out_w * last->out_c * 2;
     int ok = 1;
-    for (int s = 0; s < 2; s++) {
-        ok &= (l1.act[s] = pi_l1_malloc(cl, l1.act_bytes)) != NULL;
-        ok &= (l1.slot[s].w = pi_l1_malloc(cl, NN_SLOT_BYTES)) != NULL;
-        ok &= (l1.slot[s].bias = pi_l1_malloc(cl, l1.max_tile * 4)) != NULL;
-        ok &= (l1.slot[s].mult = pi_l1_malloc(cl, l1.max_tile * 4)) != NULL;
+    n_l1_blocks = 0;
+    for (int s = 0; s < 2 && ok; s++) {
+        /* + 4: the depthwise kernel's last word of a row may reach 3 bytes
+         * past its plane (those bytes meet zero weights). */
+        ok &= (l1.act[s] = l1_alloc(cl, l1.act_bytes[s] + 4)) != NULL;
+        ok = ok && (l1.slot[s].w = l1_alloc(cl, slot_bytes)) != NULL;
+        ok = ok && (l1.slot[s].bias = l1_alloc(cl, l1.max_tile * 4)) != NULL;
+        ok = ok && (l1.slot[s].mult = l1_alloc(cl, l1.max_tile * 4)) != NULL;
     }
-    ok &= (l1.head = pi_l1_malloc(cl, l1.head_bytes)) != NULL;
-    if (l1.repack_words)
-        ok &= (l1.packed = pi_l1_malloc(cl, l1.repack_words * 4)) != NULL;
+    ok = ok && (l1.head = l1_alloc(cl, l1.head_bytes)) != NULL;
+    if (ok && l1.repack_words)
+        ok = (l1.packed = l1_alloc(cl, l1.repack_words * 4)) != NULL;
     if (!ok) {
-        printf("nn: not enough L1 (two %d-byte activations, two %d-byte slots)\n", l1.act_bytes,
-               NN_SLOT_BYTES);
+        l1_free_all(cl);
         return -1;
     }
-    l1.ready = 1;
     return 0;
+}
+
+static int setup(struct pi_device *cl)
+{
+    for (unsigned i = 0; i < sizeof slot_sizes / sizeof slot_sizes[0]; i++)
+        if (try_setup(cl, slot_sizes[i]) == 0) {
+            l1.ready = 1;
+            return 0;
+        }
+    printf("nn: the layers of weights.h do not fit the kernels (pad <= 1, shift 1-31, depthwise "
+           "3x3) or L1 with a %d-byte weight slot\n",
+           slot_sizes[sizeof slot_sizes / sizeof slot_sizes[0] - 1]);
+    return -1;
 }
 
 void nn_network_release(void) { l1.ready = 0; }
@@ -184,6 +279,31 @@ static conv_tile_t tile_args(const tile_t *ti, const uint32_t *w, const slot_t *
 {
     const nn_layer_t *l = &nn_layers[ti->layer];
     int in_row = (l->in_w + 2) * l->in_c, off = 1 - l->pad;
+    if (l->depthwise) {
+        /* CHW planes in, HWC out (conv.h); pad 1, so no offset. */
+        int row = l->in_w + 2, plane = (l->in_h + 2) * row;
+        return (conv_tile_t){
+            .in = l1.act[ti->layer & 1] + ti->c0 * plane,
+            .in_row = row,
+            .in_plane = plane,
+            .stride = l->stride,
+            .k = l->k,
+            .row_words = 1,
+            .w = w,
+            .bias = s->bias,
+            .mult = s->mult,
+            .shift = l->shift,
+            .lo = l->out_min,
+            .hi = l->out_max,
+            .channels = ti->n,
+            .out_w = l->out_w,
+            .out_h = l->out_h,
+            .out = l1.act[(ti->layer + 1) & 1] + ((l->out_w + 2) + 1) * l->out_c + ti->c0,
+            .out_row = l->out_w + 2,
+            .out_pix = l->out_c,
+            .out_cstep = 1,
+        };
+    }
     conv_tile_t t = {
         .in = l1.act[ti->layer & 1] + off * in_row + off * l->in_c,
         .in_row = in_row,
@@ -201,12 +321,20 @@ static conv_tile_t tile_args(const tile_t *ti, const uint32_t *w, const slot_t *
         .out_w = l->out_w,
         .out_h = l->out_h,
         .out_pix = l->out_c,
+        .out_cstep = 1,
         .out_int16 = l->out_max > 127,
     };
     if (ti->layer == NN_N_LAYERS - 1) {
         /* The head: unpadded, to be copied to L2 as it is. */
         t.out = l1.head + ti->c0;
         t.out_row = l->out_w;
+    } else if (writes_chw(ti->layer)) {
+        /* Planes for the depthwise layer after: channel c's at c * plane. */
+        int plane = padded(l->out_h, l->out_w, 1);
+        t.out = l1.act[(ti->layer + 1) & 1] + ti->c0 * plane + (l->out_w + 2) + 1;
+        t.out_row = l->out_w + 2;
+        t.out_pix = 1;
+        t.out_cstep = plane;
     } else {
         t.out = l1.act[(ti->layer + 1) & 1] + ((l->out_w + 2) + 1) * l->out_c + ti->c0;
         t.out_row = l->out_w + 2;
@@ -236,15 +364,23 @@ void nn_network_run(void *arg)
         /* Double buffering: tile i+1 arrives while the team computes tile i. */
         if (i + 1 < n_tiles)
             fetch(&tiles[i + 1], &l1.slot[(i + 1) & 1]);
-        if (ti->c0 == 0 && ti->layer != NN_N_LAYERS - 1)
-            zero_border(l1.act[(ti->layer + 1) & 1], l->out_h, l->out_w, l->out_c);
+        if (ti->c0 == 0 && ti->layer != NN_N_LAYERS - 1) {
+            if (writes_chw(ti->layer))
+                zero_border_chw(l1.act[(ti->layer + 1) & 1], l->out_h, l->out_w, l->out_c);
+            else
+                zero_border(l1.act[(ti->layer + 1) & 1], l->out_h, l->out_w, l->out_c);
+        }
         const uint32_t *w = s->w;
-        if ((l->k * l->in_c) % 4) {
-            repack(l1.packed, s->w, ti->n, l->k, l->k * l->in_c);
+        if (stored_row(l) % 4) {
+            repack(l1.packed, s->w, ti->n, l->k, stored_row(l));
             w = l1.packed;
         }
         conv_tile_t t = tile_args(ti, w, s);
-        pi_cl_team_fork(0, conv_tile_share, &t);
+        pi_cl_team_fork(0,
+                        l->depthwise            ? dw_tile_share
+                        : writes_chw(ti->layer) ? conv_tile_share_chw
+                                                : conv_tile_share,
+                        &t);
         if (i + 1 == n_tiles || tiles[i + 1].layer != ti->layer) {
             uint32_t now = cluster_now();
             job->layer_cycles[ti->layer] = now - layer_start;

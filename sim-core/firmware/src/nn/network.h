@@ -10,7 +10,7 @@
 
 #include <pmsis.h>
 
-#include "weights.h"
+#include "net.h"
 
 /* One inference, filled by the FC, run by nn_network_run on core 0. */
 typedef struct {

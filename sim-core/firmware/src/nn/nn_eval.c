@@ -18,7 +18,7 @@
 #include "decode.h"
 #include "frame.h"
 #include "network.h"
-#include "weights.h"
+#include "net.h"
 
 #define NN_CMD_INFER 1u
 #define NN_CMD_QUIT 2u

@@ -46,7 +46,7 @@
 #include "decode.h"
 #include "frame.h"
 #include "network.h"
-#include "weights.h"
+#include "net.h"
 
 /* The network's input is the camera's whole image (DESIGN.md §5: 320x320). */
 #if NN_CAMERA != GATE_IMAGE_WIDTH || NN_CAMERA != GATE_IMAGE_HEIGHT

@@ -4571,11 +4571,11 @@ static const int32_t nn_head_mult[12] = {
 };
 
 const nn_layer_t nn_layers[NN_N_LAYERS] = {
-    {80, 80, 1, 40, 40, 8, 3, 2, 1, 21, 0, 127, 115200u, nn_conv1_w, nn_conv1_bias, nn_conv1_mult}, /* conv1 */
-    {40, 40, 8, 20, 20, 16, 3, 2, 1, 22, 0, 127, 460800u, nn_conv2_w, nn_conv2_bias, nn_conv2_mult}, /* conv2 */
-    {20, 20, 16, 10, 10, 32, 3, 2, 1, 21, 0, 127, 460800u, nn_conv3_w, nn_conv3_bias, nn_conv3_mult}, /* conv3 */
-    {10, 10, 32, 10, 10, 32, 3, 1, 1, 22, 0, 127, 921600u, nn_conv4_w, nn_conv4_bias, nn_conv4_mult}, /* conv4 */
-    {10, 10, 32, 5, 5, 64, 3, 2, 1, 23, 0, 127, 460800u, nn_conv5_w, nn_conv5_bias, nn_conv5_mult}, /* conv5 */
-    {5, 5, 64, 5, 5, 64, 3, 1, 1, 22, 0, 127, 921600u, nn_conv6_w, nn_conv6_bias, nn_conv6_mult}, /* conv6 */
-    {5, 5, 64, 5, 5, 12, 1, 1, 0, 16, -32768, 32767, 19200u, nn_head_w, nn_head_bias, nn_head_mult}, /* head */
+    {80, 80, 1, 40, 40, 8, 3, 2, 1, 21, 0, 0, 127, 115200u, nn_conv1_w, nn_conv1_bias, nn_conv1_mult}, /* conv1 */
+    {40, 40, 8, 20, 20, 16, 3, 2, 1, 22, 0, 0, 127, 460800u, nn_conv2_w, nn_conv2_bias, nn_conv2_mult}, /* conv2 */
+    {20, 20, 16, 10, 10, 32, 3, 2, 1, 21, 0, 0, 127, 460800u, nn_conv3_w, nn_conv3_bias, nn_conv3_mult}, /* conv3 */
+    {10, 10, 32, 10, 10, 32, 3, 1, 1, 22, 0, 0, 127, 921600u, nn_conv4_w, nn_conv4_bias, nn_conv4_mult}, /* conv4 */
+    {10, 10, 32, 5, 5, 64, 3, 2, 1, 23, 0, 0, 127, 460800u, nn_conv5_w, nn_conv5_bias, nn_conv5_mult}, /* conv5 */
+    {5, 5, 64, 5, 5, 64, 3, 1, 1, 22, 0, 0, 127, 921600u, nn_conv6_w, nn_conv6_bias, nn_conv6_mult}, /* conv6 */
+    {5, 5, 64, 5, 5, 12, 1, 1, 0, 16, 0, -32768, 32767, 19200u, nn_head_w, nn_head_bias, nn_head_mult}, /* head */
 };

@@ -25,14 +25,17 @@
 /* One convolution: out[y][x][c] = clip((acc * mult[c] + (1 << (shift - 1)))
  * >> shift, out_min, out_max) with acc = bias[c] + sum over (ky, kx, ci) of
  * w[c][ky][kx][ci] * in[y*stride + ky - pad][x*stride + kx - pad][ci]
- * (0 outside the input), the product in 64 bits, >> arithmetic. */
+ * (0 outside the input), the product in 64 bits, >> arithmetic. A
+ * depthwise layer (in_c == out_c) has one input channel per output channel:
+ * ci runs over c alone and w is [out_c][k][k][1]. */
 typedef struct {
     uint16_t in_h, in_w, in_c;
     uint16_t out_h, out_w, out_c;
-    uint8_t k, stride, pad, shift;
+    uint8_t k, stride, pad, shift, depthwise;
     int32_t out_min, out_max; /* [0, 127] after ReLU (int8); the head: int16 */
     uint32_t macs;
-    const int8_t *w;      /* [out_c][k][k][in_c] */
+    const int8_t *w;      /* [out_c][k][k][in_c]; depthwise [out_c][k][4]: a row's k
+                           * taps then 4 - k zero bytes, a word per row */
     const int32_t *bias;  /* [out_c] */
     const int32_t *mult;  /* [out_c] */
 } nn_layer_t;
