@@ -143,15 +143,22 @@ static inline __attribute__((always_inline)) void items(const conv_tile_t *t, in
     }
 }
 
+/* This core's items of n_items: [n_items*i/n, n_items*(i+1)/n) for core i
+ * of the team's n. */
+static inline __attribute__((always_inline)) void share(int n_items, int *first, int *last)
+{
+    int n = pi_cl_team_nb_cores(), i = (int)pi_core_id();
+    *first = n_items * i / n;
+    *last = n_items * (i + 1) / n;
+}
+
 void conv_tile_share(void *arg)
 {
     /* A private copy: the stores cannot alias it, so its fields stay in
      * registers. */
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
-    int pairs = (t->out_w * t->out_h + 1) / 2;
-    int n_items = pairs * (t->channels / 4);
-    int n = pi_cl_team_nb_cores(), i = (int)pi_core_id();
-    int first = n_items * i / n, last = n_items * (i + 1) / n;
+    int first, last;
+    share((t->out_w * t->out_h + 1) / 2 * (t->channels / 4), &first, &last);
     /* shift >= 15: no int32 overflow in the requantization (conv.h). */
     int fast = t->shift >= 15;
     if (t->out_int16 && fast)
@@ -170,10 +177,8 @@ void conv_tile_share(void *arg)
 void conv_tile_share_chw(void *arg)
 {
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
-    int pairs = (t->out_w * t->out_h + 1) / 2;
-    int n_items = pairs * (t->channels / 4);
-    int n = pi_cl_team_nb_cores(), i = (int)pi_core_id();
-    int first = n_items * i / n, last = n_items * (i + 1) / n;
+    int first, last;
+    share((t->out_w * t->out_h + 1) / 2 * (t->channels / 4), &first, &last);
     if (t->shift >= 15)
         items(t, first, last, 0, 1, 1);
     else
@@ -233,9 +238,8 @@ static inline __attribute__((always_inline)) void dw_items(const conv_tile_t *t,
 void dw_tile_share(void *arg)
 {
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
-    int n_items = t->channels * t->out_h;
-    int n = pi_cl_team_nb_cores(), i = (int)pi_core_id();
-    int first = n_items * i / n, last = n_items * (i + 1) / n;
+    int first, last;
+    share(t->channels * t->out_h, &first, &last);
     int fast = t->shift >= 15;
     if (t->stride == 2 && fast)
         dw_items(t, first, last, 2, 1);

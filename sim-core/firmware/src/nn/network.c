@@ -157,7 +157,7 @@ static void zero_border(int8_t *a, int h, int w, int c)
 
 /* The zero borders of c padded planes (CHW): a plane's bottom row and the
  * next one's top row are one run, so are a row's last byte and the next
- * row's first. */
+ * row's first. no_builtin as for zero, which is inlined here. */
 __attribute__((no_builtin("memset"))) static void zero_border_chw(int8_t *a, int h, int w, int c)
 {
     int row = w + 2, plane = (h + 2) * row;
@@ -186,7 +186,7 @@ static void repack(uint32_t *dst, const uint32_t *src_words, int channels, int k
  * two activation buffers are sized apart: layer i writes buffer (i+1)&1. */
 static struct {
     int ready;
-    int slot_bytes, act_bytes[2], max_tile, repack_words, head_bytes;
+    int act_bytes[2], max_tile, repack_words, head_bytes;
     int8_t *act[2];
     int16_t *head;
     uint32_t *packed;
@@ -224,7 +224,6 @@ static int try_setup(struct pi_device *cl, int slot_bytes)
     if (plan(slot_bytes) != 0)
         return -1;
     const nn_layer_t *first = &nn_layers[0], *last = &nn_layers[NN_N_LAYERS - 1];
-    l1.slot_bytes = slot_bytes;
     l1.act_bytes[0] = padded(first->in_h, first->in_w, first->in_c);
     l1.act_bytes[1] = 0;
     l1.max_tile = l1.repack_words = 0;
@@ -279,31 +278,6 @@ static conv_tile_t tile_args(const tile_t *ti, const uint32_t *w, const slot_t *
 {
     const nn_layer_t *l = &nn_layers[ti->layer];
     int in_row = (l->in_w + 2) * l->in_c, off = 1 - l->pad;
-    if (l->depthwise) {
-        /* CHW planes in, HWC out (conv.h); pad 1, so no offset. */
-        int row = l->in_w + 2, plane = (l->in_h + 2) * row;
-        return (conv_tile_t){
-            .in = l1.act[ti->layer & 1] + ti->c0 * plane,
-            .in_row = row,
-            .in_plane = plane,
-            .stride = l->stride,
-            .k = l->k,
-            .row_words = 1,
-            .w = w,
-            .bias = s->bias,
-            .mult = s->mult,
-            .shift = l->shift,
-            .lo = l->out_min,
-            .hi = l->out_max,
-            .channels = ti->n,
-            .out_w = l->out_w,
-            .out_h = l->out_h,
-            .out = l1.act[(ti->layer + 1) & 1] + ((l->out_w + 2) + 1) * l->out_c + ti->c0,
-            .out_row = l->out_w + 2,
-            .out_pix = l->out_c,
-            .out_cstep = 1,
-        };
-    }
     conv_tile_t t = {
         .in = l1.act[ti->layer & 1] + off * in_row + off * l->in_c,
         .in_row = in_row,
@@ -324,6 +298,13 @@ static conv_tile_t tile_args(const tile_t *ti, const uint32_t *w, const slot_t *
         .out_cstep = 1,
         .out_int16 = l->out_max > 127,
     };
+    if (l->depthwise) {
+        /* CHW planes in (conv.h; pad 1, so no offset), HWC out below. */
+        t.in_plane = padded(l->in_h, l->in_w, 1);
+        t.in = l1.act[ti->layer & 1] + ti->c0 * t.in_plane;
+        t.in_row = l->in_w + 2;
+        t.stride = l->stride;
+    }
     if (ti->layer == NN_N_LAYERS - 1) {
         /* The head: unpadded, to be copied to L2 as it is. */
         t.out = l1.head + ti->c0;
