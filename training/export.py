@@ -162,6 +162,8 @@ def c_sources(layers, meta, rule=None):
 #define NN_CELL_PX {netdef.CELL_PX}
 #define NN_HEAD_CHANNELS {netdef.HEAD_CHANNELS}
 #define NN_N_LAYERS {len(layers)}
+/* Output channels of all layers (network.c's requantization records). */
+#define NN_CHANNELS {sum(L["cout"] for L in layers)}
 #define NN_MACS {sum(macs)}
 #define NN_PARAMS {netdef.params()}
 {c_decode(rule)}

@@ -91,13 +91,13 @@ static inline __attribute__((always_inline)) void dot_2x4(const conv_tile_t *t, 
 }
 
 /* Items [first, last) of the tile (item = pair * quads + quad: a core's
- * consecutive items reuse the same two input windows). `out16`, `fast`
- * and `chw` are constants at each call: the int16 or int8 output,
- * nn_requant_fast or nn_requant, a CHW output (for a depthwise layer) or
- * HWC; inlined, each call is its own loop without those tests. */
+ * consecutive items reuse the same two input windows). `out16`, `mode`
+ * and `chw` are constants at each call: the int16 or int8 output, the
+ * requantization's form (NN_RQ_*), a CHW output (for a depthwise layer)
+ * or HWC; inlined, each call is its own loop without those tests. */
 static inline __attribute__((always_inline)) void items(const conv_tile_t *t, int first,
                                                         int last, const int out16,
-                                                        const int fast, const int chw)
+                                                        const int mode, const int chw)
 {
     int pixels = t->out_w * t->out_h, quads = t->channels / 4;
     int pair = first / quads, quad = first - pair * quads;
@@ -116,11 +116,18 @@ static inline __attribute__((always_inline)) void items(const conv_tile_t *t, in
         int oc = chw ? c * t->out_cstep : c, cs = chw ? t->out_cstep : 1;
 #pragma clang loop unroll(full)
         for (int j = 0; j < 4; j++) {
-            int32_t b = t->bias[c + j], m = t->mult[c + j];
-            int32_t v0 = fast ? nn_requant_fast(a[j] + b, m, t->shift, t->lo, t->hi)
-                              : nn_requant(a[j] + b, m, t->shift, t->lo, t->hi);
-            int32_t v1 = fast ? nn_requant_fast(a[4 + j] + b, m, t->shift, t->lo, t->hi)
-                              : nn_requant(a[4 + j] + b, m, t->shift, t->lo, t->hi);
+            const nn_rq_t *r = &t->rq[c + j];
+            int32_t v0, v1;
+            if (mode == NN_RQ_CLIP) {
+                v0 = nn_requant_clip(a[j], r, t->shift);
+                v1 = nn_requant_clip(a[4 + j], r, t->shift);
+            } else {
+                int32_t b = r->add, m = r->mult;
+                v0 = mode == NN_RQ_FAST ? nn_requant_fast(a[j] + b, m, t->shift, t->lo, t->hi)
+                                        : nn_requant(a[j] + b, m, t->shift, t->lo, t->hi);
+                v1 = mode == NN_RQ_FAST ? nn_requant_fast(a[4 + j] + b, m, t->shift, t->lo, t->hi)
+                                        : nn_requant(a[4 + j] + b, m, t->shift, t->lo, t->hi);
+            }
             if (out16) {
                 ((int16_t *)t->out)[q0.out + c + j] = (int16_t)v0;
                 if (has1)
@@ -159,16 +166,19 @@ void conv_tile_share(void *arg)
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
     int first, last;
     share((t->out_w * t->out_h + 1) / 2 * (t->channels / 4), &first, &last);
-    /* shift >= 15: no int32 overflow in the requantization (conv.h). */
-    int fast = t->shift >= 15;
-    if (t->out_int16 && fast)
-        items(t, first, last, 1, 1, 0);
-    else if (t->out_int16)
-        items(t, first, last, 1, 0, 0);
-    else if (fast)
-        items(t, first, last, 0, 1, 0);
+    if (t->out_int16) {
+        if (t->mode == NN_RQ_CLIP)
+            items(t, first, last, 1, NN_RQ_CLIP, 0);
+        else if (t->mode == NN_RQ_FAST)
+            items(t, first, last, 1, NN_RQ_FAST, 0);
+        else
+            items(t, first, last, 1, NN_RQ_GENERAL, 0);
+    } else if (t->mode == NN_RQ_CLIP)
+        items(t, first, last, 0, NN_RQ_CLIP, 0);
+    else if (t->mode == NN_RQ_FAST)
+        items(t, first, last, 0, NN_RQ_FAST, 0);
     else
-        items(t, first, last, 0, 0, 0);
+        items(t, first, last, 0, NN_RQ_GENERAL, 0);
 }
 
 /* A separate entry for the CHW output (int8), so that the HWC layers'
@@ -179,10 +189,12 @@ void conv_tile_share_chw(void *arg)
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
     int first, last;
     share((t->out_w * t->out_h + 1) / 2 * (t->channels / 4), &first, &last);
-    if (t->shift >= 15)
-        items(t, first, last, 0, 1, 1);
+    if (t->mode == NN_RQ_CLIP)
+        items(t, first, last, 0, NN_RQ_CLIP, 1);
+    else if (t->mode == NN_RQ_FAST)
+        items(t, first, last, 0, NN_RQ_FAST, 1);
     else
-        items(t, first, last, 0, 0, 1);
+        items(t, first, last, 0, NN_RQ_GENERAL, 1);
 }
 
 /*
@@ -201,7 +213,7 @@ void conv_tile_share_chw(void *arg)
  */
 static inline __attribute__((always_inline)) void dw_items(const conv_tile_t *t, int first,
                                                            int last, const int stride,
-                                                           const int fast)
+                                                           const int mode)
 {
     /* Item = c * out_h + y; (c, y) advanced without dividing. */
     int c = first / t->out_h, y = first - c * t->out_h;
@@ -212,12 +224,12 @@ static inline __attribute__((always_inline)) void dw_items(const conv_tile_t *t,
         }
         const uint32_t *w = t->w + 3 * c;
         uint32_t w0 = w[0], w1 = w[1], w2 = w[2];
-        int32_t b = t->bias[c], m = t->mult[c];
+        const nn_rq_t r = t->rq[c];
         const int8_t *r0 = t->in + c * t->in_plane + y * stride * t->in_row;
         const int8_t *r1 = r0 + t->in_row, *r2 = r1 + t->in_row;
         int8_t *o = (int8_t *)t->out + y * t->out_row * t->out_pix + c;
         for (int x = t->out_w; x > 0; x--) {
-            int32_t a = b;
+            int32_t a = mode == NN_RQ_CLIP ? 0 : r.add;
             /* cv.lw's increment is an immediate: one loop per stride. */
             if (stride == 2) {
                 a = xcv_sdotsp_b(a, xcv_lw_inc(r0, 2), w0);
@@ -228,8 +240,9 @@ static inline __attribute__((always_inline)) void dw_items(const conv_tile_t *t,
                 a = xcv_sdotsp_b(a, xcv_lw_inc(r1, 1), w1);
                 a = xcv_sdotsp_b(a, xcv_lw_inc(r2, 1), w2);
             }
-            *o = (int8_t)(fast ? nn_requant_fast(a, m, t->shift, t->lo, t->hi)
-                               : nn_requant(a, m, t->shift, t->lo, t->hi));
+            *o = (int8_t)(mode == NN_RQ_CLIP   ? nn_requant_clip(a, &r, t->shift)
+                          : mode == NN_RQ_FAST ? nn_requant_fast(a, r.mult, t->shift, t->lo, t->hi)
+                                               : nn_requant(a, r.mult, t->shift, t->lo, t->hi));
             o += t->out_pix;
         }
     }
@@ -240,13 +253,17 @@ void dw_tile_share(void *arg)
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
     int first, last;
     share(t->channels * t->out_h, &first, &last);
-    int fast = t->shift >= 15;
-    if (t->stride == 2 && fast)
-        dw_items(t, first, last, 2, 1);
-    else if (t->stride == 2)
-        dw_items(t, first, last, 2, 0);
-    else if (fast)
-        dw_items(t, first, last, 1, 1);
+    if (t->stride == 2) {
+        if (t->mode == NN_RQ_CLIP)
+            dw_items(t, first, last, 2, NN_RQ_CLIP);
+        else if (t->mode == NN_RQ_FAST)
+            dw_items(t, first, last, 2, NN_RQ_FAST);
+        else
+            dw_items(t, first, last, 2, NN_RQ_GENERAL);
+    } else if (t->mode == NN_RQ_CLIP)
+        dw_items(t, first, last, 1, NN_RQ_CLIP);
+    else if (t->mode == NN_RQ_FAST)
+        dw_items(t, first, last, 1, NN_RQ_FAST);
     else
-        dw_items(t, first, last, 1, 0);
+        dw_items(t, first, last, 1, NN_RQ_GENERAL);
 }

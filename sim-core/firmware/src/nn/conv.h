@@ -9,6 +9,20 @@
 
 #include <stdint.h>
 
+/* One output channel's requantization constants (network.c fills them per
+ * layer at setup, the DMA brings a tile's with its weights). `mode`
+ * (conv_tile_t) says which form they are for:
+ * NN_RQ_CLIP: lo, hi bound the dot product (bias excluded) and add =
+ *   bias * mult + 2^(shift-1) (mod 2^32): out = (clip(dot, lo, hi) * mult
+ *   + add) >> shift (nn_requant_clip);
+ * NN_RQ_FAST, NN_RQ_GENERAL: add = bias, lo and hi unused (nn_requant_fast,
+ *   nn_requant). */
+typedef struct {
+    int32_t lo, hi, mult, add;
+} nn_rq_t;
+
+enum { NN_RQ_GENERAL = 0, NN_RQ_FAST = 1, NN_RQ_CLIP = 2 };
+
 typedef struct {
     /* Input: HWC, zero-padded by one pixel on every side (padded row
      * `in_row` bytes); the window of output (y, x) starts at padded
@@ -19,10 +33,11 @@ typedef struct {
     int in_ystep; /* bytes between the windows of two output rows (stride * in_row) */
     int k;        /* kernel rows; each row of the window is `row_words` words */
     int row_words;
-    /* Weights of this tile's channels, [c][ky][row_words words]; bias and
-     * multipliers of the same channels. */
+    /* Weights of this tile's channels, [c][ky][row_words words]; the same
+     * channels' requantization constants, in the form `mode` (NN_RQ_*). */
     const uint32_t *w;
-    const int32_t *bias, *mult;
+    const nn_rq_t *rq;
+    int mode;
     int shift;
     int32_t lo, hi;
     int channels; /* in this tile, a multiple of 4 */
@@ -81,5 +96,27 @@ static inline int32_t nn_requant_fast(int32_t acc, int32_t mult, int shift, int3
     r = r < lo ? lo : r;
     return r > hi ? hi : r;
 }
+
+/* The clip-first form of the same (docs/NN.md "Int8 arithmetic", "The
+ * requantization, clip first"): with f(acc) = (acc * mult + 2^(shift-1))
+ * >> shift non-decreasing (mult > 0), clip(f(acc), lo, hi) =
+ * f(clip(acc, A_lo, A_hi)) whenever f(A_lo) = lo and f(A_hi) = hi, and
+ * over [A_lo, A_hi] the product fits int32: a min, a max, a mul, an add and
+ * a shift, where nn_requant_fast takes a mulh (5 cycles) and a carry. The
+ * bias is folded into the record (nn_rq_make): lo, hi bound the dot
+ * product, add = bias * mult + 2^(shift-1), the sum taken mod 2^32 (the
+ * true value lies in int32, so the wrapped one is it). */
+static inline int32_t nn_requant_clip(int32_t dot, const nn_rq_t *r, int shift)
+{
+    int32_t a = dot < r->lo ? r->lo : dot;
+    a = a > r->hi ? r->hi : a;
+    return (int32_t)((uint32_t)a * (uint32_t)r->mult + (uint32_t)r->add) >> shift;
+}
+
+/* Fills *r for a channel (bias, mult) of a layer (shift, out range [lo,
+ * hi]) in the clip-first form and returns 1 when that form is exact for
+ * every int32 dot product (the conditions above, checked in 64 bits);
+ * else fills the fast/general form (add = bias) and returns 0. */
+int nn_rq_make(int32_t bias, int32_t mult, int shift, int32_t lo, int32_t hi, nn_rq_t *r);
 
 #endif

@@ -8,7 +8,7 @@
  * depthwise layer's input is CHW instead, one padded plane per channel
  * (conv.h).
  * The weights do not fit in L1 (71 KB against 64 KB), so they come from L2
- * as tiles of whole output channels, with their biases and multipliers,
+ * as tiles of whole output channels, with their requantization records,
  * into two slots: while the team computes tile i from one slot, the DMA
  * fills the other with tile i+1, across layer boundaries too. Everything
  * is derived from weights.h's descriptors; only the slot size is ours.
@@ -20,20 +20,48 @@
 
 #include "conv.h"
 
-/* Bytes of weights per slot: a tile is the largest multiple of 4 output
- * channels (the kernel's quads) dividing out_c whose weights fit. 9 KiB
- * gives the base network's conv6 (576 bytes per channel) 16-channel tiles
- * and leaves L1 room for the two activation buffers and the 8 cores'
- * stacks; a network whose activations leave less room (the depthwise-
- * separable one's 40x40x16) takes the largest of the smaller sizes that
- * fits (setup). */
-static const int slot_sizes[] = {9216, 6144, 4608, 3072, 2048};
+/* Bytes per slot: a tile is the largest multiple of 4 output channels
+ * (the kernel's quads) dividing out_c whose weights and records fit.
+ * 9.5 KiB gives the base network's conv5 (288 + 16 bytes per channel)
+ * 32-channel tiles and conv6 (576 + 16) 16-channel ones, and leaves L1
+ * room for the two activation buffers and the 8 cores' stacks; a network
+ * whose activations leave less room (the depthwise-separable one's
+ * 40x40x16) takes the largest of the smaller sizes that fits (setup). */
+static const int slot_sizes[] = {9728, 6144, 4608, 3072, 2048};
 
+/* A slot holds a tile's weights, then its channels' requantization
+ * records (conv.h nn_rq_t). */
 typedef struct {
     uint32_t *w;
-    int32_t *bias, *mult;
-    pi_cl_dma_cmd_t cmd[3];
+    pi_cl_dma_cmd_t cmd[2];
 } slot_t;
+
+/* Every layer's requantization records in L2, made once from weights.h
+ * (nn_rq_make) in the form the layer's kernel uses (rq_mode): the
+ * clip-first form when it is exact for every channel, else the 64-bit
+ * one (fast when shift >= 15). The DMA brings a tile's with its weights. */
+static nn_rq_t rq_store[NN_CHANNELS];
+static const nn_rq_t *rq_layer[NN_N_LAYERS];
+static int rq_mode[NN_N_LAYERS];
+static int rq_ready;
+
+static void make_records(void)
+{
+    nn_rq_t *r = rq_store;
+    for (int i = 0; i < NN_N_LAYERS; i++) {
+        const nn_layer_t *l = &nn_layers[i];
+        int clip = 1;
+        for (int c = 0; c < l->out_c; c++)
+            clip &= nn_rq_make(l->bias[c], l->mult[c], l->shift, l->out_min, l->out_max, &r[c]);
+        if (!clip)
+            for (int c = 0; c < l->out_c; c++)
+                r[c] = (nn_rq_t){0, 0, l->mult[c], l->bias[c]};
+        rq_mode[i] = clip ? NN_RQ_CLIP : l->shift >= 15 ? NN_RQ_FAST : NN_RQ_GENERAL;
+        rq_layer[i] = r;
+        r += l->out_c;
+    }
+    rq_ready = 1;
+}
 
 static inline uint32_t cluster_now(void)
 {
@@ -64,9 +92,12 @@ static int row_words(const nn_layer_t *l)
     return row <= 4 ? 1 : 0;
 }
 
+/* Bytes of one output channel in a slot: its weights and its record. */
+static int channel_bytes(const nn_layer_t *l) { return l->k * stored_row(l); }
+
 static int tile_channels(const nn_layer_t *l, int slot_bytes)
 {
-    int ch = l->k * stored_row(l);
+    int ch = channel_bytes(l) + (int)sizeof(nn_rq_t);
     for (int t = l->out_c; t >= 4; t--)
         if (l->out_c % t == 0 && t % 4 == 0 && t * ch <= slot_bytes)
             return t;
@@ -108,21 +139,26 @@ static int plan(int slot_bytes)
     return 0;
 }
 
+/* Where a tile's records lie in its slot: after its weights (n * the
+ * channel's bytes, a multiple of 4 as n is). */
+static const nn_rq_t *slot_records(const tile_t *t, const slot_t *s)
+{
+    return (const nn_rq_t *)((const int8_t *)s->w + t->n * channel_bytes(&nn_layers[t->layer]));
+}
+
 static void fetch(const tile_t *t, slot_t *s)
 {
     const nn_layer_t *l = &nn_layers[t->layer];
-    uint32_t ch = (uint32_t)l->k * stored_row(l);
+    uint32_t ch = (uint32_t)channel_bytes(l);
     pi_cl_dma_cmd((uint32_t)(l->w + t->c0 * ch), (uint32_t)s->w, t->n * ch,
                   PI_CL_DMA_DIR_EXT2LOC, &s->cmd[0]);
-    pi_cl_dma_cmd((uint32_t)(l->bias + t->c0), (uint32_t)s->bias, t->n * 4,
-                  PI_CL_DMA_DIR_EXT2LOC, &s->cmd[1]);
-    pi_cl_dma_cmd((uint32_t)(l->mult + t->c0), (uint32_t)s->mult, t->n * 4,
-                  PI_CL_DMA_DIR_EXT2LOC, &s->cmd[2]);
+    pi_cl_dma_cmd((uint32_t)(rq_layer[t->layer] + t->c0), (uint32_t)slot_records(t, s),
+                  t->n * sizeof(nn_rq_t), PI_CL_DMA_DIR_EXT2LOC, &s->cmd[1]);
 }
 
 static void wait_slot(slot_t *s)
 {
-    for (int i = 0; i < 3; i++)
+    for (int i = 0; i < 2; i++)
         pi_cl_dma_cmd_wait(&s->cmd[i]);
 }
 
@@ -186,7 +222,7 @@ static void repack(uint32_t *dst, const uint32_t *src_words, int channels, int k
  * two activation buffers are sized apart: layer i writes buffer (i+1)&1. */
 static struct {
     int ready;
-    int act_bytes[2], max_tile, repack_words, head_bytes;
+    int act_bytes[2], repack_words, head_bytes;
     int8_t *act[2];
     int16_t *head;
     uint32_t *packed;
@@ -226,13 +262,12 @@ static int try_setup(struct pi_device *cl, int slot_bytes)
     const nn_layer_t *first = &nn_layers[0], *last = &nn_layers[NN_N_LAYERS - 1];
     l1.act_bytes[0] = padded(first->in_h, first->in_w, first->in_c);
     l1.act_bytes[1] = 0;
-    l1.max_tile = l1.repack_words = 0;
+    l1.repack_words = 0;
     for (int i = 0; i < n_tiles; i++) {
         const nn_layer_t *l = &nn_layers[tiles[i].layer];
         int b = (tiles[i].layer + 1) & 1, out = padded(l->out_h, l->out_w, l->out_c);
         if (tiles[i].layer != NN_N_LAYERS - 1 && out > l1.act_bytes[b])
             l1.act_bytes[b] = out;
-        l1.max_tile = l1.max_tile > tiles[i].n ? l1.max_tile : tiles[i].n;
         if (stored_row(l) % 4 && l->k * tiles[i].n > l1.repack_words)
             l1.repack_words = l->k * tiles[i].n;
     }
@@ -244,8 +279,6 @@ static int try_setup(struct pi_device *cl, int slot_bytes)
          * past its plane (those bytes meet zero weights). */
         ok &= (l1.act[s] = l1_alloc(cl, l1.act_bytes[s] + 4)) != NULL;
         ok = ok && (l1.slot[s].w = l1_alloc(cl, slot_bytes)) != NULL;
-        ok = ok && (l1.slot[s].bias = l1_alloc(cl, l1.max_tile * 4)) != NULL;
-        ok = ok && (l1.slot[s].mult = l1_alloc(cl, l1.max_tile * 4)) != NULL;
     }
     ok = ok && (l1.head = l1_alloc(cl, l1.head_bytes)) != NULL;
     if (ok && l1.repack_words)
@@ -259,6 +292,8 @@ static int try_setup(struct pi_device *cl, int slot_bytes)
 
 static int setup(struct pi_device *cl)
 {
+    if (!rq_ready)
+        make_records();
     for (unsigned i = 0; i < sizeof slot_sizes / sizeof slot_sizes[0]; i++)
         if (try_setup(cl, slot_sizes[i]) == 0) {
             l1.ready = 1;
@@ -272,8 +307,8 @@ static int setup(struct pi_device *cl)
 
 void nn_network_release(void) { l1.ready = 0; }
 
-/* The kernel's view of tile `ti` with its weights at `w`, its biases and
- * multipliers in slot `s`. */
+/* The kernel's view of tile `ti` with its weights at `w`, its records in
+ * slot `s`. */
 static conv_tile_t tile_args(const tile_t *ti, const uint32_t *w, const slot_t *s)
 {
     const nn_layer_t *l = &nn_layers[ti->layer];
@@ -286,8 +321,8 @@ static conv_tile_t tile_args(const tile_t *ti, const uint32_t *w, const slot_t *
         .k = l->k,
         .row_words = row_words(l),
         .w = w,
-        .bias = s->bias,
-        .mult = s->mult,
+        .rq = slot_records(ti, s),
+        .mode = rq_mode[ti->layer],
         .shift = l->shift,
         .lo = l->out_min,
         .hi = l->out_max,

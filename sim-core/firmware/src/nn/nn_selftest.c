@@ -2,8 +2,9 @@
  * Self-test of the kernels' integer arithmetic on the ISS (docs/NN.md
  * "Int8 arithmetic"), run by tests/tests/nn_eval.rs: the requantizations
  * of conv.h (the general one, used when a layer's shift is below 15, which
- * no layer of today's weights has, and the fast one) against the plain
- * 64-bit formula, on edge and pseudo-random operands; the rounding's
+ * no layer of today's weights has, the fast one, and the clip-first one
+ * with its records from nn_rq_make) against the plain 64-bit formula, on
+ * edge and pseudo-random operands; the rounding's
  * hand-computed cases; the decoding's first-maximum rule; the FC's block
  * means against a byte-by-byte sum.
  */
@@ -53,6 +54,63 @@ static void requantization(void)
     check("round 1.5", (uint32_t)nn_requant(3, 1, 1, -100, 100), 2);
     check("round -1.5", (uint32_t)nn_requant(-3, 1, 1, -100, 100), (uint32_t)-1);
     check("round 2.5", (uint32_t)nn_requant_fast(5 << 14, 1, 15, -100, 100), 3);
+}
+
+/* The clip-first form (conv.h nn_requant_clip): wherever nn_rq_make says
+ * it is exact, it equals the 64-bit formula on the dot products at and
+ * around its bounds, at the int32 extremes and at random; where it says
+ * not, the record holds the bias and the multiplier. */
+static void clip_first(void)
+{
+    static const int shifts[] = {1, 7, 14, 15, 16, 21, 22, 24, 31};
+    static const int32_t ranges[][2] = {{0, 127}, {-128, 127}, {-32768, 32767}};
+    char name[96];
+    for (unsigned g = 0; g < 3; g++)
+        for (unsigned s = 0; s < sizeof shifts / sizeof shifts[0]; s++)
+            for (int k = 0; k < 24; k++) {
+                int sh = shifts[s];
+                int32_t lo = ranges[g][0], hi = ranges[g][1];
+                int32_t mult = k == 0 ? 1 : k == 1 ? 32767 : (int32_t)(next() % 32767) + 1;
+                int32_t bias = k == 2 ? 0 : (int32_t)(next() % (1u << 22)) - (1 << 21);
+                nn_rq_t r;
+                int ok = nn_rq_make(bias, mult, sh, lo, hi, &r);
+                /* Exact for certain when mult <= 2^shift (steps of at most
+                 * 1) and hi * 2^shift < 2^31 (no overflow): the int8
+                 * layers' shifts 15-24, the head's 15-16. */
+                if (sh >= 15 && sh <= (hi > 127 ? 16 : 24)) {
+                    snprintf(name, sizeof name, "record made: mult %ld shift %d range %ld",
+                             (long)mult, sh, (long)hi);
+                    check(name, (uint32_t)ok, 1);
+                }
+                if (!ok) {
+                    snprintf(name, sizeof name, "fallback record bias %ld mult %ld", (long)bias,
+                             (long)mult);
+                    check(name, (uint32_t)r.add, (uint32_t)bias);
+                    check(name, (uint32_t)r.mult, (uint32_t)mult);
+                    continue;
+                }
+                int32_t dots[24] = {0, 1, -1, INT32_MIN / 2, INT32_MAX / 2};
+                for (int d = -3; d <= 3; d++) {
+                    dots[5 + (d + 3)] = r.lo + d;
+                    dots[12 + (d + 3)] = r.hi + d;
+                }
+                for (int d = 19; d < 24; d++)
+                    dots[d] = (int32_t)next() >> (next() % 24);
+                for (int d = 0; d < 24; d++) {
+                    int64_t acc = (int64_t)dots[d] + bias;
+                    int64_t p = (acc * mult + ((int64_t)1 << (sh - 1))) >> sh;
+                    int32_t want = p < lo ? lo : p > hi ? hi : (int32_t)p;
+                    snprintf(name, sizeof name, "clip-first dot %ld bias %ld mult %ld shift %d",
+                             (long)dots[d], (long)bias, (long)mult, sh);
+                    check(name, (uint32_t)nn_requant_clip((int32_t)opaque((uint32_t)dots[d]), &r, sh),
+                          (uint32_t)want);
+                }
+            }
+    nn_rq_t r;
+    check("conv1's first channel takes the clip-first form", nn_rq_make(7263, 5638, 21, 0, 127, &r),
+          1);
+    check("zero multiplier falls back", nn_rq_make(5, 0, 21, 0, 127, &r), 0);
+    check("overflowing shift falls back", nn_rq_make(5, 32767, 31, 0, 127, &r), 0);
 }
 
 #ifdef NN_DECODE_THRESHOLD
@@ -152,6 +210,7 @@ static void block_means(void)
 int main(void)
 {
     requantization();
+    clip_first();
     decoding();
     block_means();
     return summary("nn_selftest");

@@ -19,6 +19,8 @@
 #define NN_CELL_PX 64
 #define NN_HEAD_CHANNELS 12
 #define NN_N_LAYERS 7
+/* Output channels of all layers (network.c's requantization records). */
+#define NN_CHANNELS 228
 #define NN_MACS 3360000
 #define NN_PARAMS 71340
 

@@ -19,6 +19,8 @@
 #define NN_CELL_PX 64
 #define NN_HEAD_CHANNELS 12
 #define NN_N_LAYERS 16
+/* Output channels of all layers (network.c's requantization records). */
+#define NN_CHANNELS 1452
 #define NN_MACS 4400800
 #define NN_PARAMS 101164
 
