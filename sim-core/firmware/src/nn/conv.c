@@ -227,7 +227,7 @@ static inline __attribute__((always_inline)) void dw_items(const conv_tile_t *t,
         const nn_rq_t r = t->rq[c];
         const int8_t *r0 = t->in + c * t->in_plane + y * stride * t->in_row;
         const int8_t *r1 = r0 + t->in_row, *r2 = r1 + t->in_row;
-        int8_t *o = (int8_t *)t->out + y * t->out_row * t->out_pix + c;
+        int8_t *o = (int8_t *)t->out + y * t->out_row * t->out_pix + c * t->out_cstep;
         for (int x = t->out_w; x > 0; x--) {
             int32_t a = mode == NN_RQ_CLIP ? 0 : r.add;
             /* cv.lw's increment is an immediate: one loop per stride. */

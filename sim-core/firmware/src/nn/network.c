@@ -112,6 +112,17 @@ static int depthwise_ok(const nn_layer_t *l)
            l->out_max <= 127;
 }
 
+/* A 3x3 layer over one input channel (conv1) is a depthwise layer whose
+ * every output channel reads the same plane: the depthwise kernel runs it
+ * (a channel's output row per item, its 3 weight words and record in
+ * registers), where the 2x4 kernel would spend a whole window word on
+ * each 3-byte row and recompute the window per channel quad. */
+static int one_plane(const nn_layer_t *l)
+{
+    return !l->depthwise && l->in_c == 1 && l->k == 3 && l->pad == 1 &&
+           (l->stride == 1 || l->stride == 2) && l->out_max <= 127;
+}
+
 /* Tiles in network order: (layer, first channel); the tile after the last
  * of a layer is the next layer's first. */
 typedef struct {
@@ -333,9 +344,10 @@ static conv_tile_t tile_args(const tile_t *ti, const uint32_t *w, const slot_t *
         .out_cstep = 1,
         .out_int16 = l->out_max > 127,
     };
-    if (l->depthwise) {
-        /* CHW planes in (conv.h; pad 1, so no offset), HWC out below. */
-        t.in_plane = padded(l->in_h, l->in_w, 1);
+    if (l->depthwise || one_plane(l)) {
+        /* CHW planes in (conv.h; pad 1, so no offset; one plane for all
+         * channels when one_plane), HWC or CHW out below. */
+        t.in_plane = l->depthwise ? padded(l->in_h, l->in_w, 1) : 0;
         t.in = l1.act[ti->layer & 1] + ti->c0 * t.in_plane;
         t.in_row = l->in_w + 2;
         t.stride = l->stride;
@@ -393,7 +405,7 @@ void nn_network_run(void *arg)
         }
         conv_tile_t t = tile_args(ti, w, s);
         pi_cl_team_fork(0,
-                        l->depthwise            ? dw_tile_share
+                        l->depthwise || one_plane(l) ? dw_tile_share
                         : writes_chw(ti->layer) ? conv_tile_share_chw
                                                 : conv_tile_share,
                         &t);
