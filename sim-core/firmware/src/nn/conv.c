@@ -198,6 +198,93 @@ void conv_tile_share_chw(void *arg)
 }
 
 /*
+ * Pointwise (1x1, stride 1, no pad; every layer of the depthwise-separable
+ * network after a depthwise one, and the heads): the same 2x4 blocking,
+ * but a window is one pixel's cin bytes, so the general items' per-item
+ * work (the two windows' offsets from (y, x) by multiplication, the
+ * row loop, the odd-pixel tests) weighed as much as the dot product on
+ * short windows (16 input channels: 4 words). Here a core walks its items
+ * pair by pair: the two pixels' pointers advance with the pair, the
+ * channel quads' weights and records follow one another, and a pair
+ * missing its second pixel (an odd pixel count) computes the first twice
+ * and stores it twice, without a test per store. Needs cin % 16 == 0 (the
+ * dot loop takes 4 words per iteration).
+ */
+static inline __attribute__((always_inline)) void pw_items(const conv_tile_t *t, int first,
+                                                           int last, const int out16,
+                                                           const int chw)
+{
+    const int quads = t->channels / 4, rw = t->row_words, ow = t->out_w;
+    const int pixels = ow * t->out_h, cs = chw ? t->out_cstep : 1;
+    int pair = first / quads, quad = first - pair * quads;
+    int y = 2 * pair / ow, x = 2 * pair - y * ow;
+    for (int left = last - first; left > 0; pair++) {
+        int yb = y, xb = x + 1;
+        if (xb == ow) {
+            xb = 0;
+            yb++;
+        }
+        if (2 * pair + 1 == pixels) {
+            xb = x;
+            yb = y;
+        }
+        const int8_t *in0 = t->in + y * t->in_ystep + x * t->in_pix;
+        const int8_t *in1 = t->in + yb * t->in_ystep + xb * t->in_pix;
+        int o0 = (y * t->out_row + x) * t->out_pix, o1 = (yb * t->out_row + xb) * t->out_pix;
+        int n = quads - quad < left ? quads - quad : left;
+        left -= n;
+        const uint32_t *k = t->w + 4 * quad * rw;
+        const nn_rq_t *r = t->rq + 4 * quad;
+        int oc = chw ? 4 * quad * t->out_cstep : 4 * quad;
+        for (; n > 0; n--) {
+            const uint32_t *x0 = (const uint32_t *)in0, *x1 = (const uint32_t *)in1;
+            const uint32_t *k0 = k, *k1 = k0 + rw, *k2 = k1 + rw, *k3 = k2 + rw;
+            int32_t a[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+            for (int j = rw >> 2; j > 0; j--) {
+                STEP_2x4();
+                STEP_2x4();
+                STEP_2x4();
+                STEP_2x4();
+            }
+            k = k3; /* the loads advanced k3 by a channel: the next quad's first */
+#pragma clang loop unroll(full)
+            for (int j = 0; j < 4; j++) {
+                int32_t v0 = nn_requant_clip(a[j], &r[j], t->shift);
+                int32_t v1 = nn_requant_clip(a[4 + j], &r[j], t->shift);
+                if (out16) {
+                    ((int16_t *)t->out)[o0 + oc + j] = (int16_t)v0;
+                    ((int16_t *)t->out)[o1 + oc + j] = (int16_t)v1;
+                } else {
+                    ((int8_t *)t->out)[o0 + oc + j * cs] = (int8_t)v0;
+                    ((int8_t *)t->out)[o1 + oc + j * cs] = (int8_t)v1;
+                }
+            }
+            r += 4;
+            oc += 4 * cs;
+        }
+        quad = 0;
+        x += 2;
+        if (x >= ow) {
+            x -= ow;
+            y++;
+        }
+    }
+}
+
+void pw_tile_share(void *arg)
+{
+    const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
+    int first, last;
+    share((t->out_w * t->out_h + 1) / 2 * (t->channels / 4), &first, &last);
+    if (t->out_int16)
+        pw_items(t, first, last, 1, 0);
+    else if (t->out_cstep != 1)
+        pw_items(t, first, last, 0, 1);
+    else
+        pw_items(t, first, last, 0, 0);
+}
+
+/*
  * Depthwise (docs/NN.md "Depthwise-separable"): cv.sdotsp.b sums 4
  * products into one accumulator, so over HWC data, where a word holds 4
  * channels of one tap, it would mix channels. The layer before a depthwise

@@ -61,6 +61,11 @@ void conv_tile_share(void *tile);
 /* The same for a tile whose output is CHW (out_cstep != 1, int8). */
 void conv_tile_share_chw(void *tile);
 
+/* The same for a pointwise tile (conv.c "Pointwise": k = 1, stride 1, no
+ * pad, cin % 16 == 0, the clip-first requantization; HWC, CHW or int16
+ * out). */
+void pw_tile_share(void *tile);
+
 /* The same for a depthwise tile (conv.c "Depthwise"): each of its
  * channels convolves its own input plane; weights one word per kernel row
  * ([c][ky] words of 3 taps and a zero byte), k = 3. */

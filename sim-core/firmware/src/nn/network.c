@@ -123,6 +123,13 @@ static int one_plane(const nn_layer_t *l)
            (l->stride == 1 || l->stride == 2) && l->out_max <= 127;
 }
 
+/* What the pointwise kernel takes (conv.c "Pointwise"). */
+static int pointwise(const nn_layer_t *l, int mode)
+{
+    return l->k == 1 && l->stride == 1 && l->pad == 0 && l->in_c % 16 == 0 && !l->depthwise &&
+           mode == NN_RQ_CLIP;
+}
+
 /* Tiles in network order: (layer, first channel); the tile after the last
  * of a layer is the next layer's first. */
 typedef struct {
@@ -405,7 +412,8 @@ void nn_network_run(void *arg)
         }
         conv_tile_t t = tile_args(ti, w, s);
         pi_cl_team_fork(0,
-                        l->depthwise || one_plane(l) ? dw_tile_share
+                        l->depthwise || one_plane(l)      ? dw_tile_share
+                        : pointwise(l, rq_mode[ti->layer]) ? pw_tile_share
                         : writes_chw(ti->layer) ? conv_tile_share_chw
                                                 : conv_tile_share,
                         &t);
