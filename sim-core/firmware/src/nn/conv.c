@@ -164,6 +164,8 @@ void conv_tile_share(void *arg)
     /* A private copy: the stores cannot alias it, so its fields stay in
      * registers. */
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
+    /* The shared descriptor, not the copy: its address must not escape. */
+    nn_zero_share((const conv_tile_t *)arg);
     int first, last;
     share((t->out_w * t->out_h + 1) / 2 * (t->channels / 4), &first, &last);
     if (t->out_int16) {
@@ -187,6 +189,8 @@ void conv_tile_share(void *arg)
 void conv_tile_share_chw(void *arg)
 {
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
+    /* The shared descriptor, not the copy: its address must not escape. */
+    nn_zero_share((const conv_tile_t *)arg);
     int first, last;
     share((t->out_w * t->out_h + 1) / 2 * (t->channels / 4), &first, &last);
     if (t->mode == NN_RQ_CLIP)
@@ -274,6 +278,8 @@ static inline __attribute__((always_inline)) void pw_items(const conv_tile_t *t,
 void pw_tile_share(void *arg)
 {
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
+    /* The shared descriptor, not the copy: its address must not escape. */
+    nn_zero_share((const conv_tile_t *)arg);
     int first, last;
     share((t->out_w * t->out_h + 1) / 2 * (t->channels / 4), &first, &last);
     if (t->out_int16)
@@ -338,6 +344,8 @@ static inline __attribute__((always_inline)) void dw_items(const conv_tile_t *t,
 void dw_tile_share(void *arg)
 {
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
+    /* The shared descriptor, not the copy: its address must not escape. */
+    nn_zero_share((const conv_tile_t *)arg);
     int first, last;
     share(t->channels * t->out_h, &first, &last);
     if (t->stride == 2) {

@@ -53,7 +53,17 @@ typedef struct {
      * padded plane at in + c*in_plane, rows in_row bytes apart; `stride`
      * 1 or 2 (in_pix and in_ystep are unused). */
     int in_plane, stride;
+    /* The output border the team zeroes at the tile's start
+     * (nn_zero_share; none when zero_h is 0): the whole border of the HWC
+     * activation at zero_at (zero_h x zero_w interior, zero_c channels),
+     * or, zero_chw, the borders of the zero_c CHW planes from zero_at. */
+    int8_t *zero_at;
+    int zero_h, zero_w, zero_c, zero_chw;
 } conv_tile_t;
+
+/* This core's share of the tile's border zeroing (border.c); every
+ * *_tile_share below starts with it. */
+void nn_zero_share(const conv_tile_t *t);
 
 /* The team's share of the tile (a pi_cl_team_fork entry): core i of n
  * computes items [items*i/n, items*(i+1)/n). */

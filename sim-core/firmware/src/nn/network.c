@@ -180,51 +180,6 @@ static void wait_slot(slot_t *s)
         pi_cl_dma_cmd_wait(&s->cmd[i]);
 }
 
-/* n zero bytes: words while 4 remain from an aligned address (every row
- * and side of an HWC border with a multiple of 4 channels), bytes
- * otherwise. Not memset: picolibc's, called per border piece, cost about
- * 6 cycles a byte here (28,000 of the depthwise-separable network's dw7's
- * 52,000 cycles, measured); no_builtin keeps clang from turning these
- * loops back into memset calls. */
-__attribute__((no_builtin("memset"))) static void zero(int8_t *p, int n)
-{
-    for (; n > 0 && ((uintptr_t)p & 3); n--)
-        *p++ = 0;
-    uint32_t *w = (uint32_t *)p;
-    for (; n >= 4; n -= 4)
-        *w++ = 0;
-    for (p = (int8_t *)w; n > 0; n--)
-        *p++ = 0;
-}
-
-/* The zero border of a padded activation. */
-static void zero_border(int8_t *a, int h, int w, int c)
-{
-    int row = (w + 2) * c;
-    zero(a, row);
-    zero(a + (h + 1) * row, row);
-    for (int y = 1; y <= h; y++) {
-        zero(a + y * row, c);
-        zero(a + y * row + (w + 1) * c, c);
-    }
-}
-
-/* The zero borders of c padded planes (CHW): a plane's bottom row and the
- * next one's top row are one run, so are a row's last byte and the next
- * row's first. no_builtin as for zero, which is inlined here. */
-__attribute__((no_builtin("memset"))) static void zero_border_chw(int8_t *a, int h, int w, int c)
-{
-    int row = w + 2, plane = (h + 2) * row;
-    zero(a, row);
-    for (int ch = 0; ch < c; ch++, a += plane) {
-        for (int y = 1; y <= h; y++) {
-            a[y * row] = 0;
-            a[y * row + w + 1] = 0;
-        }
-        zero(a + (h + 1) * row, ch + 1 < c ? 2 * row : row);
-    }
-}
-
 /* Rows of k bytes (k*cin <= 4) one per word, spare bytes zero. */
 static void repack(uint32_t *dst, const uint32_t *src_words, int channels, int k, int row)
 {
@@ -359,6 +314,23 @@ static conv_tile_t tile_args(const tile_t *ti, const uint32_t *w, const slot_t *
         t.in_row = l->in_w + 2;
         t.stride = l->stride;
     }
+    /* The output's zero border (the next layer's padding), zeroed by the
+     * team at the tile's start (conv.h zero_*): a CHW tile's own planes,
+     * an HWC layer's whole border with its first tile. */
+    t.zero_h = l->out_h;
+    t.zero_w = l->out_w;
+    if (ti->layer == NN_N_LAYERS - 1) {
+        t.zero_h = 0;
+    } else if (writes_chw(ti->layer)) {
+        t.zero_at = l1.act[(ti->layer + 1) & 1] + ti->c0 * padded(l->out_h, l->out_w, 1);
+        t.zero_c = ti->n;
+        t.zero_chw = 1;
+    } else if (ti->c0 == 0) {
+        t.zero_at = l1.act[(ti->layer + 1) & 1];
+        t.zero_c = l->out_c;
+    } else {
+        t.zero_h = 0;
+    }
     if (ti->layer == NN_N_LAYERS - 1) {
         /* The head: unpadded, to be copied to L2 as it is. */
         t.out = l1.head + ti->c0;
@@ -399,12 +371,6 @@ void nn_network_run(void *arg)
         /* Double buffering: tile i+1 arrives while the team computes tile i. */
         if (i + 1 < n_tiles)
             fetch(&tiles[i + 1], &l1.slot[(i + 1) & 1]);
-        if (ti->c0 == 0 && ti->layer != NN_N_LAYERS - 1) {
-            if (writes_chw(ti->layer))
-                zero_border_chw(l1.act[(ti->layer + 1) & 1], l->out_h, l->out_w, l->out_c);
-            else
-                zero_border(l1.act[(ti->layer + 1) & 1], l->out_h, l->out_w, l->out_c);
-        }
         const uint32_t *w = s->w;
         if (stored_row(l) % 4) {
             repack(l1.packed, s->w, ti->n, l->k, stored_row(l));
