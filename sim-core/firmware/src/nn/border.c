@@ -28,18 +28,20 @@ __attribute__((no_builtin("memset"))) static void zero(int8_t *p, int n)
         *p++ = 0;
 }
 
-/* Padded rows [first, last) of an HWC activation's border (h x w interior,
- * c channels): the top and bottom rows whole, the others' two sides. */
-static void zero_hwc_rows(int8_t *a, int h, int w, int c, int first, int last)
+/* Core i of n's share of an HWC activation's border (h x w interior, c
+ * channels): the i-th of n word-aligned pieces of the top and of the
+ * bottom row, and the two sides of its share of the interior rows, so
+ * that every core zeroes about as many bytes (a split by rows gave the
+ * top and bottom rows' cores 3-7 times the others' work). */
+static void zero_hwc_share(int8_t *a, int h, int w, int c, int i, int n)
 {
     int row = (w + 2) * c;
-    for (int y = first; y < last; y++) {
-        if (y == 0 || y == h + 1) {
-            zero(a + y * row, row);
-        } else {
-            zero(a + y * row, c);
-            zero(a + y * row + (w + 1) * c, c);
-        }
+    int p0 = (row / 4 * i / n) * 4, p1 = i + 1 == n ? row : (row / 4 * (i + 1) / n) * 4;
+    zero(a + p0, p1 - p0);
+    zero(a + (h + 1) * row + p0, p1 - p0);
+    for (int y = 1 + h * i / n; y < 1 + h * (i + 1) / n; y++) {
+        zero(a + y * row, c);
+        zero(a + y * row + (w + 1) * c, c);
     }
 }
 
@@ -73,8 +75,6 @@ void nn_zero_share(const conv_tile_t *t)
         zero_planes(t->zero_at, t->zero_h, t->zero_w, t->zero_c * i / n,
                     t->zero_c * (i + 1) / n);
     } else {
-        int rows = t->zero_h + 2;
-        zero_hwc_rows(t->zero_at, t->zero_h, t->zero_w, t->zero_c, rows * i / n,
-                      rows * (i + 1) / n);
+        zero_hwc_share(t->zero_at, t->zero_h, t->zero_w, t->zero_c, i, n);
     }
 }

@@ -341,12 +341,121 @@ static inline __attribute__((always_inline)) void dw_items(const conv_tile_t *t,
     }
 }
 
+/* A layer over one input plane (conv1: in_plane 0, every channel reads
+ * the same rows), clip-first: an item is two channels' output row, so
+ * each loaded input word feeds both channels' dot products (3 loads for
+ * 6 cv.sdotsp.b where dw_items takes 3 for 3). */
+static inline __attribute__((always_inline)) void plane_items(const conv_tile_t *t, int first,
+                                                              int last, const int stride)
+{
+    /* Item = (c / 2) * out_h + y. */
+    int c = 2 * (first / t->out_h), y = first - c / 2 * t->out_h;
+    for (int it = first; it < last; it++, y++) {
+        if (y == t->out_h) {
+            y = 0;
+            c += 2;
+        }
+        const uint32_t *w = t->w + 3 * c;
+        uint32_t w0 = w[0], w1 = w[1], w2 = w[2], w3 = w[3], w4 = w[4], w5 = w[5];
+        const nn_rq_t ra = t->rq[c], rb = t->rq[c + 1];
+        const int8_t *r0 = t->in + y * stride * t->in_row;
+        const int8_t *r1 = r0 + t->in_row, *r2 = r1 + t->in_row;
+        int8_t *oa = (int8_t *)t->out + y * t->out_row * t->out_pix + c * t->out_cstep;
+        int8_t *ob = oa + t->out_cstep;
+        for (int x = t->out_w; x > 0; x--) {
+            uint32_t a0, a1, a2;
+            if (stride == 2) {
+                a0 = xcv_lw_inc(r0, 2);
+                a1 = xcv_lw_inc(r1, 2);
+                a2 = xcv_lw_inc(r2, 2);
+            } else {
+                a0 = xcv_lw_inc(r0, 1);
+                a1 = xcv_lw_inc(r1, 1);
+                a2 = xcv_lw_inc(r2, 1);
+            }
+            int32_t sa = xcv_sdotsp_b(0, a0, w0), sb = xcv_sdotsp_b(0, a0, w3);
+            sa = xcv_sdotsp_b(sa, a1, w1);
+            sb = xcv_sdotsp_b(sb, a1, w4);
+            sa = xcv_sdotsp_b(sa, a2, w2);
+            sb = xcv_sdotsp_b(sb, a2, w5);
+            *oa = (int8_t)nn_requant_clip(sa, &ra, t->shift);
+            *ob = (int8_t)nn_requant_clip(sb, &rb, t->shift);
+            oa += t->out_pix;
+            ob += t->out_pix;
+        }
+    }
+}
+
+/* A stride-1 depthwise layer, clip-first: an item is two output rows of
+ * one channel, which share two of their three input rows, so 4 loads feed
+ * 6 cv.sdotsp.b where dw_items takes 6 for 6. An odd out_h leaves each
+ * channel a last item of one row. */
+static inline __attribute__((always_inline)) void dw_rows2(const conv_tile_t *t, int first,
+                                                           int last)
+{
+    const int pairs = (t->out_h + 1) / 2;
+    /* Item = c * pairs + row pair. */
+    int c = first / pairs, yp = first - c * pairs;
+    for (int it = first; it < last; it++, yp++) {
+        if (yp == pairs) {
+            yp = 0;
+            c++;
+        }
+        const uint32_t *w = t->w + 3 * c;
+        uint32_t w0 = w[0], w1 = w[1], w2 = w[2];
+        const nn_rq_t r = t->rq[c];
+        int y = 2 * yp;
+        const int8_t *r0 = t->in + c * t->in_plane + y * t->in_row;
+        const int8_t *r1 = r0 + t->in_row, *r2 = r1 + t->in_row, *r3 = r2 + t->in_row;
+        int8_t *oa = (int8_t *)t->out + y * t->out_row * t->out_pix + c * t->out_cstep;
+        if (y + 1 == t->out_h) {
+            for (int x = t->out_w; x > 0; x--) {
+                int32_t sa = xcv_sdotsp_b(0, xcv_lw_inc(r0, 1), w0);
+                sa = xcv_sdotsp_b(sa, xcv_lw_inc(r1, 1), w1);
+                sa = xcv_sdotsp_b(sa, xcv_lw_inc(r2, 1), w2);
+                *oa = (int8_t)nn_requant_clip(sa, &r, t->shift);
+                oa += t->out_pix;
+            }
+            continue;
+        }
+        int8_t *ob = oa + t->out_row * t->out_pix;
+        for (int x = t->out_w; x > 0; x--) {
+            uint32_t a0 = xcv_lw_inc(r0, 1), a1 = xcv_lw_inc(r1, 1);
+            uint32_t a2 = xcv_lw_inc(r2, 1), a3 = xcv_lw_inc(r3, 1);
+            int32_t sa = xcv_sdotsp_b(0, a0, w0), sb = xcv_sdotsp_b(0, a1, w0);
+            sa = xcv_sdotsp_b(sa, a1, w1);
+            sb = xcv_sdotsp_b(sb, a2, w1);
+            sa = xcv_sdotsp_b(sa, a2, w2);
+            sb = xcv_sdotsp_b(sb, a3, w2);
+            *oa = (int8_t)nn_requant_clip(sa, &r, t->shift);
+            *ob = (int8_t)nn_requant_clip(sb, &r, t->shift);
+            oa += t->out_pix;
+            ob += t->out_pix;
+        }
+    }
+}
+
 void dw_tile_share(void *arg)
 {
     const conv_tile_t tile = *(const conv_tile_t *)arg, *t = &tile;
     /* The shared descriptor, not the copy: its address must not escape. */
     nn_zero_share((const conv_tile_t *)arg);
     int first, last;
+    if (t->in_plane == 0 && t->mode == NN_RQ_CLIP) {
+        /* One plane for every channel (network.c one_plane): channels in
+         * pairs (a tile has a multiple of 4). */
+        share(t->channels / 2 * t->out_h, &first, &last);
+        if (t->stride == 2)
+            plane_items(t, first, last, 2);
+        else
+            plane_items(t, first, last, 1);
+        return;
+    }
+    if (t->stride == 1 && t->mode == NN_RQ_CLIP) {
+        share(t->channels * ((t->out_h + 1) / 2), &first, &last);
+        dw_rows2(t, first, last);
+        return;
+    }
     share(t->channels * t->out_h, &first, &last);
     if (t->stride == 2) {
         if (t->mode == NN_RQ_CLIP)

@@ -27,7 +27,7 @@
  * room for the two activation buffers and the 8 cores' stacks; a network
  * whose activations leave less room (the depthwise-separable one's
  * 40x40x16) takes the largest of the smaller sizes that fits (setup). */
-static const int slot_sizes[] = {9728, 6144, 4608, 3072, 2048};
+static const int slot_sizes[] = {9728, 6656, 6144, 4608, 3072, 2048};
 
 /* A slot holds a tile's weights, then its channels' requantization
  * records (conv.h nn_rq_t). */
