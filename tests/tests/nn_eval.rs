@@ -132,6 +132,29 @@ fn the_cluster_reproduces_the_int8_reference_bit_for_bit() {
     );
 }
 
+/// `elf` (built with the weights in `weights_dir`) on the golden images,
+/// on 8 cores and on 3: its heads equal `golden` (the int8 reference's).
+fn reproduces_its_reference(elf: &str, weights_dir: &str, golden: &str) {
+    let bins = Bins::new();
+    let tmp = tempfile::tempdir().unwrap();
+    let data = repo_root().join("training/golden");
+    let golden = read_json(&repo_root().join(golden));
+    let p = |f: &str| tmp.path().join(f);
+    let weights = format!("{weights_dir}/weights.h");
+    let macs = define_in(&weights, "NN_MACS");
+    let layers = define_in(&weights, "NN_N_LAYERS") as usize;
+    for cores in ["8", "3"] {
+        let r = eval_elf(&bins, elf, &data, cores, &p("e.json"), &p("h.json"));
+        assert_golden(
+            &read_json(&p("h.json")),
+            &golden,
+            &format!("{elf}, {cores} cores"),
+        );
+        assert_eq!(r["mac_per_inference"], macs);
+        assert_eq!(r["layer_cycles"].as_array().unwrap().len(), layers);
+    }
+}
+
 /// The depthwise-separable network (docs/NN.md "Depthwise-separable"):
 /// its depthwise layers run on the cluster's depthwise kernel, their
 /// inputs in CHW planes written by the layers before, and nn_eval_sep.elf
@@ -139,31 +162,28 @@ fn the_cluster_reproduces_the_int8_reference_bit_for_bit() {
 /// on 8 cores and on 3.
 #[test]
 fn the_depthwise_separable_network_reproduces_its_reference_bit_for_bit() {
-    let bins = Bins::new();
-    let tmp = tempfile::tempdir().unwrap();
-    let data = repo_root().join("training/golden");
-    let golden = read_json(&repo_root().join("training/sep/golden.json"));
-    let p = |f: &str| tmp.path().join(f);
-    let weights = "sim-core/firmware/src/nn/sep/weights.h";
-    let macs = define_in(weights, "NN_MACS");
-    let layers = define_in(weights, "NN_N_LAYERS") as usize;
-    for cores in ["8", "3"] {
-        let r = eval_elf(
-            &bins,
-            "nn_eval_sep",
-            &data,
-            cores,
-            &p("e.json"),
-            &p("h.json"),
-        );
-        assert_golden(
-            &read_json(&p("h.json")),
-            &golden,
-            &format!("sep, {cores} cores"),
-        );
-        assert_eq!(r["mac_per_inference"], macs);
-        assert_eq!(r["layer_cycles"].as_array().unwrap().len(), layers);
-    }
+    reproduces_its_reference(
+        "nn_eval_sep",
+        "sim-core/firmware/src/nn/sep",
+        "training/sep/golden.json",
+    );
+}
+
+/// The kernels' 64-bit requantization forms, which no committed network's
+/// layer takes (every one takes the clip-first form): the fallback network
+/// (training/make_fallback.py, the sep network with activation ranges
+/// scaled) puts conv1, dw3, pw4 and pw7 in the fast form and pw3, dw4 and
+/// the head in the general one, so the depthwise kernel (one plane, both
+/// strides) and the 2x4 kernel (CHW, HWC and int16 outputs) run them;
+/// nn_eval_fallback.elf reproduces training/fallback/golden.json bit for
+/// bit on 8 cores and on 3.
+#[test]
+fn the_fallback_requantizations_reproduce_their_reference_bit_for_bit() {
+    reproduces_its_reference(
+        "nn_eval_fallback",
+        "sim-core/firmware/src/nn/fallback",
+        "training/fallback/golden.json",
+    );
 }
 
 #[test]

@@ -20,6 +20,7 @@ sys.path.insert(0, os.path.dirname(HERE))
 import evaluate  # noqa: E402
 import export  # noqa: E402
 import int8_ref  # noqa: E402
+import make_fallback  # noqa: E402
 import make_golden  # noqa: E402
 import netdef  # noqa: E402
 
@@ -52,6 +53,27 @@ def test_int8_reference_reproduces_the_golden_outputs(checkpoint, _, golden, bas
     assert len(committed["images"]) >= 5
     assert any(e["outputs"]["visible"] for e in committed["images"])
     assert committed == make_golden.golden(checkpoint)
+
+
+def test_fallback_network_is_the_scaled_sep_checkpoint_out_of_the_clip_first_form(base_net):
+    """training/make_fallback.py's network, which nn_eval_fallback.elf runs
+    against training/fallback/golden.json (tests/tests/nn_eval.rs): the
+    committed files are the script's output, and the layers it means to
+    take out of the kernels' clip-first requantization are out of it, in
+    the forms it names (so the e2e test runs the fallback paths)."""
+    h, c = make_fallback.sources()
+    for name, want in (("weights.h", h), ("weights.c", c)):
+        with open(os.path.join(make_fallback.OUT, name)) as f:
+            assert f.read() == want, f"{name} differs: run python3 training/make_fallback.py"
+    with open(make_fallback.GOLDEN) as f:
+        assert json.load(f) == json.loads(json.dumps(make_fallback.golden()))
+    forms = make_fallback.layer_forms(export.quantize(make_fallback.checkpoint()))
+    assert sorted(n for n, f in forms.items() if f == "fast") == sorted(make_fallback.FAST)
+    assert sorted(n for n, f in forms.items() if f == "general") == sorted(make_fallback.GENERAL)
+    # The committed networks take the clip-first form in every layer.
+    for checkpoint, _, _ in NETWORKS:
+        q = export.quantize(export.load_checkpoint(checkpoint))
+        assert set(make_fallback.layer_forms(q).values()) == {"clip"}, checkpoint
 
 
 def test_requantization_rounds_half_up_and_pads_with_zeros():
