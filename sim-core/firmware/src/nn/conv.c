@@ -1,10 +1,16 @@
 /*
- * The int8 convolution kernel (docs/NN.md "On the cluster"). Work item: two
- * output pixels (consecutive in raster order) by four output channels: per
- * word of the window, 2 input loads and 4 weight loads feed 8 cv.sdotsp.b
- * (32 MACs), the register-blocking of PULP-NN's kernels (Garofalo et al.
- * 2020, §4: "4x2" output blocks) on HWC data, where one row of a 3x3
- * window is 3*cin contiguous bytes in the input and in the weights.
+ * The int8 kernels (docs/NN.md "On the cluster"), each a team-shared tile
+ * entry (conv.h):
+ * - conv_tile_share(_chw): the general kernel. Work item: two output
+ *   pixels (consecutive in raster order) by four output channels: per
+ *   word of the window, 2 input loads and 4 weight loads feed 8
+ *   cv.sdotsp.b (32 MACs), the register-blocking of PULP-NN's kernels
+ *   (Garofalo et al. 2020, §4: "4x2" output blocks) on HWC data, where one
+ *   row of a 3x3 window is 3*cin contiguous bytes in the input and in the
+ *   weights;
+ * - pw_tile_share: the same blocking for 1x1 layers, walked pair by pair;
+ * - dw_tile_share: the depthwise kernel (a channel's rows over its own CHW
+ *   plane), which also runs a 3x3 layer over one input plane (conv1).
  */
 #include "conv.h"
 
