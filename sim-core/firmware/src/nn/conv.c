@@ -470,9 +470,7 @@ void dw_tile_share(void *arg)
             dw_items(t, first, last, 2, NN_RQ_FAST);
         else
             dw_items(t, first, last, 2, NN_RQ_GENERAL);
-    } else if (t->mode == NN_RQ_CLIP)
-        dw_items(t, first, last, 1, NN_RQ_CLIP);
-    else if (t->mode == NN_RQ_FAST)
+    } else if (t->mode == NN_RQ_FAST) /* stride 1, clip-first: dw_rows2 above */
         dw_items(t, first, last, 1, NN_RQ_FAST);
     else
         dw_items(t, first, last, 1, NN_RQ_GENERAL);

@@ -26,7 +26,10 @@
  * 32-channel tiles and conv6 (576 + 16) 16-channel ones, and leaves L1
  * room for the two activation buffers and the 8 cores' stacks; a network
  * whose activations leave less room (the depthwise-separable one's
- * 40x40x16) takes the largest of the smaller sizes that fits (setup). */
+ * 40x40x16) takes the largest of the smaller sizes that fits (setup).
+ * 6.5 KiB is the depthwise-separable one's: pw7 (192 + 16 bytes) in tiles
+ * of 32 channels, 13 pixel pairs x 8 quads = 104 items, 13 per core
+ * (6 KiB gave 24 channels, 78 items, 9 or 10 per core). */
 static const int slot_sizes[] = {9728, 6656, 6144, 4608, 3072, 2048};
 
 /* A slot holds a tile's weights, then its channels' requantization
@@ -104,23 +107,25 @@ static int tile_channels(const nn_layer_t *l, int slot_bytes)
     return 0;
 }
 
-/* What the depthwise kernel takes: 3x3, one channel per channel, a
- * one-pixel pad, stride 1 or 2, an int8 output. */
-static int depthwise_ok(const nn_layer_t *l)
+/* The depthwise kernel's window: 3x3, a one-pixel pad, stride 1 or 2, an
+ * int8 output. */
+static int planar_3x3(const nn_layer_t *l)
 {
-    return l->k == 3 && l->in_c == l->out_c && l->pad == 1 && (l->stride == 1 || l->stride == 2) &&
-           l->out_max <= 127;
+    return l->k == 3 && l->pad == 1 && (l->stride == 1 || l->stride == 2) && l->out_max <= 127;
 }
+
+/* What the depthwise kernel takes: its window, one channel per channel. */
+static int depthwise_ok(const nn_layer_t *l) { return planar_3x3(l) && l->in_c == l->out_c; }
 
 /* A 3x3 layer over one input channel (conv1) is a depthwise layer whose
  * every output channel reads the same plane: the depthwise kernel runs it
- * (a channel's output row per item, its 3 weight words and record in
- * registers), where the 2x4 kernel would spend a whole window word on
- * each 3-byte row and recompute the window per channel quad. */
+ * (conv.c plane_items: two channels' output row per item, their weight
+ * words and records in registers, each input word feeding both), where
+ * the 2x4 kernel would spend a whole window word on each 3-byte row and
+ * recompute the window per channel quad. */
 static int one_plane(const nn_layer_t *l)
 {
-    return !l->depthwise && l->in_c == 1 && l->k == 3 && l->pad == 1 &&
-           (l->stride == 1 || l->stride == 2) && l->out_max <= 127;
+    return !l->depthwise && l->in_c == 1 && planar_3x3(l);
 }
 
 /* What the pointwise kernel takes (conv.c "Pointwise"). */
