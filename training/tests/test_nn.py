@@ -420,6 +420,42 @@ def test_analyse_lines_finds_the_gates_at_the_rules_lines():
         "gross: no listed gate at the report"
 
 
+def test_label_floor_observer_applies_the_rules_to_what_it_measures():
+    import label_floor as lf
+
+    def gate(u, v, d, a):
+        c = netdef.CAMERA
+        return {"u": u, "v": v, "distance_m": d, "off_normal_deg": a,
+                "in_image": 0 <= u < c and 0 <= v < c}
+
+    images = [
+        [gate(100, 100, 5.0, 10), gate(200, 150, 3.0, 20)],   # the nearer one
+        [gate(100, 100, 5.0, 10), gate(200, 150, 3.0, 75)],   # the nearer one beyond 70 deg
+        [gate(-3, 100, 2.0, 10), gate(160, 160, 8.3, 10)],    # outside, beyond 8 m: none
+        [],
+    ]
+    labels = [{"visible": True, "u": 200.0, "v": 150.0, "distance_m": 3.0},
+              {"visible": True, "u": 100.0, "v": 100.0, "distance_m": 5.0},
+              {"visible": False}, {"visible": False}]
+    rng = np.random.default_rng(0)
+    exact = lf.observe(images, 0.0, 0.0, 0.0, rng)
+    assert [p[0] for p in exact] == [True, True, False, False]
+    assert exact[0][1:] == (200.0, 150.0, 3.0) and exact[1][1:] == (100.0, 100.0, 5.0)
+    m = lf.floor(labels, images, 0.0, 0.0, 0.0, 3, rng)
+    assert m == {"detection_rate": 1.0, "false_positive_rate": 0.0, "mean_px_error": 0.0,
+                 "gross_rate": 0.0}
+    # A gate 0.05 m beyond 8 m, measured with a 5 % error, is judged visible
+    # with the probability of the normal law: Phi(-0.05 / (0.05 * 8.05)) = 0.45.
+    far = [[gate(160, 160, 8.05, 10)]] * 4000
+    seen = np.mean([p[0] for p in lf.observe(far, 0.0, 0.05, 0.0, rng)])
+    assert abs(seen - 0.4506) < 0.03
+    # The measured centre is what is reported: a 2 px error per axis has a
+    # mean radial error of 2 * sqrt(pi / 2) = 2.51 px.
+    near = [[gate(160, 160, 3.0, 10)]] * 4000
+    err = [np.hypot(p[1] - 160, p[2] - 160) for p in lf.observe(near, 2.0, 0.0, 0.0, rng)]
+    assert abs(np.mean(err) - 2.507) < 0.1
+
+
 def test_distillation_targets_are_the_teachers_objectness(tmp_path, base_net):
     """train.teacher_logits: the objectness of a folded checkpoint of another
     net (the "teacher", 26 MMAC, over DESIGN.md §13's 5: it only teaches) on
