@@ -187,3 +187,54 @@ fn dataset_is_seeded_and_its_labels_are_projected_gates() {
     assert_eq!(o.status.code(), Some(2));
     assert_eq!(String::from_utf8_lossy(&o.stderr).trim().lines().count(), 1);
 }
+
+/// `world-server dataset` is the same renderer and labels as `cosim
+/// dataset`: the same world, N and seed give the same bytes; a world file
+/// that cannot be read is one line on stderr and a non-zero exit.
+#[test]
+fn world_server_dataset_writes_cosims_bytes() {
+    let bins = Bins::new();
+    let tmp = tempfile::tempdir().unwrap();
+    let world = world_file("thesis-course");
+    let (a, b) = (tmp.path().join("cosim"), tmp.path().join("world"));
+    dataset(&bins, &world, "12", "5", &a);
+    let ws = |args: &[&str]| {
+        std::process::Command::new(&bins.world)
+            .args(args)
+            .output()
+            .expect("run world-server")
+    };
+    let o = ws(&[
+        "dataset",
+        world.to_str().unwrap(),
+        "--count",
+        "12",
+        "--seed",
+        "5",
+        "--out",
+        b.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let mut files: Vec<String> = (0..12).map(|i| format!("img_{i:06}.pgm")).collect();
+    files.extend(["labels.csv", "gates.csv", "dataset.json"].map(String::from));
+    assert_same_files(&a, &b, &files, "world-server dataset = cosim dataset");
+
+    let o = ws(&[
+        "dataset",
+        "no-such-world.toml",
+        "--count",
+        "1",
+        "--seed",
+        "1",
+        "--out",
+        tmp.path().join("bad").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert_eq!(err.matches("os error").count(), 1, "the cause once: {err}");
+    // The server's own flags still need no subcommand, and a subcommand
+    // does not take them.
+    let o = ws(&["dataset", world.to_str().unwrap(), "--socket", "/tmp/x"]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+}

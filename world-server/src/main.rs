@@ -5,13 +5,17 @@
 //! [--trajectory FILE] [--radio-log FILE] [--mcap FILE [--mcap-image-every N]]
 //! [--connect-timeout S]
 //! [--replay TRACE [--replay-frames DIR]]`
+//!
+//! `world-server dataset WORLD --count N --seed S --out DIR`: renders and
+//! labels a training set with the camera of the loop (docs/NN.md; the same
+//! bytes as `cosim dataset`).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
-use clap::Parser;
+use clap::{Parser, Subcommand};
 use protocol::Endpoint;
 use world_server::server::{serve, ServerConfig};
 use world_server::{Millis, StepConfig, WorldDesc};
@@ -19,8 +23,15 @@ use world_server::{Millis, StepConfig, WorldDesc};
 /// The physics world of crazyflie-cosim: the Webots Crazyflie in rapier3d,
 /// its sensors, its camera and the gate course, served over a socket.
 #[derive(Parser, Debug)]
-#[command(name = "world-server", version)]
+#[command(
+    name = "world-server",
+    version,
+    subcommand_negates_reqs = true,
+    args_conflicts_with_subcommands = true
+)]
 struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
     /// UNIX socket to listen on (the thesis's transport).
     #[arg(long, value_name = "PATH", required_unless_present = "tcp")]
     socket: Option<PathBuf>,
@@ -83,6 +94,48 @@ struct Cli {
     replay_tolerance: f64,
 }
 
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render and label N camera images of a world (DESIGN.md §13,
+    /// docs/NN.md "The data"): DIR/img_NNNNNN.pgm, labels.csv, gates.csv,
+    /// dataset.json. The same world, N and seed give the same bytes.
+    Dataset {
+        /// World file (TOML).
+        world: PathBuf,
+        /// Number of images.
+        #[arg(long, value_name = "N")]
+        count: usize,
+        /// Seed of every draw (ChaCha8): same world, N and S give the same bytes.
+        #[arg(long, value_name = "S")]
+        seed: u64,
+        /// Output directory (created if missing).
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+    },
+}
+
+/// `world-server dataset`: the library's `write_dataset`, as `cosim dataset`.
+fn dataset(
+    world: &std::path::Path,
+    count: usize,
+    seed: u64,
+    out: &std::path::Path,
+) -> anyhow::Result<()> {
+    // The error's Display already quotes its source; `{:#}` would repeat it.
+    let desc = WorldDesc::load(world).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let spec = world_server::dataset::DatasetSpec::new(count, seed);
+    let start = std::time::Instant::now();
+    let labels = world_server::dataset::write_dataset(&desc, &spec, out)?;
+    let secs = start.elapsed().as_secs_f64();
+    let visible = labels.iter().filter(|l| l.gate.is_some()).count();
+    println!(
+        "world-server: {count} images ({visible} with a gate) -> {} in {secs:.1} s ({:.0} images/min)",
+        out.display(),
+        count as f64 / secs.max(1e-9) * 60.0
+    );
+    Ok(())
+}
+
 /// The course shipped in `scenarios/worlds/`, found from the executable
 /// (target/<profile>/world-server → repository root) or the working directory.
 fn default_world() -> anyhow::Result<PathBuf> {
@@ -103,6 +156,15 @@ fn default_world() -> anyhow::Result<PathBuf> {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    if let Some(Command::Dataset {
+        world,
+        count,
+        seed,
+        out,
+    }) = &cli.command
+    {
+        return dataset(world, *count, *seed, out);
+    }
     if cli.timestep == 0 {
         bail!("--timestep must be at least 1 ms");
     }
@@ -135,7 +197,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(p) => p,
         None => default_world()?,
     };
-    let world = WorldDesc::load(&world_path)?;
+    // The error's Display already quotes its source; `{:#}` would repeat it.
+    let world = WorldDesc::load(&world_path).map_err(|e| anyhow::anyhow!("{e}"))?;
     tracing::info!(world = %world_path.display(), drones = world.drones.len(), gates = world.gates.len(), boxes = world.boxes.len(), "world loaded");
     let cfg = ServerConfig {
         endpoint,
