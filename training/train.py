@@ -257,9 +257,14 @@ def kd_loss_fn(params, x, obj, w_obj, reg, mask, tlog, kd):
     return jnp.mean(bce) + kd * jnp.mean(kdl) + 4.0 * jnp.mean(regression_loss(out, reg, mask))
 
 
+# The regression's weights: centre (u, v), distance, the 8 corner values.
+# --centre-weight scales the centre's (the placement §13's mean error scores).
+REG_WEIGHTS = [1.0, 1.0, 0.5] + [0.25] * 8
+
+
 def regression_loss(out, reg, mask):
     """Per sample: the weighted smooth-L1 of the regression over the masked cells."""
-    w = jnp.array([1.0, 1.0, 0.5] + [0.25] * 8)
+    w = jnp.array(REG_WEIGHTS)
     return ((smooth_l1(out[..., 1:] - reg) * w).sum(-1) * mask).sum(axis=(1, 2))
 
 
@@ -453,8 +458,13 @@ def main():
     ap.add_argument("--teacher", help="a folded checkpoint whose objectness the network also "
                     "learns (distillation; docs/NN.md \"A large network\")")
     ap.add_argument("--kd", type=float, default=1.0, help="the distillation term's weight")
+    ap.add_argument("--centre-weight", type=float, default=1.0,
+                    help="scale of the centre's weight in the regression loss")
     a = ap.parse_args()
     netdef.select(a.net)
+    if not a.centre_weight > 0:
+        raise SystemExit("--centre-weight must be > 0")
+    REG_WEIGHTS[0] = REG_WEIGHTS[1] = a.centre_weight
     t0 = time.time()
     parts = [load_inputs(d) for d in a.data]
     small = np.concatenate([p[0][:a.limit] for p in parts])
