@@ -81,6 +81,13 @@ def floor(labels, listed, sigma_px, rel, deg, draws, rng):
     return {k: float(np.mean([r[k] or 0.0 for r in runs])) for k in keys}
 
 
+def robust_sigma(x):
+    """1.4826 x the median absolute deviation: the standard deviation of a
+    normal law, unmoved by the few gross errors left in."""
+    x = np.asarray(x, dtype=float)
+    return 1.4826 * float(np.median(np.abs(x - np.median(x))))
+
+
 def network_precision(data, checkpoint):
     """The int8 network's robust per-axis centre error (px) and relative
     distance error over the detections it placed within GROSS_PX."""
@@ -100,11 +107,10 @@ def network_precision(data, checkpoint):
         du.append(u - lab["u"])
         dv.append(v - lab["v"])
         dd.append(r["distance_mm"] / 1000 / lab["distance_m"] - 1.0)
-    mad = lambda x: 1.4826 * float(np.median(np.abs(np.array(x) - np.median(x))))  # noqa: E731
     preds = [(r["visible"], r["u_q4"] / 16, r["v_q4"] / 16, r["distance_mm"] / 1000) for r in res]
     own = evaluate.metrics(preds, labels)
     own["gross_rate"] = 1.0 - len(du) / max(found, 1)
-    return 0.5 * (mad(du) + mad(dv)), mad(dd), len(du), own
+    return 0.5 * (robust_sigma(du) + robust_sigma(dv)), robust_sigma(dd), len(du), own
 
 
 def main():
