@@ -38,9 +38,8 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import evaluate  # noqa: E402
 import netdef  # noqa: E402
-
-MAX_M, MAX_DEG = 8.0, 70.0
-GROSS_PX = 40.0
+from analyse_errors import GROSS_PX  # noqa: E402
+from analyse_lines import MAX_DEG, MAX_M  # noqa: E402
 # (centre px per axis, relative distance, degrees): from a perfect observer
 # to worse than the 26 MMAC teacher's placement (median 2.4 px, docs/NN.md
 # "A large network").

@@ -233,6 +233,25 @@ fn world_server_dataset_writes_cosims_bytes() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert_eq!(err.matches("os error").count(), 1, "the cause once: {err}");
+    // An output "directory" that is a file: both commands say so once.
+    let file = tmp.path().join("a-file");
+    std::fs::write(&file, b"").unwrap();
+    let args = [
+        "dataset",
+        world.to_str().unwrap(),
+        "--count",
+        "1",
+        "--seed",
+        "1",
+        "--out",
+        file.to_str().unwrap(),
+    ];
+    for o in [ws(&args), bins.cosim(&args)] {
+        assert!(!o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert_eq!(err.matches("os error").count(), 1, "the cause once: {err}");
+    }
     // The server's own flags still need no subcommand, and a subcommand
     // does not take them.
     let o = ws(&["dataset", world.to_str().unwrap(), "--socket", "/tmp/x"]);

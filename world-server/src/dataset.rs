@@ -116,19 +116,23 @@ pub enum DatasetError {
     NoImages,
     #[error("the world has no [[gate]] to look at")]
     NoGates,
-    #[error("{path}: {source}")]
+    /// The cause is in the message, and so not also a `source()` (a chain
+    /// printer would repeat it).
+    #[error("{path}: {cause}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("no free pose found for image {0} (the course is full of boxes?)")]
     NoPose(usize),
+    #[error(transparent)]
+    World(#[from] crate::world_file::WorldFileError),
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> DatasetError + '_ {
-    move |source| DatasetError::Io {
+    move |cause| DatasetError::Io {
         path: path.to_path_buf(),
-        source,
+        cause,
     }
 }
 
@@ -202,6 +206,28 @@ pub fn write_dataset(
     rows.flush().map_err(io_err(&csv_path))?;
     gate_rows.flush().map_err(io_err(&gates_path))?;
     Ok(labels)
+}
+
+/// `dataset WORLD --count N --seed S --out DIR`, the command of both
+/// `cosim` and `world-server`: loads the world file, writes the dataset and
+/// returns the line to print (the count, the images with a gate, the rate
+/// in wall time).
+pub fn dataset_command(
+    world: &Path,
+    count: usize,
+    seed: u64,
+    out: &Path,
+) -> Result<String, DatasetError> {
+    let desc = WorldDesc::load(world)?;
+    let start = std::time::Instant::now();
+    let labels = write_dataset(&desc, &DatasetSpec::new(count, seed), out)?;
+    let secs = start.elapsed().as_secs_f64();
+    let visible = labels.iter().filter(|l| l.gate.is_some()).count();
+    Ok(format!(
+        "{count} images ({visible} with a gate) -> {} in {secs:.1} s ({:.0} images/min)",
+        out.display(),
+        count as f64 / secs.max(1e-9) * 60.0
+    ))
 }
 
 /// One `labels.csv` row (no newline). Pixels with 3 decimals, metres with 4.

@@ -114,28 +114,6 @@ enum Command {
     },
 }
 
-/// `world-server dataset`: the library's `write_dataset`, as `cosim dataset`.
-fn dataset(
-    world: &std::path::Path,
-    count: usize,
-    seed: u64,
-    out: &std::path::Path,
-) -> anyhow::Result<()> {
-    // The error's Display already quotes its source; `{:#}` would repeat it.
-    let desc = WorldDesc::load(world).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let spec = world_server::dataset::DatasetSpec::new(count, seed);
-    let start = std::time::Instant::now();
-    let labels = world_server::dataset::write_dataset(&desc, &spec, out)?;
-    let secs = start.elapsed().as_secs_f64();
-    let visible = labels.iter().filter(|l| l.gate.is_some()).count();
-    println!(
-        "world-server: {count} images ({visible} with a gate) -> {} in {secs:.1} s ({:.0} images/min)",
-        out.display(),
-        count as f64 / secs.max(1e-9) * 60.0
-    );
-    Ok(())
-}
-
 /// The course shipped in `scenarios/worlds/`, found from the executable
 /// (target/<profile>/world-server → repository root) or the working directory.
 fn default_world() -> anyhow::Result<PathBuf> {
@@ -163,7 +141,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         out,
     }) = &cli.command
     {
-        return dataset(world, *count, *seed, out);
+        let line = world_server::dataset::dataset_command(world, *count, *seed, out)?;
+        println!("world-server: {line}");
+        return Ok(());
     }
     if cli.timestep == 0 {
         bail!("--timestep must be at least 1 ms");
@@ -197,8 +177,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(p) => p,
         None => default_world()?,
     };
-    // The error's Display already quotes its source; `{:#}` would repeat it.
-    let world = WorldDesc::load(&world_path).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let world = WorldDesc::load(&world_path)?;
     tracing::info!(world = %world_path.display(), drones = world.drones.len(), gates = world.gates.len(), boxes = world.boxes.len(), "world loaded");
     let cfg = ServerConfig {
         endpoint,

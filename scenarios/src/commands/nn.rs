@@ -40,16 +40,7 @@ pub(crate) fn cmd_dataset(
     seed: u64,
     out: &Path,
 ) -> anyhow::Result<ExitCode> {
-    let desc = world_server::WorldDesc::load(world).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let spec = world_server::dataset::DatasetSpec::new(count, seed);
-    let start = std::time::Instant::now();
-    let labels = world_server::dataset::write_dataset(&desc, &spec, out)?;
-    let secs = start.elapsed().as_secs_f64();
-    let visible = labels.iter().filter(|l| l.gate.is_some()).count();
-    println!(
-        "cosim: {count} images ({visible} with a gate) -> {} in {secs:.1} s ({:.0} images/min)",
-        out.display(),
-        count as f64 / secs.max(1e-9) * 60.0
-    );
+    let line = world_server::dataset::dataset_command(world, count, seed, out)?;
+    println!("cosim: {line}");
     Ok(ExitCode::SUCCESS)
 }

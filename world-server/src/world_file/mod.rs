@@ -221,11 +221,12 @@ impl From<[Finite; 3]> for Point3 {
 /// Why a world file could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum WorldFileError {
-    #[error("cannot read world file {path}: {source}")]
+    /// The cause is in the message, and so not also a `source()`: a
+    /// chain printer (`anyhow`'s `{:#}`) would print it twice.
+    #[error("cannot read world file {path}: {cause}")]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("{path}:{line}:{column}: {field}: {message}")]
     Invalid {
@@ -241,9 +242,9 @@ pub enum WorldFileError {
 impl WorldDesc {
     /// Reads and checks a world file.
     pub fn load(path: &Path) -> Result<WorldDesc, WorldFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| WorldFileError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| WorldFileError::Io {
             path: path.to_path_buf(),
-            source,
+            cause,
         })?;
         Self::parse(&text, path)
     }
