@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The README's test command: every test, Rust and Python, on a fresh machine
-# with the Rust toolchain (issue 23 part 4). Installs what the tests need when
+# with the Rust toolchain. Installs what the tests need when
 # it is missing, then runs them:
 #   - GNU parallel (tests/tests/sweep_shards.rs, scripts/sweep-parallel.sh);
 #   - the RISC-V cross compiler and picolibc, clang-19 (firmware

@@ -44,6 +44,7 @@ import optax
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import netdef  # noqa: E402
 import evaluate  # noqa: E402
+from export import portable_command  # noqa: E402
 
 
 def mirrored(u, c):
@@ -562,7 +563,7 @@ def main():
     if a.net != "base":
         # The committed checkpoint has no entry: "base" (export.load_checkpoint).
         ckpt["net"] = np.array(a.net)
-    meta = {"net": a.net, "command": " ".join(sys.argv), "images": n, "epochs": a.epochs,
+    meta = {"net": a.net, "command": portable_command(" ".join(sys.argv)), "images": n, "epochs": a.epochs,
             "batch": a.batch, "lr": a.lr, "seed": a.seed, "bn": a.bn,
             "ignore_neighbours": a.ignore_neighbours, "gates": a.gates,
             "ambiguous": a.ambiguous, "teacher": a.teacher, "kd": a.kd if a.teacher else None,

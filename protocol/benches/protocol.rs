@@ -1,5 +1,5 @@
 //! Throughput and latency of the protocol (numbers for docs/PROTOCOL.md and
-//! the goals):
+//! the project's goals):
 //! - `pingpong/raw_4_bytes`: the floor — a 4-byte write and a 4-byte read
 //!   each way over a UNIX socket pair, no framing, no JSON;
 //! - `pingpong/get_sensors`: a GET_SENSORS request and its 15-field reply

@@ -264,7 +264,7 @@ mod tests {
     /// A client that connects the moment the path exists is never refused:
     /// the path appears only once the socket listens (against the old
     /// bind-chmod-listen sequence this client was refused within the first
-    /// 30 rounds in two runs of three on this 2-core machine).
+    /// 30 rounds in two runs of three on a 2-core host).
     #[test]
     fn the_path_appears_only_once_the_socket_listens() {
         use std::sync::atomic::{AtomicBool, Ordering};

@@ -1,4 +1,4 @@
-"""cflib flies the simulated Crazyflie over its UDP link (issue 22,
+"""cflib flies the simulated Crazyflie over its UDP link (DESIGN.md §17,
 docs/CFLIB.md).  Each test runs `cosim run cflib-lab` (or `cflib-swarm`)
 with the STM32 serving CRTP on its own port, flies it with Bitcraze's
 cflib from PyPI the way cflib's public examples do (their calls, their

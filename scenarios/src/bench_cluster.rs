@@ -1,13 +1,13 @@
 //! `cosim bench cluster`: the AI deck's cluster on the int8 matmul of
-//! issue 18 (docs/CLUSTER.md "Benchmark"). For each core count, one
+//! DESIGN.md §12 (docs/CLUSTER.md "Benchmark"). For each core count, one
 //! `sim-core run-elf --stats` of `cluster_matmul_bench.elf` (the kernel
 //! [`REPS`] times on every core of a cluster of that size), one after the
 //! other, never in parallel. Per row: simulated cycles per matmul,
 //! MAC/cycle, speedup over one core, the cluster's energy per MAC (the
 //! power model applied to `--stats`' counters), and the host's cost: CPU
 //! and wall time, MIPS (every core's executed instructions over the CPU
-//! time) and host CPU time per simulated cycle relative to one core (issue
-//! 18's goal: 8 busy cores cost at most 9× one core's host time). A
+//! time) and host CPU time per simulated cycle relative to one core (the
+//! goal: 8 busy cores cost at most 9× one core's host time). A
 //! measurement, not a test: the host figures depend on the machine and its
 //! load (the run with the least CPU time of `repeat` is kept); the
 //! simulated ones do not (two repeats that differ are an error).

@@ -3,7 +3,7 @@
 //! `battery_load = "sag"` the motors' top speed falls with the battery's
 //! terminal voltage, and near empty it falls below the hover speed. The
 //! report names the instant the drone sank below 80 % of its last
-//! target's height (0.8 m for hover-endurance's 1 m, the mark),
+//! target's height (0.8 m for hover-endurance's 1 m, the mark it is judged by),
 //! having reached 95 % of it first, with the battery's state then.
 
 use crate::report::{PowerRow, TrajectoryRow};

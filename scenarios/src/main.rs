@@ -306,7 +306,7 @@ enum BenchCmd {
         #[arg(long, default_value_t = 1)]
         repeat: usize,
     },
-    /// The AI deck's cluster on the int8 matmul 64×64×64 (issue 18): cycles,
+    /// The AI deck's cluster on the int8 matmul 64×64×64 (DESIGN.md §12): cycles,
     /// MAC/cycle, speedup, energy per MAC and host cost per core count, one
     /// `sim-core run-elf` after the other.
     Cluster {

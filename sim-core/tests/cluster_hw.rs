@@ -1,4 +1,4 @@
-//! The cluster hardware (issue 18, DESIGN.md §12, docs/CLUSTER.md) with its
+//! The cluster hardware (DESIGN.md §12, docs/CLUSTER.md) with its
 //! test firmware (`sim-core/firmware/src/cluster/cluster_hw_test.c`) on
 //! the ISS: boot through CTRL, `mhartid`, the event unit, L1 bank
 //! conflicts, the DMA's bytes and closed-form time, determinism.

@@ -1,4 +1,4 @@
-//! The cluster on the full platform (issue 18): the kernel runs FC +
+//! The cluster on the full platform (DESIGN.md §12): the kernel runs FC +
 //! cluster when the platform file has a `"cluster"` section
 //! (`sim-core/platforms/crazyflie-aideck.json`), and `power.csv` gets the
 //! cluster's columns; without the section nothing changes.

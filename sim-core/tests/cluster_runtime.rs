@@ -70,7 +70,7 @@ fn runtime_selftest_passes() {
 }
 
 /// The benchmark's own checks: every run's checksum equals the FC's plain
-/// C reference, 8 cores reach the 8 MAC/cycle, and more cores are
+/// C reference, 8 cores reach the 8 MAC/cycle aimed at, and more cores are
 /// faster. Cycles are simulated, so this cannot flake with the host's load.
 #[test]
 fn matmul_is_exact_and_reaches_8_mac_per_cycle() {

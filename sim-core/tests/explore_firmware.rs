@@ -227,7 +227,7 @@ fn the_map_image_reads_back_and_matches_the_room() {
         (n[1], n[2], n[3], n[4], n[5]),
         "{fw}"
     );
-    // The exploration's goal (the issue): at least 90 % of the free space.
+    // The exploration's goal: at least 90 % of the free space.
     assert!(
         q.observed * 100 >= 90 * q.truth_free,
         "coverage {} of {}",

@@ -1,6 +1,6 @@
 //! The upstream RISC-V compliance suites on the ISS, under both back ends
-//! (issue 20: "the riscv-tests and the architecture tests give identical
-//! signatures, cycle counts and traces under interp and jit").
+//! (DESIGN.md §14: the riscv-tests and the architecture tests give identical
+//! signatures, cycle counts and traces under interp and jit).
 //!
 //! The ELFs in `tests/compliance/` are built from riscv-tests (the "p"
 //! environment: rv32ui, rv32um, rv32uc, rv32mi) and riscv-arch-test 2.7.4

@@ -1,4 +1,4 @@
-//! The `sim-core run-elf` command line (contract of issue 4): riscv-tests
+//! The `sim-core run-elf` command line (DESIGN.md §4, §12): riscv-tests
 //! `tohost` exit codes, RISCOF signatures, semihosting output, the
 //! instruction limit, `--stats`, and clear errors on bad input.
 

@@ -1,4 +1,4 @@
-//! The CRTP link against raw datagrams (docs/CFLIB.md, issue 22): `cosim run
+//! The CRTP link against raw datagrams (DESIGN.md §17, docs/CFLIB.md): `cosim run
 //! cflib-lab` serves udp://127.0.0.1:19890; malformed packets, unknown
 //! ports, channels, set-point types, log and param ids get what the
 //! firmware answers (an errno, or nothing), and the drone keeps answering

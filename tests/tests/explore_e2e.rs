@@ -56,7 +56,7 @@ fn an_unseen_room_is_explored_landed_and_reproduced() {
     assert_eq!(s["completed"], true, "{s}");
     assert_eq!(s["collisions"], 0, "{s}");
     let m = &s["map"];
-    // Issue 12: "still covers ≥ 90 % of its free space without a collision".
+    // The goal: "still covers ≥ 90 % of its free space without a collision".
     assert!(m["coverage_pct"].as_f64().unwrap() >= 90.0, "{m}");
     // Accuracy: the self-test's synthetic flights reach 89-98 % with the
     // seed's compromise (a 20° nearest-return ranger, a 4° map cone: walls

@@ -1,4 +1,4 @@
-//! The network in the loop end to end (issue 19, DESIGN.md §13, docs/NN.md
+//! The network in the loop end to end (DESIGN.md §13, docs/NN.md
 //! "nn-race"): on vision-race's short course (one gate displaced 0.45 m
 //! sideways from its waypoint, `scenarios/worlds/short-gate-displaced.toml`,
 //! which the blind race misses: tests/tests/vision_race.rs), nn_race_short.elf

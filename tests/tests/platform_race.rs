@@ -1,5 +1,5 @@
 //! The thesis's race end to end: the real `world-server` and the real
-//! `sim-core` running the race firmware over a real UNIX socket (issue:
+//! `sim-core` running the race firmware over a real UNIX socket (the goal:
 //! "the race firmware at 32 ms completes, reaches all 11 targets (none
 //! bypassed), lands, and reports an estimate error of 0 ms").
 

@@ -2,7 +2,7 @@
 //! the `motion_velocity` and `motion_heading` firmware on the ISS against the
 //! real world server, run by `cosim run` on the short scenario's empty world
 //! with another firmware. Each flight takes a few seconds of wall time.
-//! Flow mode (issue 12): the same flight on the Flow deck's noisy flow,
+//! Flow mode (DESIGN.md §9): the same flight on the Flow deck's noisy flow,
 //! through the STM32's flow filter (`estimator.rs`), and without it.
 
 use std::path::Path;
@@ -193,7 +193,7 @@ fn flow_mode_flies_on_noisy_flow_through_the_filter_and_drifts_a_bounded_amount(
     assert!(max <= 0.25, "drift {d}");
     assert!(last_d > 0.006, "no drift at all: {d}");
     // The same flight on the raw flow (σ = 0: the filter's gain is 1, the
-    // STM32 before issue 12): the velocity loop's derivative turns the
+    // STM32 without a flow filter): the velocity loop's derivative turns the
     // noise into attitude demands of 0.5·0.069·√2/0.032 = 1.5 rad per step;
     // the drone flips.
     let (dir, o) = run_with(

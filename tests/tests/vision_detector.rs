@@ -59,7 +59,7 @@ fn look(
     look_at(fw, name, &world(gates, extra), want, pose, edge_px)
 }
 
-/// The poses of the issue: straight on at 1, 2, 3 m (and farther),
+/// The poses asked for: straight on at 1, 2, 3 m (and farther),
 /// oblique, offset sideways and vertically.
 #[test]
 fn finds_a_whole_gate_within_quantisation_bounds() {

@@ -1,4 +1,4 @@
-//! Vision in the loop end to end (issue 13, docs/VISION.md): on a course of
+//! Vision in the loop end to end (DESIGN.md §10, docs/VISION.md): on a course of
 //! one gate displaced 0.45 m sideways from its waypoint
 //! (`scenarios/worlds/short-gate-displaced.toml`), race.c's short flight to
 //! the waypoint (`short_far`) misses the gate, and the vision firmware

@@ -1,5 +1,5 @@
 //! End-to-end tests of the real `world-server` binary over real sockets
-//! (issue 3, "How it is checked").
+//! (DESIGN.md §2, §5).
 //!
 //! The binary must be built: `cargo test --workspace` builds every binary of
 //! the workspace before running tests; with `cargo test -p e2e-tests` run

@@ -4,7 +4,7 @@
 //! iteration, whose inverse is the rate.
 //!
 //! Times are the benchmark thread's CPU time (CLOCK_THREAD_CPUTIME_ID), not
-//! wall time: the issue asks for the cost "on one core", and the build
+//! wall time: the cost asked for is "on one core", and the build
 //! machine is shared, so wall time would mostly measure the other processes.
 //! On an idle core the two agree.
 

@@ -1,5 +1,5 @@
 //! Labelled camera images for training and testing a gate-finding network
-//! (DESIGN.md §13, issue 19): `cosim dataset WORLD --count N --seed S --out DIR`.
+//! (DESIGN.md §13): `cosim dataset WORLD --count N --seed S --out DIR`.
 //!
 //! Every image is rendered by [`Camera`], the in-loop camera itself, in a
 //! copy of the world whose gates are displaced and turned within bounds and

@@ -1,4 +1,4 @@
-//! Physics and sensors against closed-form results (issue 3, "How it is checked").
+//! Physics and sensors against closed-form results (DESIGN.md §5).
 
 use std::path::Path;
 

@@ -1,4 +1,4 @@
-"""Fly Bitcraze's cfclient with the keyboard (issue 22, docs/CFLIB.md,
+"""Fly Bitcraze's cfclient with the keyboard (DESIGN.md §17, docs/CFLIB.md,
 "cfclient flown with the keyboard").
 
 cfclient reads joysticks and gamepads (its Linux and SDL readers) and, as

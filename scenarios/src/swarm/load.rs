@@ -15,7 +15,7 @@ use super::console::SwarmConsole;
 pub const LOAD_MD: &str = "load.md";
 
 /// The seed's received / ideal ratios (§7.4, eqs. 7.1–7.3), for 1, 2, 3
-/// neighbours as the issue reads them (the seed labels its sections "two,
+/// neighbours as we read them (the seed labels its sections "two,
 /// three, four neighbours"; its ideal rates 105, 210, 315/s are its
 /// transmit rate times the number of the others).
 pub const SEED_RATIO: [(u64, f64); 3] = [(1, 0.71), (2, 0.66), (3, 0.66)];
@@ -41,7 +41,7 @@ pub struct LoadRow {
     /// firmware clocks start together; `None` in flight, where a flying
     /// core's clock runs ahead of the world's by its own amount
     /// (docs/SWARM_RESULTS.md §5) and the "same second" of two drones are
-    /// different seconds of the world (issue 21: it read 643 %).
+    /// different seconds of the world (in flight it once read 643 %).
     pub ratio_sent: Option<f64>,
     /// Share of the core's cycles in the library (ranging + estimation).
     pub swarm_share: f64,

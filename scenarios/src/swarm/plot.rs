@@ -144,7 +144,7 @@ pub fn swarm_top_view(
             format!("{} frames", l.frames),
         ));
     }
-    // The labels where they do not cover each other (issue 21: the links of
+    // The labels where they do not cover each other (a square swarm: the links of
     // a square of drones cross at the centre, and their mid-points with
     // them): each on its own line, at the first free place along it.
     let segments: Vec<_> = labels.iter().map(|(a, b, _)| (*a, *b)).collect();

@@ -24,7 +24,7 @@
 #define STM32_TARGET_POS_Y_OFFSET 102412
 #define STM32_TARGET_POS_Z_OFFSET 102420
 
-/* STM32 extension (not in the thesis; issues 12 and 13, DESIGN.md §9-§10):
+/* STM32 extension (not in the thesis; DESIGN.md §9-§10):
  * the state estimate, the six ranges and the optical flow the STM32 read at
  * its last sensor update, and MotionCommander-like commands (cflib's
  * motion_commander: take-off, land, body-frame velocity set-point, speed
@@ -69,13 +69,13 @@
 #define STM32_CMD_YAW_OFFSET 102592         /* rad, heading target */
 #define STM32_CMD_SPEED_LIMIT_OFFSET 102600 /* m/s */
 /* Attitude (R, rad, InertialUnit roll and pitch at the same sensor read as
- * the estimate): added for issue 13, whose vision firmware levels the
+ * the estimate): added for the vision firmware, which levels the
  * camera's body-frame gate position before rotating it by the yaw
  * (docs/VISION.md, "What the flight integration needs" 3). */
 #define STM32_EST_ROLL_OFFSET 102608
 #define STM32_EST_PITCH_OFFSET 102616
 /* World time (R, s) of the same sensor read: the time_s the world returned
- * with the state (issue 11). The core's mtime does not follow the world's
+ * with the state. The core's mtime does not follow the world's
  * clock in flight (the thesis's bookkeeping adds the core time between the
  * STM32's steps), so a flying firmware stamps what it derives from the
  * state, or does between two steps, with this (docs/SWARM_RESULTS.md §5). */

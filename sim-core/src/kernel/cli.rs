@@ -1,4 +1,4 @@
-//! The platform mode of the `sim-core` binary (DESIGN.md issue contract):
+//! The platform mode of the `sim-core` binary (DESIGN.md §2, §6):
 //! `sim-core --socket PATH --firmware ELF [--platform FILE] [--config FILE]
 //! [--out DIR] [--trace FILE] [--trace-images] [--connect-timeout S]`.
 

@@ -1,4 +1,4 @@
-//! A battery under load (DESIGN.md §16, issue 21): the terminal voltage sags
+//! A battery under load (DESIGN.md §16): the terminal voltage sags
 //! with the current through an internal resistance, and the open-circuit
 //! voltage collapses in the last percent of charge, as a real LiPo's does.
 //!

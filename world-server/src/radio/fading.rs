@@ -1,4 +1,4 @@
-//! P2P RSSI beyond path loss (DESIGN.md §16, issue 21): log-normal
+//! P2P RSSI beyond path loss (DESIGN.md §16): log-normal
 //! shadowing per link, correlated in time and space, and Rayleigh fast
 //! fading per packet.
 //!

@@ -1,5 +1,5 @@
 /*
- * The cluster benchmark (issue 18): C = A · B, int8 × int8 → int32,
+ * The cluster benchmark (DESIGN.md §12): C = A · B, int8 × int8 → int32,
  * 64×64×64, with every operand in L1, on 1, 2, 4 and 8 cores (fewer if the
  * cluster has fewer). The inner product uses cv.sdotsp.b (CV32E40P v2
  * manual, "SIMD dot product": rD += Σ rs1.b[i] · rs2.b[i], signed, 4 MACs

@@ -1,5 +1,5 @@
 /*
- * The race flown on what the network sees (issue 19, DESIGN.md §13,
+ * The race flown on what the network sees (DESIGN.md §13,
  * docs/NN.md "nn-race"): the FC grabs each looked-at camera frame into L2
  * (as vision_race.c does), averages it to the network's input (frame.c),
  * sends the network to the cluster (network.c), decodes the head

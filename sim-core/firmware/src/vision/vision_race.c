@@ -1,5 +1,5 @@
 /*
- * The race with vision in the loop (issue 13, DESIGN.md §10, docs/VISION.md):
+ * The race with vision in the loop (DESIGN.md §10, docs/VISION.md):
  * race.c's course, but the GAP8 looks. For every frame it copies the image
  * into L2, runs the gate detector (gate_detect.c, integer arithmetic) and
  * steers: the drone turns to face the next waypoint (EXT_SET_HEADING; the

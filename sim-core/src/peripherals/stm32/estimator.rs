@@ -1,4 +1,4 @@
-//! The flow-mode state estimator of the STM32 model (issue 12): a Kalman
+//! The flow-mode state estimator of the STM32 model (DESIGN.md §9): a Kalman
 //! filter on the horizontal velocity, predicted from the attitude and
 //! corrected by the Flow deck's optical-flow velocity; the position is the
 //! integral of the filtered velocity (dead reckoning: its error is never
@@ -31,7 +31,7 @@
 //!   start, the 2 × 2 covariance stays σᵥ²·I: one scalar per filter, two
 //!   scalar updates (as `mm_flow.c`'s two scalar updates).
 //!
-//! - **External positions** (issue 22: cflib's `send_extpos`, a motion
+//! - **External positions** (DESIGN.md §17: cflib's `send_extpos`, a motion
 //!   capture system's measurement). The Bitcraze EKF fuses them as a
 //!   position measurement with the standard deviation `locSrv.extPosStdDev`
 //!   (`mm_position.c`). Here the position is not a state of the velocity

@@ -1,14 +1,14 @@
-//! The STM32 extension (not in the thesis; issues 12 and 13, DESIGN.md
+//! The STM32 extension (not in the thesis; DESIGN.md
 //! §9–§10, register map in `firmware/src/cosim_regs.h`, "STM32 extension"):
 //! the state estimate, the six ranges and the optical flow the STM32 read at
 //! its last sensor update, and MotionCommander-like commands (cflib's
 //! `motion_commander`) plus a heading target for the race's position
 //! controller.
 //!
-//! Beyond the map agreed with issue 12, EST_ROLL and EST_PITCH (+206, +214)
+//! Beyond the indoor-flight registers, EST_ROLL and EST_PITCH (+206, +214)
 //! give the InertialUnit's roll and pitch of the same sensor read: the
 //! vision firmware levels the camera's view of a gate with them. EST_TIME
-//! (+222, issue 11) is the world time (s) of that sensor read, the `time_s`
+//! (+222) is the world time (s) of that sensor read, the `time_s`
 //! the world returned with the state: a flying swarm firmware stamps its
 //! estimates with it (docs/SWARM_RESULTS.md §5), since its core clock does
 //! not run with the world's between the STM32's steps.
@@ -76,8 +76,8 @@ pub const CMD_SPEED_LIMIT: u32 = 198;
 /// for the vision firmware, which levels the camera's view).
 pub const EST_ROLL: u32 = 206;
 pub const EST_PITCH: u32 = 214;
-/// World time (s) of the last sensor read (issue 11; agreed with issue 12,
-/// which adds nothing before EXT_END).
+/// World time (s) of the last sensor read (the last register before
+/// EXT_END).
 pub const EST_TIME: u32 = 222;
 /// Seed 004's radar on a drone flown over CRTP (§4.3.1; `crtp_radar.c`,
 /// docs/LAB.md): the nRF51 broadcasts and hears the P2P beacons, the STM32

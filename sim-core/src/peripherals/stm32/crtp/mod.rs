@@ -1,4 +1,4 @@
-//! CRTP over UDP: cflib flies the drone (issue 22, DESIGN.md §17).
+//! CRTP over UDP: cflib flies the drone (DESIGN.md §17).
 //!
 //! On a real Crazyflie the STM32's firmware answers CRTP; here the STM32
 //! model does, with the firmware's port numbers, channels, packet layouts
