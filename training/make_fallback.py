@@ -1,7 +1,7 @@
 """The fallback network: the depthwise-separable checkpoint
 (training/sep/checkpoint.npz) with some activation ranges scaled, so that
 the export gives layers whose requantization cannot take the kernels'
-clip-first form (docs/NN.md "Int8 arithmetic", sim-core/firmware/src/nn/
+clip-first form (docs/NN_KERNELS.md "Int8 arithmetic", sim-core/firmware/src/nn/
 requant.c) and the firmware runs its 64-bit forms instead: conv1, dw3, pw4
 and pw7 the fast one (shift >= 25: hi * 2^shift overflows int32), dw4,
 pw3 and the head the general one (shift < 15). Its outputs mean nothing;

@@ -1,4 +1,4 @@
-//! `cosim nn eval` end to end (DESIGN.md §13, docs/NN.md "On the cluster"):
+//! `cosim nn eval` end to end (DESIGN.md §13, docs/NN_KERNELS.md "On the cluster"):
 //! the real nn_eval.elf on the ISS (FC + 8-core cluster) over the golden
 //! images reproduces the numpy int8 reference (training/golden/golden.json,
 //! `python3 training/make_golden.py`) bit for bit: every image's raw int16

@@ -1,5 +1,5 @@
 /*
- * The zero borders of the activations (docs/NN.md "On the cluster"): a
+ * The zero borders of the activations (docs/NN_KERNELS.md "On the cluster"): a
  * layer's output carries a one-pixel zero border, the next layer's
  * padding, which the kernels never write. The buffers are reused by
  * layers of other shapes, so every layer zeroes its output's border; the

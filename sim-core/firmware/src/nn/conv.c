@@ -1,5 +1,5 @@
 /*
- * The int8 kernels (docs/NN.md "On the cluster"), each a team-shared tile
+ * The int8 kernels (docs/NN_KERNELS.md "On the cluster"), each a team-shared tile
  * entry (conv.h):
  * - conv_tile_share(_chw): the general kernel. Work item: two output
  *   pixels (consecutive in raster order) by four output channels: per

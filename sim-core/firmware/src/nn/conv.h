@@ -1,5 +1,5 @@
 /*
- * One int8 convolution tile on the cluster (docs/NN.md "Int8 arithmetic",
+ * One int8 convolution tile on the cluster (docs/NN_KERNELS.md "Int8 arithmetic",
  * "On the cluster"): a group of output channels of one layer, every output
  * pixel, all operands in L1. The team shares (pixel pair, channel quad)
  * items; each is 8 accumulators fed by cv.sdotsp.b (4 MACs per instruction).
@@ -112,7 +112,7 @@ static inline int32_t nn_requant_fast(int32_t acc, int32_t mult, int shift, int3
     return r > hi ? hi : r;
 }
 
-/* The clip-first form of the same (docs/NN.md "Int8 arithmetic", "The
+/* The clip-first form of the same (docs/NN_KERNELS.md "Int8 arithmetic", "The
  * requantization, clip first"): with f(acc) = (acc * mult + 2^(shift-1))
  * >> shift non-decreasing (mult > 0), clip(f(acc), lo, hi) =
  * f(clip(acc, A_lo, A_hi)) whenever f(A_lo) = lo and f(A_hi) = hi, and

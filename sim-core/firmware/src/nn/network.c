@@ -1,6 +1,6 @@
 /*
  * The network on the cluster: L1 layout, weight tiles, the DMA pipeline
- * (docs/NN.md "On the cluster").
+ * (docs/NN_KERNELS.md "On the cluster").
  *
  * L1 holds two activation buffers (a layer reads one and writes the
  * other), each activation HWC with a one-pixel zero border, so the kernel

@@ -1,5 +1,5 @@
 /*
- * The whole network on the cluster (docs/NN.md "On the cluster"): the
+ * The whole network on the cluster (docs/NN_KERNELS.md "On the cluster"): the
  * layers of weights.h, their weights streamed L2 -> L1 by the cluster DMA
  * tile by tile, double-buffered, each tile's outputs shared by the team.
  */

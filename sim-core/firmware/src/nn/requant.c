@@ -1,5 +1,5 @@
 /*
- * The requantization's clip-first records (conv.h nn_rq_t, docs/NN.md
+ * The requantization's clip-first records (conv.h nn_rq_t, docs/NN_KERNELS.md
  * "Int8 arithmetic"): made once per channel from weights.h at the
  * network's setup (network.c), outside the kernels' loops, so their 64-bit
  * divisions cost nothing per output. Apart from conv.c so that
