@@ -16,6 +16,7 @@
 pub mod bench_cluster;
 pub mod bench_iss;
 pub mod bench_race;
+pub mod deck_report;
 pub mod endurance;
 pub mod foxglove;
 pub mod launch;

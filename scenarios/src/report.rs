@@ -268,6 +268,9 @@ pub fn summary_text(
             ""
         },
     );
+    if let Some(d) = &s.deck {
+        t += &crate::deck_report::line(d);
+    }
     if let (Some(_), Some(target)) = (s.battery.empty_at_s, scenario.targets.last()) {
         // Unreadable CSVs (another world server writes no trajectory)
         // leave the line out; the summary above stands.

@@ -11,8 +11,10 @@ use crate::plot::{self, PlotError, Series};
 /// The plot's file name in the sweep directory.
 pub const NN_PNG: &str = "sweep_nn.png";
 
-/// Columns added when a run of the sweep reported an `nn` block.
-pub const NN_COLUMNS: [&str; 11] = [
+/// Columns added when a run of the sweep reported an `nn` block; the last
+/// four are the AI deck's (`crate::deck_report::COLUMNS`: its energy and
+/// share, the flight time with and without it).
+pub const NN_COLUMNS: [&str; 15] = [
     "gates_passed",
     "nn_inferences",
     "nn_cores",
@@ -24,6 +26,10 @@ pub const NN_COLUMNS: [&str; 11] = [
     "nn_fps",
     "nn_energy_j",
     "nn_energy_per_inference_mj",
+    crate::deck_report::COLUMNS[0],
+    crate::deck_report::COLUMNS[1],
+    crate::deck_report::COLUMNS[2],
+    crate::deck_report::COLUMNS[3],
 ];
 
 fn block(row: &SweepRow) -> Option<(&sim_core::kernel::Summary, &sim_core::kernel::NnSummary)> {
@@ -54,6 +60,9 @@ pub fn values(row: &SweepRow) -> Vec<String> {
         format!("{:.4}", nn.energy_j),
         format!("{:.4}", nn.energy_per_inference_mj),
     ]
+    .into_iter()
+    .chain(crate::deck_report::values(s.deck.as_ref()))
+    .collect()
 }
 
 /// `sweep_nn.png` when the runs differ in cores or clock: latency and

@@ -141,6 +141,10 @@ pub struct ClusterSection {
     /// Cluster supply voltage in V (GAP8 at 175 MHz: 1.2 V).
     #[serde(default = "default_cluster_vref")]
     pub vref: f64,
+    /// The AI deck's regulators between the battery and the cluster's
+    /// supply (`power::deck`); absent: ideal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub converter: Option<ConverterConfig>,
 }
 
 fn default_cluster_cores() -> usize {
@@ -154,6 +158,11 @@ fn default_cluster_vref() -> f64 {
 }
 
 impl ClusterSection {
+    /// The deck's regulators, battery to cluster (ideal if absent).
+    pub fn converter(&self) -> Result<Converter, String> {
+        build_converter(&self.converter, "cluster")
+    }
+
     /// The cluster's configuration for `crate::cluster`.
     pub fn cluster_config(
         &self,
@@ -491,6 +500,7 @@ impl PlatformConfig {
                 return Err("cluster.mhz must be a positive number of MHz".into());
             }
             check_positive(c.vref, "cluster.vref")?;
+            c.converter()?;
         }
         build_converter(&self.core.converter, "core")?;
         for required in ["camera", "stm32"] {

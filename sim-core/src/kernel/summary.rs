@@ -127,6 +127,10 @@ pub struct Summary {
     /// `nn_race_stats` on a platform with a cluster only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nn: Option<super::NnSummary>,
+    /// The AI deck as a load on the battery (a platform with a cluster
+    /// only; docs/AIDECK_POWER.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deck: Option<crate::power::deck::DeckSummary>,
 }
 
 /// The flow estimate's horizontal distance from the GPS over a run (m).
@@ -197,6 +201,7 @@ impl Summary {
             gates_total: cfg.gates_total,
             flow_drift: None,
             nn: None,
+            deck: None,
         }
     }
 
@@ -292,6 +297,16 @@ impl Summary {
         s.bytes_to_platform = link.bytes_to_platform;
         s.collisions = stop.and_then(|s| s.collisions);
         s.gates_passed = stop.and_then(|s| s.gates_passed);
+        if cfg.platform.cluster.is_some() {
+            s.deck = Some(crate::power::deck::DeckSummary::new(
+                energy.deck.0,
+                energy.battery.0,
+                power.deck_charge_ah(),
+                battery.capacity_ah(),
+                (cfg.platform.battery().soc_init / 100.0, battery.soc()),
+                platform_time_s,
+            ));
+        }
         s.flow_drift = platform.stm32.flow_drift().map(|d| FlowDriftSummary {
             final_m: d.last_m,
             max_m: d.max_m,

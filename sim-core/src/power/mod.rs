@@ -25,11 +25,13 @@ pub mod battery;
 pub mod bus;
 pub mod converter;
 pub mod csv_line;
+pub mod deck;
 pub mod log;
 pub mod models;
 pub mod motor_drive;
 pub mod operating_point;
 pub mod sag;
+pub mod sample;
 
 use std::fmt;
 use std::path::PathBuf;
@@ -42,9 +44,11 @@ use crate::units::{Amps, Picos, Volts};
 use battery::{Battery, BatteryModel};
 use bus::PowerBus;
 use converter::{ldo_efficiency, Converter};
+use deck::DeckSupply;
 pub use log::PowerLogger;
-use models::{ModelOutput, MotorModels};
+use models::MotorModels;
 pub use models::{MotorState, PowerModelKind};
+pub use sample::{CoreState, Energy, Loads, PowerSample, SensorState, RADIOS};
 
 /// A name reduced to lower-case letters and digits, so that `D'Andrea`,
 /// `dandrea` and `LPHD-6520030` compare as their configuration names do.
@@ -100,124 +104,6 @@ pub enum PowerError {
     },
 }
 
-/// The core's power state (platform file `core.states`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum CoreState {
-    #[default]
-    Running,
-    /// In `wfi` or otherwise idle.
-    Sleeping,
-}
-
-/// A sensor's power state (platform file `states.read/write/idle`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum SensorState {
-    Read,
-    Write,
-    #[default]
-    Idle,
-}
-
-impl SensorState {
-    const fn index(self) -> usize {
-        match self {
-            SensorState::Read => 0,
-            SensorState::Write => 1,
-            SensorState::Idle => 2,
-        }
-    }
-}
-
-/// The devices' power states at a sample.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Loads {
-    pub core: CoreState,
-    pub camera: SensorState,
-    pub stm32: SensorState,
-    /// The radios' mean currents over the sample's interval (UWB, P2P; see
-    /// `peripherals::radio`); 0 for a radio never switched on.
-    pub radios: [Amps; 2],
-}
-
-/// Names of the radios on the VCC bus, in [`Loads::radios`] order.
-pub const RADIOS: [&str; 2] = ["uwb", "p2p"];
-
-/// Everything computed at one sample.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PowerSample {
-    /// Simulated time of the sample.
-    pub t: Picos,
-    /// Time integrated by this sample (since the previous one).
-    pub dt: Picos,
-    /// Core current on the VCC bus (after its converter), A.
-    pub i_core: Amps,
-    /// Camera current on the VCC bus, A.
-    pub i_camera: Amps,
-    /// STM32 current on the VCC bus, A.
-    pub i_stm32: Amps,
-    /// Any other sensors (at their idle current), both buses, A.
-    pub i_other: Amps,
-    /// The radios' currents on the VCC bus (UWB, P2P), A.
-    pub i_radios: [Amps; 2],
-    /// VCC bus total at the bus voltage, A.
-    pub i_vcc: Amps,
-    /// LDO efficiency used at this sample (Vout/Vin clamped, Eq. 4.1).
-    pub ldo_efficiency: f64,
-    /// VCC current as drawn from the battery through the LDO, A.
-    pub i_vcc_battery: Amps,
-    /// Motor-bus current of the selected model, A.
-    pub i_motor: Amps,
-    /// Battery current (VCC through the LDO + motor bus + others), A.
-    pub i_battery: Amps,
-    /// Open-circuit voltage after this sample.
-    pub v_oc: Volts,
-    /// Terminal voltage after this sample (`v_oc − r_s·I`).
-    pub v_battery: Volts,
-    /// State of charge after this sample (fraction, 1 = full).
-    pub soc: f64,
-    /// The drone state the models saw.
-    pub motor: MotorState,
-    /// The three models' outputs, indexed by [`PowerModelKind::index`].
-    pub models: [ModelOutput; 3],
-    /// The model that drains the battery.
-    pub selected: PowerModelKind,
-    /// SOC under the low-battery threshold (BATTERY_LOW, §4.5.4).
-    pub low_battery: bool,
-    /// True only at the sample where the SOC first went under the threshold.
-    pub low_battery_crossed: bool,
-    /// The cluster's mean power over the interval, on a platform with a
-    /// cluster (`crate::cluster::power`; its own `power.csv` columns).
-    pub cluster: Option<crate::cluster::power::ClusterPower>,
-}
-
-impl PowerSample {
-    /// The selected model's output.
-    pub fn selected_output(&self) -> ModelOutput {
-        self.models[self.selected.index()]
-    }
-}
-
-/// Energy integrated since the start (right rectangles: each sample's power
-/// held over the interval that ends at it).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Energy {
-    /// Each model's own power, indexed by [`PowerModelKind::index`].
-    pub models: [Joules; 3],
-    /// The VCC bus (at its voltage).
-    pub vcc: Joules,
-    /// The radios (UWB, P2P), at the VCC bus voltage.
-    pub radios: [Joules; 2],
-    /// Drawn from the battery at its terminal voltage (the summary's `total`).
-    pub battery: Joules,
-}
-
-impl Energy {
-    /// One model's energy.
-    pub fn model(&self, kind: PowerModelKind) -> Joules {
-        self.models[kind.index()]
-    }
-}
-
 /// Resolved per-state currents of the VCC loads.
 #[derive(Debug, Clone, Copy)]
 struct StateCurrents {
@@ -254,6 +140,13 @@ pub struct PowerNetwork {
     last: Option<PowerSample>,
     /// The cluster's power for the next sample ([`PowerNetwork::set_cluster_power`]).
     cluster: Option<crate::cluster::power::ClusterPower>,
+    /// The AI deck's supply of the cluster, on a platform with a cluster
+    /// (`deck`): the cluster's power drawn from the battery.
+    deck: Option<DeckSupply>,
+    /// The deck's battery current at the previous sample, A, and the charge
+    /// it drew so far, Ah (integrated as the battery integrates).
+    deck_i_prev: f64,
+    deck_charge_ah: f64,
 }
 
 impl fmt::Debug for PowerNetwork {
@@ -392,6 +285,9 @@ impl PowerNetwork {
             logger: None,
             last: None,
             cluster: None,
+            deck: DeckSupply::of(platform).map_err(PowerError::Platform)?,
+            deck_i_prev: 0.0,
+            deck_charge_ah: 0.0,
         })
     }
 
@@ -399,6 +295,12 @@ impl PowerNetwork {
     /// (the kernel's hook; logged in `power.csv`'s cluster columns).
     pub fn set_cluster_power(&mut self, p: crate::cluster::power::ClusterPower) {
         self.cluster = Some(p);
+    }
+
+    /// The charge the AI deck drew from the battery so far, Ah (0 without
+    /// a cluster).
+    pub fn deck_charge_ah(&self) -> f64 {
+        self.deck_charge_ah
     }
 
     /// Logs every sample to `logger` from now on.
@@ -486,7 +388,15 @@ impl PowerNetwork {
             &self.vcc_load_currents,
             &mut self.vcc_bus_currents,
         );
-        // The battery-side currents at a bus voltage `v`.
+        // The AI deck's cluster power, drawn from the battery's rail.
+        let p_deck = match (&self.deck, &self.cluster) {
+            (Some(_), Some(c)) => c.total_w(),
+            _ => 0.0,
+        };
+        let deck_current = |v: Volts| self.deck.as_ref().map(|d| d.battery_current(p_deck, v).0);
+        // The battery-side currents at a bus voltage `v` (the deck's
+        // added only on a platform with one, so that every other sum is
+        // the thesis's bit for bit).
         let currents = |v: Volts| {
             let i_vcc_battery = self.ldo.input_current(i_vcc, self.vcc_voltage, v);
             let models = self.models.evaluate(motor, v);
@@ -498,6 +408,10 @@ impl PowerNetwork {
                 .iter()
                 .map(|(i, c)| c.input_current(*i, v, v).0)
                 .sum();
+            let i_battery_side = match deck_current(v) {
+                Some(i) => i_battery_side + i,
+                None => i_battery_side,
+            };
             (i_vcc_battery, models, i_motor, i_battery_side)
         };
         // The thesis's network takes the loads at the previous sample's
@@ -519,6 +433,7 @@ impl PowerNetwork {
             _ => self.ldo.efficiency(i_vcc, self.vcc_voltage, v_bus),
         };
         let (i_vcc_battery, models, mut i_motor, i_battery_side) = currents(v_bus);
+        let i_deck = deck_current(v_bus);
         if let Some(i_max) = starved_at {
             // The battery gives its maximum power; the motors, last on the
             // bus, get what the electronics leave (their speed cap, from
@@ -547,6 +462,11 @@ impl PowerNetwork {
             e.0 += self.vcc_voltage.0 * i.0 * dt_s;
         }
         self.energy.battery.0 += v_battery.0 * i_battery.0 * dt_s;
+        if let Some(i_deck) = i_deck {
+            self.energy.deck.0 += v_battery.0 * i_deck * dt_s;
+            self.deck_charge_ah += (i_deck + self.deck_i_prev) * dt_s / (2.0 * 3600.0);
+            self.deck_i_prev = i_deck;
+        }
 
         let low_battery = self.battery.is_low();
         let low_battery_crossed = low_battery && !self.low_reported;

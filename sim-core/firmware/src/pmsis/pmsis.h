@@ -12,6 +12,7 @@
 #include <stdint.h>
 
 #include "cluster_regs.h"
+#include "pulp_builtins.h"
 
 /* ---- Devices and tasks ------------------------------------------------ */
 
@@ -95,13 +96,20 @@ static inline int pi_is_fc(void) { return pi_cluster_id() == CL_FC_CLUSTER_ID; }
 /* Runs entry(arg) on cores 0..n-1 (n = 0: the task's nb_cores, or every
  * core), core 0 being the caller; returns when all have returned. */
 void pi_cl_team_fork(int nb_cores, void (*entry)(void *), void *arg);
-/* The cores of the current team: inside a fork its size, else every core. */
-int pi_cl_team_nb_cores(void);
+/* The cores of the current team: inside a fork its size, else every core.
+ * Declared without a prototype, as the SDK declares it. */
+int pi_cl_team_nb_cores();
 
-static inline void pi_cl_team_barrier(void)
+/* Declared without a prototype, as the SDK declares it (cl_team.h:
+ * `void pi_cl_team_barrier();`), so code written for the SDK that passes
+ * an argument (PULP-NN's `pi_cl_team_barrier(0)`) builds; the macro drops
+ * the argument, as the SDK's barrier ignores it, without clang's warning
+ * about calls to a function without a prototype. */
+static inline void pi_cl_team_barrier()
 {
     (void)cl_read(CL_EU_BASE, CL_EU_BARRIER_WAIT);
 }
+#define pi_cl_team_barrier(...) (pi_cl_team_barrier)()
 
 static inline void pi_cl_team_critical_enter(void)
 {
