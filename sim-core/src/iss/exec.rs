@@ -649,6 +649,12 @@ fn h_general(r: &mut Run, _: &mut [u32; 32], p: *const Inst, cycles: u64, _: u64
     general(r, p, cycles + unsafe { (*p).cost } as u64)
 }
 
+/// The handler that hands its instruction to the general path (a
+/// self-loop's, [`Inst::is_self_loop`]).
+pub(super) fn general_handler() -> Handler {
+    h_general
+}
+
 /// Handler of every op code (256 entries, so a `u8` needs no check).
 static HANDLERS: [Handler; 256] = {
     let mut t: [Handler; 256] = [h_general; 256];

@@ -86,6 +86,17 @@
 //! - `wfi` in user mode raises an illegal-instruction trap (the spec's
 //!   implementation-defined time limit is zero here); `mcounteren` gates
 //!   user access to `cycle`/`time`/`instret`.
+//! - A core that can never progress ends the run with
+//!   [`IssError::NeverProgress`] (hart, pc, why) instead of spinning
+//!   silently: a branch or `jal` to itself, taken, when no interrupt could
+//!   ever be taken (machine mode with `mstatus.MIE` clear, or none enabled
+//!   that could fire; registers and CSRs are the core's own, so nothing
+//!   else can change its operands), and `wfi` with `mie` zero. The block
+//!   builder marks a block that starts with such a transfer and sends it
+//!   to the general path, which decides; the translator leaves it alone,
+//!   so other code pays nothing. A loop with any other instruction in it
+//!   (a load of a device or of memory another agent writes, a countdown)
+//!   is not one; polling is the idle detector's.
 //! - The block cache is kept coherent by every store (and by
 //!   [`Memory::write_bytes`]), so `fence.i` only costs its 2 cycles.
 //! - Semihosting times (`SYS_CLOCK`, `SYS_TIME`, `SYS_ELAPSED`) are
@@ -106,7 +117,7 @@ pub mod semihost;
 pub mod timing;
 pub mod xcv;
 
-pub use cpu::{cause, Backend, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason};
+pub use cpu::{cause, Backend, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason, Stuck};
 pub use elf::{load_elf, ElfError, LoadedElf, Segment};
 pub use mem::{AccessSize, MemError, MemTiming, Memory, Mmio, MmioError, NoDevices};
 

@@ -691,6 +691,13 @@ impl Cpu {
             op::SB => store!(AccessSize::Byte),
             op::SH => store!(AccessSize::Half),
             op::SW => store!(AccessSize::Word),
+            // Only a self-loop comes here (`Inst::is_self_loop`).
+            op::BEQ..=op::BGEU | op::JAL | op::CV_BEQIMM | op::CV_BNEIMM => {
+                match self.step_self_loop(inst, a, b) {
+                    Some(to) => next = to,
+                    None => return,
+                }
+            }
             _ => match self.step_system(mem, dev, inst.decoded(), pc, a) {
                 Sys::Trapped => return,
                 Sys::Next(v) => {
@@ -744,4 +751,4 @@ mod trigger;
 use poll::PollTracker;
 
 pub use config::{Backend, CpuConfig};
-pub use outcome::{cause_name, CoreStats, IssError, StopReason};
+pub use outcome::{cause_name, CoreStats, IssError, StopReason, Stuck};

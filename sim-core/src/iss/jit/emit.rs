@@ -98,7 +98,10 @@ pub(crate) fn translate(
     first_reads: &dyn Fn(u32) -> Option<u32>,
     l1: bool,
 ) -> Option<Translation> {
-    let n = b.iter().take_while(|i| covered(i.op)).count();
+    let n = b
+        .iter()
+        .take_while(|i| covered(i.op) && !i.is_self_loop())
+        .count();
     if n == 0 {
         return None;
     }
