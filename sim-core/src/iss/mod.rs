@@ -11,8 +11,9 @@
 //!   window(s) the platform implements (see [`mem`] for the access-time and
 //!   idle-skip contracts).
 //! - [`MemTiming`]: extra cycles of RAM accesses and the L1 bank arbiter
-//!   ([`Memory::tcdm`]) for the cluster's cores and the FC beside them
-//!   (`crate::cluster`); the default costs nothing. A device may answer
+//!   ([`Memory::l1_arbiter`], the [`l1::BankArbiter`] interface the
+//!   platform's cluster implements) for the cluster's cores and the FC
+//!   beside them; the default costs nothing. A device may answer
 //!   [`MmioError::Wait`]: the instruction is undone and the core stops with
 //!   [`StopReason::Wait`], to retry it later (the cluster's synchronising
 //!   and sleeping accesses).
@@ -111,6 +112,7 @@ mod exec;
 mod jit;
 #[cfg(target_arch = "x86_64")]
 pub use jit::JitStats;
+pub mod l1;
 pub mod mem;
 pub mod run_elf;
 pub mod semihost;

@@ -544,7 +544,7 @@ impl Cpu {
         #[cfg(not(target_arch = "x86_64"))]
         let deadline = self.deadline;
         let mut run = exec::Run::new(&mut mem.regions, &mem.insts);
-        run.set_timing(self.mem_timing, mem.tcdm.as_mut());
+        run.set_timing(self.mem_timing, mem.l1_arbiter.as_deref_mut());
         if self.code_size != 0 {
             run.set_code_region(self.code_idx);
         }
