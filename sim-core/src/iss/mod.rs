@@ -21,8 +21,10 @@
 //!   physical addresses, symbols for `tohost` and the signature).
 //! - [`semihost`]: the semihosting calls picolibc uses; output goes to a
 //!   sink the platform chooses ([`Cpu::set_console`]).
-//! - [`run_elf`]: the `sim-core run-elf` driver (riscv-tests `tohost`,
-//!   semihosting, RISCOF signatures).
+//!
+//! The ISS is the bottom layer: it knows nothing of the cluster (whose
+//! bank arbiter it sees through [`l1::BankArbiter`]); the machines built
+//! on it, and `sim-core run-elf`, are in `crate::machine`.
 //!
 //! # How the platform drives the core
 //!
@@ -114,7 +116,6 @@ mod jit;
 pub use jit::JitStats;
 pub mod l1;
 pub mod mem;
-pub mod run_elf;
 pub mod semihost;
 pub mod timing;
 pub mod xcv;

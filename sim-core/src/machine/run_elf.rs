@@ -9,7 +9,9 @@ use anyhow::{bail, Context};
 use crate::cluster::{Cluster, ClusterConfig};
 use crate::units::{Hertz, Picos};
 
-use super::{load_elf, map, Backend, Cpu, CpuConfig, IssError, Memory, NoDevices, StopReason};
+use crate::iss::{
+    load_elf, map, Backend, Cpu, CpuConfig, IssError, LoadedElf, Memory, NoDevices, StopReason,
+};
 
 /// Default RAM: 16 MiB from the lowest loaded address rounded down to 64 KiB.
 pub const DEFAULT_RAM_SIZE: u32 = 16 << 20;
@@ -270,11 +272,7 @@ pub fn signature_text(mem: &Memory, begin: u32, end: u32) -> anyhow::Result<Stri
     Ok(out)
 }
 
-fn write_signature(
-    mem: &Memory,
-    elf: &super::LoadedElf,
-    path: &std::path::Path,
-) -> anyhow::Result<()> {
+fn write_signature(mem: &Memory, elf: &LoadedElf, path: &std::path::Path) -> anyhow::Result<()> {
     let (Some(b), Some(e)) = (elf.symbol("begin_signature"), elf.symbol("end_signature")) else {
         bail!("--signature: the ELF has no begin_signature/end_signature symbols");
     };
