@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use sim_core::iss::run_elf::build_memory;
 use sim_core::iss::{load_elf, Cpu, CpuConfig, Memory, StopReason};
+use sim_core::machine::run_elf::build_memory;
 use sim_core::units::Picos;
 
 #[path = "../tests/iss_util/op_device.rs"]

@@ -9,6 +9,7 @@
 //! - [`power`]: power buses, converters, battery and motor power models,
 //! - [`sync`]: time and offset bookkeeping against the world (§4.2.4),
 //! - [`kernel`]: the event kernel that interleaves the ISS and the devices,
+//! - [`machine`]: the FC and the cluster as one machine, and `sim-core run-elf`,
 //! - [`config`]: the platform file (MESSY's JSON shape) and the run configuration.
 
 pub mod bus;
@@ -16,6 +17,7 @@ pub mod cluster;
 pub mod config;
 pub mod iss;
 pub mod kernel;
+pub mod machine;
 pub mod map_image;
 pub mod peripherals;
 pub mod power;

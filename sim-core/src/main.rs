@@ -3,8 +3,8 @@
 
 use clap::{Parser, Subcommand};
 
-use sim_core::iss::run_elf::{self, RunElfArgs};
 use sim_core::kernel::cli::{load_run_config, run_platform, PlatformArgs};
+use sim_core::machine::run_elf::{self, RunElfArgs};
 
 #[derive(Debug, Parser)]
 #[command(

@@ -13,8 +13,8 @@ use sim_core::cluster::event_unit::WAKE_LATENCY_CYCLES;
 use sim_core::cluster::{
     Cluster, ClusterConfig, CoreReport, FC_HART_ID, FC_L1_EXTRA_CYCLES, L2_EXTRA_CYCLES,
 };
-use sim_core::iss::run_elf::build_memory;
 use sim_core::iss::{load_elf, Cpu, CpuConfig, NoDevices, StopReason};
+use sim_core::machine::run_elf::build_memory;
 use sim_core::units::Picos;
 
 /// Word indices in the firmware's `struct results`.

@@ -17,8 +17,8 @@ use anyhow::{bail, Context};
 use sim_core::cluster::power::{Meter, Totals};
 use sim_core::cluster::{Cluster, ClusterConfig};
 use sim_core::config::PlatformConfig;
-use sim_core::iss::run_elf::build_memory;
 use sim_core::iss::{load_elf, Backend, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason};
+use sim_core::machine::run_elf::build_memory;
 use sim_core::units::{Hertz, Picos};
 
 /// `nn_command` values (nn_eval.c).

@@ -60,7 +60,7 @@ use crate::units::{Hertz, Picos};
 use ctrl::{Ctrl, Who};
 use dma::{Dma, DmaRefusal};
 use event_unit::{Eu, EventUnit};
-use tcdm::{Tcdm, L1_BASE, L1_SIZE};
+use tcdm::{PortStats, Tcdm, L1_BASE, L1_SIZE};
 
 /// The cluster's register window: CTRL, EU, DMA (docs/CLUSTER.md).
 pub const WINDOW_BASE: u32 = 0x1020_0000;
@@ -465,7 +465,7 @@ impl Cluster {
         }
         mem.add_ram(L1_BASE, L1_SIZE)?;
         mem.add_mmio_window(WINDOW_BASE, WINDOW_SIZE)?;
-        mem.tcdm = Some(Tcdm::default());
+        mem.l1_arbiter = Some(Box::new(Tcdm::default()));
         let period = cfg.clock.period();
         let n = cfg.cores;
         let cores = (0..n)
@@ -597,7 +597,10 @@ impl Cluster {
 
     /// Each core's figures so far.
     pub fn report(&self, mem: &Memory) -> Vec<CoreReport> {
-        let l1 = mem.tcdm.as_ref().map(|t| t.stats).unwrap_or_default();
+        let l1: [PortStats; tcdm::PORTS] = match &mem.l1_arbiter {
+            Some(a) => std::array::from_fn(|p| a.port_stats(p as u8)),
+            None => Default::default(),
+        };
         self.cores
             .iter()
             .enumerate()
@@ -760,7 +763,7 @@ impl Cluster {
                     self.off_cycles[who] += core.cycles().0 - before;
                 }
                 core.gate_until(self.sh.time[who]);
-                if let Some(t) = mem.tcdm.as_mut() {
+                if let Some(t) = mem.l1_arbiter.as_mut() {
                     t.retire(self.sh.arbiter_floor(self.cfg.clock.period()));
                 }
                 let mut bus = CoreBus {

@@ -30,26 +30,19 @@
 //! which the block translator emits inline (`iss/jit/emit/mem.rs`): the
 //! network's inner loop makes six L1 accesses per eight dot products.
 
-/// Banks of the L1 (GAP8: 16, one 32-bit word per bank in turn).
-pub const BANKS: usize = 16;
+use crate::iss::l1::{BankArbiter, GrantWindow};
+pub use crate::iss::l1::{PortStats, BANKS, WINDOW};
+
 /// L1 base address and size (DESIGN.md §12, docs/CLUSTER.md).
 pub const L1_BASE: u32 = 0x1000_0000;
 pub const L1_SIZE: u32 = 64 * 1024;
-/// Cycles the arbiter remembers; must exceed the spread between the
-/// fastest and the slowest runnable core (quantum plus one instruction's
-/// overshoot), see `mod.rs`.
-pub const WINDOW: u64 = 4096;
-const _: () = assert!(WINDOW.is_power_of_two() && BANKS <= 16);
+// The cycles the arbiter remembers ([`WINDOW`]) must exceed the spread
+// between the fastest and the slowest runnable core (quantum plus one
+// instruction's overshoot), see `mod.rs`.
+const _: () = assert!(WINDOW >= 4 * super::QUANTUM_CYCLES);
 
 /// Ports of the arbiter: cluster cores 0..8 (statistics are per port).
 pub const PORTS: usize = 8;
-
-/// Per-port counts of the L1 (for `--stats` and the power model).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct PortStats {
-    pub accesses: u64,
-    pub stall_cycles: u64,
-}
 
 /// The bank arbiter.
 #[derive(Debug, Clone)]
@@ -78,17 +71,6 @@ impl Tcdm {
     #[inline(always)]
     pub fn bank(addr: u32) -> usize {
         ((addr >> 2) as usize) & (BANKS - 1)
-    }
-
-    /// For the block translator's inline grant (`iss/jit/emit/mem.rs`): the
-    /// window's masks, [`WINDOW`] `u16`s, and `port`'s counts, to which the
-    /// core adds what the run granted and stalled. Translated code does in
-    /// the masks exactly what [`Tcdm::access`] does.
-    pub(crate) fn raw_parts(&mut self, port: u8) -> (*mut u16, *mut PortStats) {
-        (
-            self.granted.as_mut_ptr(),
-            &mut self.stats[port as usize % PORTS],
-        )
     }
 
     /// No access will be issued below cycle `floor` from now on (the
@@ -133,6 +115,29 @@ impl Tcdm {
         s.accesses += 1;
         s.stall_cycles += stall;
         stall
+    }
+}
+
+/// The ISS's view of the arbiter (`iss::l1`).
+impl BankArbiter for Tcdm {
+    #[inline]
+    fn access(&mut self, port: u8, addr: u32, cycle: u64) -> u64 {
+        Tcdm::access(self, port, addr, cycle)
+    }
+
+    fn port_stats(&self, port: u8) -> PortStats {
+        self.stats[port as usize % PORTS]
+    }
+
+    fn grant_window(&mut self, port: u8) -> GrantWindow {
+        GrantWindow {
+            masks: self.granted.as_mut_ptr(),
+            port: &mut self.stats[port as usize % PORTS],
+        }
+    }
+
+    fn retire(&mut self, floor: u64) {
+        Tcdm::retire(self, floor);
     }
 }
 

@@ -27,7 +27,7 @@
 //! block never runs stale instructions.
 
 use super::decode::{self, op, Decoded};
-use super::exec::{handler, Handler};
+use super::exec::{self, handler, Handler};
 use super::mem::{Memory, Region};
 use super::timing::BASE_CYCLES;
 use super::xcv;
@@ -90,9 +90,22 @@ impl Inst {
         }
     }
 
+    /// A branch or `jal` to itself that starts its block: once taken it is
+    /// taken forever, since nothing but the core could change its operands
+    /// (registers are private) and it changes none; only an interrupt can
+    /// end it. The block builder sends it to the general path
+    /// ([`exec::general_handler`]), which decides whether the core can
+    /// still progress, and the translator leaves it alone; a loop with
+    /// anything else in it (a load of a device or of memory another agent
+    /// writes) is not one.
+    #[inline]
+    pub fn is_self_loop(&self) -> bool {
+        self.idx == 0 && self.imm == self.pc && is_direct_transfer(self.op)
+    }
+
     /// The decoded instruction (for the general path, which only ever
-    /// receives loads, stores and system instructions, kept in their
-    /// decoded form).
+    /// receives loads, stores, system instructions and self-loops
+    /// ([`Inst::is_self_loop`]), kept in their decoded form).
     pub fn decoded(&self) -> Decoded {
         Decoded {
             op: self.op,
@@ -103,6 +116,11 @@ impl Inst {
             compressed: self.len == 2,
         }
     }
+}
+
+/// Branches and `jal`: the transfers whose target `imm` holds, absolute.
+pub(crate) fn is_direct_transfer(o: u8) -> bool {
+    (op::BEQ..=op::BGEU).contains(&o) || matches!(o, op::JAL | op::CV_BEQIMM | op::CV_BNEIMM)
 }
 
 pub(crate) fn is_load(o: u8) -> bool {
@@ -239,7 +257,11 @@ impl Memory {
                 _ => Some(at + d.len() as usize),
             };
             r.mark_code(at, d.len() as usize);
-            inst.handler = handler(inst.op);
+            inst.handler = if inst.is_self_loop() {
+                exec::general_handler()
+            } else {
+                handler(inst.op)
+            };
             self.insts.push(inst);
             let Some(next) = next else {
                 break;

@@ -18,10 +18,10 @@
 
 use super::block::Inst;
 use super::decode::op;
+use super::l1::BankArbiter;
 use super::mem::{ram_load, ram_store_data, AccessSize, MemTiming, Region};
 use super::timing;
 use super::xcv::mem::{address, Mode};
-use crate::cluster::tcdm::Tcdm;
 
 /// What one [`run`] leaves for the core.
 pub(super) struct Run<'a> {
@@ -61,7 +61,7 @@ pub(super) struct Run<'a> {
     /// The core's view of memory (extra cycles, L1 banks); the default
     /// costs nothing.
     timing: MemTiming,
-    tcdm: Option<&'a mut Tcdm>,
+    arbiter: Option<&'a mut (dyn BankArbiter + 'static)>,
     /// Device registers that read like memory (`Mmio::plain_window`):
     /// their base, their bytes, and the MMIO latency a read of them costs.
     window: (u32, &'a [u8]),
@@ -156,7 +156,7 @@ impl<'a> Run<'a> {
                 extra: 0,
             },
             timing: MemTiming::default(),
-            tcdm: None,
+            arbiter: None,
             window: (0, &[]),
             window_latency: 0,
         }
@@ -179,9 +179,13 @@ impl<'a> Run<'a> {
     }
 
     /// The core's memory timing and the L1 arbiter (cluster cores).
-    pub fn set_timing(&mut self, timing: MemTiming, tcdm: Option<&'a mut Tcdm>) {
+    pub fn set_timing(
+        &mut self,
+        timing: MemTiming,
+        arbiter: Option<&'a mut (dyn BankArbiter + 'static)>,
+    ) {
         self.timing = timing;
-        self.tcdm = tcdm;
+        self.arbiter = arbiter;
     }
 
     /// Extra cycles of a RAM access at `addr` by an instruction whose cost
@@ -195,7 +199,7 @@ impl<'a> Run<'a> {
             return 0;
         }
         self.timing
-            .extra(self.tcdm.as_deref_mut(), addr, cycles - 1)
+            .extra(self.arbiter.as_deref_mut(), addr, cycles - 1)
     }
 
     /// Region `idx` holds the code: chain its blocks directly, and give
@@ -647,6 +651,12 @@ fn h_general(r: &mut Run, _: &mut [u32; 32], p: *const Inst, cycles: u64, _: u64
     // `general` wants the cycles after this instruction's cost.
     // SAFETY: `p` is in the running block.
     general(r, p, cycles + unsafe { (*p).cost } as u64)
+}
+
+/// The handler that hands its instruction to the general path (a
+/// self-loop's, [`Inst::is_self_loop`]).
+pub(super) fn general_handler() -> Handler {
+    h_general
 }
 
 /// Handler of every op code (256 entries, so a `u8` needs no check).

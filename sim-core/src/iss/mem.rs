@@ -30,7 +30,7 @@ use thiserror::Error;
 use crate::units::Picos;
 
 use super::block::Inst;
-use crate::cluster::tcdm::Tcdm;
+use super::l1::BankArbiter;
 
 /// Width of a memory access in bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -80,7 +80,7 @@ pub struct MemTiming {
     pub l1: (u32, u32),
     pub l1_extra: u64,
     /// The L1 arbiter's port of this core: its accesses wait for their
-    /// bank ([`Memory::tcdm`]); `None`: no arbitration (the FC's view).
+    /// bank ([`Memory::l1_arbiter`]); `None`: no arbitration (the FC's view).
     pub l1_port: Option<u8>,
 }
 
@@ -93,9 +93,14 @@ impl MemTiming {
 
     /// Extra cycles of an access to `addr` issued at `cycle`.
     #[inline]
-    pub(crate) fn extra(&self, tcdm: Option<&mut Tcdm>, addr: u32, cycle: u64) -> u64 {
+    pub(crate) fn extra(
+        &self,
+        arbiter: Option<&mut (dyn BankArbiter + 'static)>,
+        addr: u32,
+        cycle: u64,
+    ) -> u64 {
         if addr.wrapping_sub(self.l1.0) < self.l1.1 {
-            let stall = match (self.l1_port, tcdm) {
+            let stall = match (self.l1_port, arbiter) {
                 (Some(port), Some(t)) => t.access(port, addr, cycle),
                 _ => 0,
             };
@@ -284,9 +289,9 @@ pub struct Memory {
     windows: Vec<(u32, u32)>,
     /// The cached blocks' instructions, block after block (see `block.rs`).
     pub(crate) insts: Vec<Inst>,
-    /// The L1 bank arbiter when the platform has a cluster: the cores'
-    /// [`MemTiming::l1_port`] accesses go through it.
-    pub tcdm: Option<Tcdm>,
+    /// The L1 bank arbiter when the platform has one (the cluster's):
+    /// the cores' [`MemTiming::l1_port`] accesses go through it.
+    pub l1_arbiter: Option<Box<dyn BankArbiter>>,
     /// Translated code of the cached blocks (`iss/jit`), made on first use
     /// by a core running the translator, shared by every core on this
     /// memory.

@@ -11,8 +11,9 @@
 //!   window(s) the platform implements (see [`mem`] for the access-time and
 //!   idle-skip contracts).
 //! - [`MemTiming`]: extra cycles of RAM accesses and the L1 bank arbiter
-//!   ([`Memory::tcdm`]) for the cluster's cores and the FC beside them
-//!   (`crate::cluster`); the default costs nothing. A device may answer
+//!   ([`Memory::l1_arbiter`], the [`l1::BankArbiter`] interface the
+//!   platform's cluster implements) for the cluster's cores and the FC
+//!   beside them; the default costs nothing. A device may answer
 //!   [`MmioError::Wait`]: the instruction is undone and the core stops with
 //!   [`StopReason::Wait`], to retry it later (the cluster's synchronising
 //!   and sleeping accesses).
@@ -20,8 +21,10 @@
 //!   physical addresses, symbols for `tohost` and the signature).
 //! - [`semihost`]: the semihosting calls picolibc uses; output goes to a
 //!   sink the platform chooses ([`Cpu::set_console`]).
-//! - [`run_elf`]: the `sim-core run-elf` driver (riscv-tests `tohost`,
-//!   semihosting, RISCOF signatures).
+//!
+//! The ISS is the bottom layer: it knows nothing of the cluster (whose
+//! bank arbiter it sees through [`l1::BankArbiter`]); the machines built
+//! on it, and `sim-core run-elf`, are in `crate::machine`.
 //!
 //! # How the platform drives the core
 //!
@@ -86,6 +89,17 @@
 //! - `wfi` in user mode raises an illegal-instruction trap (the spec's
 //!   implementation-defined time limit is zero here); `mcounteren` gates
 //!   user access to `cycle`/`time`/`instret`.
+//! - A core that can never progress ends the run with
+//!   [`IssError::NeverProgress`] (hart, pc, why) instead of spinning
+//!   silently: a branch or `jal` to itself, taken, when no interrupt could
+//!   ever be taken (machine mode with `mstatus.MIE` clear, or none enabled
+//!   that could fire; registers and CSRs are the core's own, so nothing
+//!   else can change its operands), and `wfi` with `mie` zero. The block
+//!   builder marks a block that starts with such a transfer and sends it
+//!   to the general path, which decides; the translator leaves it alone,
+//!   so other code pays nothing. A loop with any other instruction in it
+//!   (a load of a device or of memory another agent writes, a countdown)
+//!   is not one; polling is the idle detector's.
 //! - The block cache is kept coherent by every store (and by
 //!   [`Memory::write_bytes`]), so `fence.i` only costs its 2 cycles.
 //! - Semihosting times (`SYS_CLOCK`, `SYS_TIME`, `SYS_ELAPSED`) are
@@ -100,13 +114,13 @@ mod exec;
 mod jit;
 #[cfg(target_arch = "x86_64")]
 pub use jit::JitStats;
+pub mod l1;
 pub mod mem;
-pub mod run_elf;
 pub mod semihost;
 pub mod timing;
 pub mod xcv;
 
-pub use cpu::{cause, Backend, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason};
+pub use cpu::{cause, Backend, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason, Stuck};
 pub use elf::{load_elf, ElfError, LoadedElf, Segment};
 pub use mem::{AccessSize, MemError, MemTiming, Memory, Mmio, MmioError, NoDevices};
 

@@ -8,8 +8,8 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-use sim_core::iss::run_elf::{build_memory, RamSpec};
 use sim_core::iss::{load_elf, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason};
+use sim_core::machine::run_elf::{build_memory, RamSpec};
 use sim_core::units::Picos;
 
 /// A console sink the test can read back.

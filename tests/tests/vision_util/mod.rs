@@ -7,8 +7,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
-use sim_core::iss::run_elf::build_memory;
 use sim_core::iss::{load_elf, Cpu, CpuConfig, Memory, NoDevices, StopReason};
+use sim_core::machine::run_elf::build_memory;
 use sim_core::units::Picos;
 use world_server::camera::Camera;
 use world_server::scene::scene_boxes;

@@ -16,7 +16,7 @@ impl Cpu {
             return 0;
         }
         self.mem_timing
-            .extra(mem.tcdm.as_mut(), addr, self.issue_cycle())
+            .extra(mem.l1_arbiter.as_deref_mut(), addr, self.issue_cycle())
     }
 
     pub(super) fn mmio_time(&self, issue: u64) -> Picos {

@@ -63,9 +63,9 @@ impl Cpu {
         // deadline after every access (`emit::mem_op`); the FC's do not.
         // Each has its own translation of a block they share
         // (`jit::Flavour`), whose checked entry counts accesses its way.
-        let has_l1 = mem.tcdm.is_some() && t.l1.1 != 0;
+        let has_l1 = mem.l1_arbiter.is_some() && t.l1.1 != 0;
         let jit = mem.jit.as_mut().expect("made above");
-        let l1 = t.l1_port.is_some() && mem.tcdm.is_some();
+        let l1 = t.l1_port.is_some() && mem.l1_arbiter.is_some();
         if l1 && t.l1_extra != 0 {
             // The inline grant charges an arbitrated access nothing beyond
             // the cycle it costs anyway (`emit::mem::grant`), as every
@@ -96,8 +96,11 @@ impl Cpu {
             Some(r) => (r.data.as_mut_ptr(), r.size as u64, (r.code_lo, r.code_hi)),
             None => (std::ptr::null_mut(), 0, (0, 0)),
         };
-        let (l1_granted, l1_port_stats) = match (t.l1_port, mem.tcdm.as_mut()) {
-            (Some(port), Some(a)) => a.raw_parts(port),
+        let (l1_granted, l1_port_stats) = match (t.l1_port, mem.l1_arbiter.as_mut()) {
+            (Some(port), Some(a)) => {
+                let w = a.grant_window(port);
+                (w.masks, w.port)
+            }
             _ => (std::ptr::null_mut(), std::ptr::null_mut()),
         };
         let r = &mut mem.regions[region];
@@ -108,7 +111,7 @@ impl Cpu {
         // What the checked entries of translations with the L1 path count
         // per access: the cheaper region's (every access re-checks after
         // itself).
-        let worst_extra = if mem.tcdm.is_some() {
+        let worst_extra = if mem.l1_arbiter.is_some() {
             extra.min(t.l1_extra)
         } else {
             extra

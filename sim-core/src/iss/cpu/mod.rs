@@ -544,7 +544,7 @@ impl Cpu {
         #[cfg(not(target_arch = "x86_64"))]
         let deadline = self.deadline;
         let mut run = exec::Run::new(&mut mem.regions, &mem.insts);
-        run.set_timing(self.mem_timing, mem.tcdm.as_mut());
+        run.set_timing(self.mem_timing, mem.l1_arbiter.as_deref_mut());
         if self.code_size != 0 {
             run.set_code_region(self.code_idx);
         }
@@ -691,6 +691,13 @@ impl Cpu {
             op::SB => store!(AccessSize::Byte),
             op::SH => store!(AccessSize::Half),
             op::SW => store!(AccessSize::Word),
+            // Only a self-loop comes here (`Inst::is_self_loop`).
+            op::BEQ..=op::BGEU | op::JAL | op::CV_BEQIMM | op::CV_BNEIMM => {
+                match self.step_self_loop(inst, a, b) {
+                    Some(to) => next = to,
+                    None => return,
+                }
+            }
             _ => match self.step_system(mem, dev, inst.decoded(), pc, a) {
                 Sys::Trapped => return,
                 Sys::Next(v) => {
@@ -744,4 +751,4 @@ mod trigger;
 use poll::PollTracker;
 
 pub use config::{Backend, CpuConfig};
-pub use outcome::{cause_name, CoreStats, IssError, StopReason};
+pub use outcome::{cause_name, CoreStats, IssError, StopReason, Stuck};

@@ -81,9 +81,29 @@ pub enum IssError {
     Device(#[from] MmioError),
     #[error("console output failed: {0}")]
     Console(String),
+    /// The core can never execute another instruction (DESIGN.md §19):
+    /// nothing but the core itself could change what keeps it where it
+    /// is. The pc stays on the instruction.
+    #[error("hart {hart:#x} at {pc:#010x} {why}: it can never progress")]
+    NeverProgress { hart: u32, pc: u32, why: Stuck },
     /// An error of one of the cluster's cores (`crate::cluster`).
     #[error("cluster core {core}: {source}")]
     ClusterCore { core: usize, source: Box<IssError> },
+}
+
+/// Why a core can never progress ([`IssError::NeverProgress`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum Stuck {
+    /// A branch or jump to itself, taken, in machine mode with
+    /// `mstatus.MIE` clear.
+    #[error("spins on itself with interrupts off")]
+    SpinsInterruptsOff,
+    /// The same with interrupts on, but none enabled that could fire.
+    #[error("spins on itself with no interrupt enabled that could fire")]
+    SpinsNoInterrupt,
+    /// `wfi` with `mie` zero: no interrupt can wake it.
+    #[error("sleeps in wfi with no interrupt enabled")]
+    Asleep,
 }
 
 /// Human name of an mcause value.

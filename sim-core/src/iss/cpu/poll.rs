@@ -141,8 +141,8 @@ impl Cpu {
     /// This core's L1 accesses so far (its port's count in the bank
     /// arbiter; 0 for a core without one).
     fn l1_accesses(&self, mem: &Memory) -> u64 {
-        match (self.mem_timing.l1_port, mem.tcdm.as_ref()) {
-            (Some(port), Some(t)) => t.stats[port as usize % crate::cluster::tcdm::PORTS].accesses,
+        match (self.mem_timing.l1_port, mem.l1_arbiter.as_ref()) {
+            (Some(port), Some(a)) => a.port_stats(port).accesses,
             _ => 0,
         }
     }

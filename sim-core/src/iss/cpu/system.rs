@@ -5,6 +5,64 @@ use super::csr::{CSR_CYCLE, CSR_INSTRETH};
 use super::*;
 
 impl Cpu {
+    /// A self-loop ([`Inst::is_self_loop`]) with operands `a`, `b`: the
+    /// next pc, or `None` when taking it would spin forever (the run then
+    /// ends with [`IssError::NeverProgress`], the loop not retired).
+    /// Otherwise it runs as the block executor would run it, so a loop an
+    /// interrupt will end costs the same cycles either way.
+    #[cold]
+    pub(super) fn step_self_loop(&mut self, inst: Inst, a: u32, b: u32) -> Option<u32> {
+        let imm5 = (((inst.rd as i32) << 27) >> 27) as u32;
+        let taken = match inst.op {
+            op::BEQ => a == b,
+            op::BNE => a != b,
+            op::BLT => (a as i32) < (b as i32),
+            op::BGE => (a as i32) >= (b as i32),
+            op::BLTU => a < b,
+            op::BGEU => a >= b,
+            op::CV_BEQIMM => a == imm5,
+            op::CV_BNEIMM => a != imm5,
+            _ => true, // jal
+        };
+        if !taken {
+            return Some(inst.pc.wrapping_add(inst.len as u32));
+        }
+        if !self.interruptible() {
+            self.stop(StopReason::Fatal(IssError::NeverProgress {
+                hart: self.cfg.hart_id,
+                pc: inst.pc,
+                why: if self.privilege == Privilege::Machine && self.mstatus & MSTATUS_MIE == 0 {
+                    Stuck::SpinsInterruptsOff
+                } else {
+                    Stuck::SpinsNoInterrupt
+                },
+            }));
+            return None;
+        }
+        if inst.op == op::JAL {
+            self.regs[(inst.rd & 31) as usize] = inst.pc.wrapping_add(inst.len as u32);
+            self.regs[0] = 0;
+        } else {
+            self.cycles += timing::BRANCH_TAKEN_EXTRA;
+        }
+        self.jumps += 1;
+        Some(inst.pc)
+    }
+
+    /// Whether an interrupt could ever be taken by a core that changes no
+    /// CSR: only the core itself writes its `mstatus`, `mie` and `msip`;
+    /// the timer fires unless `mtimecmp` is out of reach; the external
+    /// line belongs to the platform (devices, the cluster), so an enabled
+    /// one counts.
+    fn interruptible(&self) -> bool {
+        if self.privilege == Privilege::Machine && self.mstatus & MSTATUS_MIE == 0 {
+            return false;
+        }
+        self.mie & (1 << IRQ_MEI) != 0
+            || (self.mie & (1 << IRQ_MTI) != 0 && self.mtimecmp != u64::MAX)
+            || self.mie & self.mip() != 0
+    }
+
     pub(super) fn illegal(&mut self, mem: &mut Memory, raw: u32, pc: u32) -> Sys {
         self.trap(mem, cause::ILLEGAL_INSTRUCTION, raw, pc);
         Sys::Trapped
@@ -66,6 +124,15 @@ impl Cpu {
             // wfi in user mode traps at once: the spec allows an
             // implementation-defined time limit, ours is zero.
             op::WFI if machine => {
+                if self.mie == 0 {
+                    // Only the core itself can enable an interrupt.
+                    self.stop(StopReason::Fatal(IssError::NeverProgress {
+                        hart: self.cfg.hart_id,
+                        pc,
+                        why: Stuck::Asleep,
+                    }));
+                    return Sys::Trapped;
+                }
                 if self.mip() & self.mie == 0 {
                     self.sleeping = true;
                     self.break_block();

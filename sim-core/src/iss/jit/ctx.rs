@@ -10,7 +10,7 @@
 //! - `r15`: instructions retired since the run began,
 //! - `rbp`: [`Ctx::extra`], the extra cycles of every fast-region access.
 
-use crate::cluster::tcdm::PortStats;
+use super::super::l1::PortStats;
 
 use std::mem::offset_of;
 
@@ -105,7 +105,7 @@ pub(crate) struct Ctx {
     pub win_last: [u64; 3],
     pub win_latency: u64,
     /// The bank arbiter's masks and this core's port's counts
-    /// ([`Tcdm::raw_parts`](crate::cluster::tcdm::Tcdm::raw_parts)), for
+    /// ([`BankArbiter::grant_window`](super::super::l1::BankArbiter::grant_window)), for
     /// the inline grant (null: no arbitration, the FC's view of L1).
     pub l1_granted: *mut u16,
     pub l1_port_stats: *mut PortStats,
@@ -138,9 +138,9 @@ pub(crate) struct Ctx {
 /// Where `r15` counts the inline L1 grants of a cluster core's run: a
 /// counter in a register rather than in memory (a read-modify-write per
 /// access, measured 5–8 % of `cosim nn eval`). The instructions retired
-/// stay below: a cluster core runs at most a quantum per call
-/// (`cluster::QUANTUM_CYCLES`, one instruction per cycle at most), far
-/// below 2^24; the FC, with no arbiter, grants nothing and may use all 64
+/// stay below: a core with an arbiter port runs at most a quantum per
+/// call (the cluster scheduler's, 1024 cycles, one instruction per cycle
+/// at most), far below 2^24; the FC, with no arbiter, grants nothing and may use all 64
 /// bits.
 pub(crate) const GRANT_SHIFT: u32 = 24;
 /// One grant (an `imm32` for `add r15`).

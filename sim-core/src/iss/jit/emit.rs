@@ -14,7 +14,7 @@
 //! instruction, with the state the interpreter's `leave` gives, and the
 //! interpreter does that instruction (system instructions, accesses
 //! outside the fast RAM region and the cluster's L1, or near code or
-//! `tohost`). L1 accesses grant their bank as `cluster::tcdm` does, at the
+//! `tohost`). L1 accesses grant their bank as the arbiter does (`iss::l1`), at the
 //! interpreter's issue cycle (`grant`).
 
 use dynasmrt::x64::X64Relocation;
@@ -98,7 +98,10 @@ pub(crate) fn translate(
     first_reads: &dyn Fn(u32) -> Option<u32>,
     l1: bool,
 ) -> Option<Translation> {
-    let n = b.iter().take_while(|i| covered(i.op)).count();
+    let n = b
+        .iter()
+        .take_while(|i| covered(i.op) && !i.is_self_loop())
+        .count();
     if n == 0 {
         return None;
     }

@@ -1,15 +1,15 @@
 //! The load and store templates (RV32I and XCV addressing): the fast
 //! region inline, the cluster's L1 out of line with its bank grant
-//! (`cluster::tcdm`) at the interpreter's issue cycle.
+//! (`iss::l1`, the arbiter's own masks) at the interpreter's issue cycle.
 
 use dynasmrt::{dynasm, DynasmApi, DynasmLabelApi};
 
 use super::super::super::block::Inst;
 use super::super::super::decode::op;
+use super::super::super::l1::{BANKS, WINDOW};
 use super::super::super::xcv::mem::{base_op, mode, Mode};
 use super::super::ctx::*;
 use super::{fits, reg, Asm};
-use crate::cluster::tcdm::{BANKS, WINDOW};
 
 /// A load or store's labels and static facts (`mem_op`).
 #[derive(Clone, Copy)]

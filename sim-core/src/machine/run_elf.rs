@@ -9,7 +9,9 @@ use anyhow::{bail, Context};
 use crate::cluster::{Cluster, ClusterConfig};
 use crate::units::{Hertz, Picos};
 
-use super::{load_elf, map, Backend, Cpu, CpuConfig, Memory, NoDevices, StopReason};
+use crate::iss::{
+    load_elf, map, Backend, Cpu, CpuConfig, IssError, LoadedElf, Memory, NoDevices, StopReason,
+};
 
 /// Default RAM: 16 MiB from the lowest loaded address rounded down to 64 KiB.
 pub const DEFAULT_RAM_SIZE: u32 = 16 << 20;
@@ -92,7 +94,8 @@ pub struct RunElfArgs {
     #[arg(long, value_name = "MHZ", default_value_t = 175)]
     pub cluster_mhz: u64,
     /// Run the FC alone, as before the cluster existed (its mhartid is
-    /// then 0, and 0x1000_0000 is free for --ram).
+    /// then 0, and 0x1000_0000 is free for --ram). Programs that park
+    /// every hart but hart 0, as riscv-tests do, need it.
     #[arg(long)]
     pub no_cluster: bool,
     /// The ISS back end: `jit` (the block translator, x86-64 hosts) or
@@ -183,9 +186,20 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
             EXIT_INSTRUCTION_LIMIT
         }
         StopReason::Idle => bail!(
-            "the core is idle forever at pc {:#010x} (wfi or polling with nothing to wake it)",
+            "hart {:#x} (FC) at {:#010x} is idle forever (wfi or polling with nothing to wake it)",
+            cpu.config().hart_id,
             cpu.pc()
         ),
+        StopReason::Fatal(IssError::NeverProgress { hart, pc, why }) => {
+            // riscv-tests and most bare-metal start-up code park every hart
+            // but hart 0; with the cluster the FC is not hart 0.
+            let hint = if cluster.is_some() && hart != 0 {
+                " (a hart-0 program? try --no-cluster)"
+            } else {
+                ""
+            };
+            bail!("hart {hart:#x} (FC) at {pc:#010x} {why}: it can never progress{hint}")
+        }
         StopReason::Fatal(e) => bail!("{e}"),
         other => bail!("unexpected stop: {other:?} at pc {:#010x}", cpu.pc()),
     };
@@ -258,11 +272,7 @@ pub fn signature_text(mem: &Memory, begin: u32, end: u32) -> anyhow::Result<Stri
     Ok(out)
 }
 
-fn write_signature(
-    mem: &Memory,
-    elf: &super::LoadedElf,
-    path: &std::path::Path,
-) -> anyhow::Result<()> {
+fn write_signature(mem: &Memory, elf: &LoadedElf, path: &std::path::Path) -> anyhow::Result<()> {
     let (Some(b), Some(e)) = (elf.symbol("begin_signature"), elf.symbol("end_signature")) else {
         bail!("--signature: the ELF has no begin_signature/end_signature symbols");
     };
