@@ -10,13 +10,15 @@ with the keyboard"; the key map in crazyflie_cosim/cfclient_keys.py).
     scripts/cfclient-keys.py --script "t@0, up@5:1.5, left@8:1, l@11"
                                                 # scripted keys: KEY@START[:HOLD] (wall seconds; hold 0.35 s)
 
-Runs with any Python that has pyzmq (cfclient's own venv has it) and
-imports the checkout's python/src.
+Runs with any Python that has pyzmq, else with cfclient's own venv
+(target/cfclient-venv, made by scripts/test-all.sh), and imports the
+checkout's python/src.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -65,7 +67,12 @@ def main() -> int:
     try:
         import zmq  # noqa: F401
     except ImportError:
-        sys.exit("cfclient-keys: needs pyzmq (pip install pyzmq, or run it with cfclient's Python)")
+        # cfclient's own venv has pyzmq: use it when this Python has none.
+        venv_python = Path(__file__).resolve().parents[1] / "target" / "cfclient-venv" / "bin" / "python"
+        if venv_python.is_file() and Path(sys.executable).resolve() != venv_python.resolve():
+            os.execv(venv_python, [str(venv_python), __file__, *sys.argv[1:]])
+        sys.exit("cfclient-keys: needs pyzmq: make cfclient's venv (python3 -m venv target/cfclient-venv && "
+                 "target/cfclient-venv/bin/pip install cfclient==2026.8.1) or pip install pyzmq")
     if holds is not None:
         end = max(h.start_s + h.duration_s for h in holds) + a.after
         keys = ScriptedKeys(holds)

@@ -3,22 +3,20 @@
 # "cfclient"): Xvfb, `cosim run cflib-lab`, cfclient connected to
 # udp://127.0.0.1:19859, a flight by its command-based flight buttons
 # (take off, up, down, forward, back, left, right, land: xdotool clicks;
-# each moves 0.5 m in 1 s) and screenshots of the flight, console and
-# plotter tabs.
+# each moves 0.5 m in 1 s) and screenshots (scrot) of the flight, console
+# and plotter tabs.
 #
-#   scripts/cfclient-xvfb.sh [OUT_DIR]      # default /tmp/cfclient-shots
+#   scripts/cfclient-xvfb.sh [OUT_DIR]      # default out/cfclient-shots
 #   scripts/cfclient-xvfb.sh --keys [OUT_DIR]
 #       # flown with the keyboard instead: cfclient's ZMQ input device and
 #       # scripts/cfclient-keys.py pushing scripted keys (take off, forward,
 #       # left, turn, land; docs/CFLIB.md, "cfclient flown with the keyboard")
 #
-# Needs: cfclient in a venv (CFCLIENT, default /tmp/cfclient-venv/bin/cfclient;
-# `python3 -m venv /tmp/cfclient-venv && /tmp/cfclient-venv/bin/pip install
-# cfclient`), `apt-get install -y xvfb xdotool imagemagick libegl1
-# libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1
-# libxcb-shape0 libxcb-randr0 libxcb-render-util0 libxcb-image0
-# libxcb-xinerama0 libgl1 libfontconfig1 libdbus-1-3`, and the release
-# binaries (cargo build --release).
+# Needs: cfclient in its venv (CFCLIENT, default target/cfclient-venv/bin/cfclient,
+# made by scripts/test-all.sh), Xvfb, xdotool, scrot and the libraries
+# PyQt6 loads (scripts/install-deps.sh), and the release binaries
+# (cargo build --release). Everything it starts is stopped when it ends,
+# however it ends.
 #
 # The clicks are at the widgets' places in cfclient 2026.8.1's default
 # layout on a 1600x1000 window (set in the throw-away config written below).
@@ -30,12 +28,20 @@ if [ "${1:-}" = --keys ]; then
     KEYS=1
     shift
 fi
-OUT=${1:-/tmp/cfclient-shots}
-CFCLIENT=${CFCLIENT:-/tmp/cfclient-venv/bin/cfclient}
+OUT=${1:-$ROOT/out/cfclient-shots}
+CFCLIENT=${CFCLIENT:-$ROOT/target/cfclient-venv/bin/cfclient}
 DISPLAY_NR=${DISPLAY_NR:-:77}
 # The last port of cfclient's scan range (19850-19859), so that other runs
 # on the first ports are not in the way; preselected below.
 PORT=${PORT:-19859}
+
+die() { echo "cfclient-xvfb: $*" >&2; exit 1; }
+[ -x "$CFCLIENT" ] || die "no cfclient at $CFCLIENT: make its venv with python3 -m venv target/cfclient-venv && target/cfclient-venv/bin/pip install cfclient==2026.8.1 (or set CFCLIENT)"
+for tool in Xvfb xdotool scrot; do
+    command -v "$tool" >/dev/null 2>&1 || die "$tool is missing: run scripts/install-deps.sh"
+done
+[ -x "$ROOT/target/release/cosim" ] || die "no $ROOT/target/release/cosim: run cargo build --release"
+
 mkdir -p "$OUT"
 HOME_DIR=$(mktemp -d)
 mkdir -p "$HOME_DIR/.config/cfclient"
@@ -66,12 +72,20 @@ cat > "$HOME_DIR/.config/cfclient/log/aa_height_power.json" <<EOF
   {"name": "power.iBattery", "type": "TOC", "stored_as": "float", "fetch_as": "float"}]}}}
 EOF
 
+# Everything started below is stopped on every way out (an error, Ctrl-C,
+# SIGTERM): cosim stops its own world-server and sim-core.
 pids=()
 cleanup() {
     for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+    for p in "${pids[@]}"; do
+        for _ in $(seq 50); do kill -0 "$p" 2>/dev/null || break; sleep 0.1; done
+        kill -9 "$p" 2>/dev/null || true
+    done
     rm -rf "$HOME_DIR"
 }
 trap cleanup EXIT
+trap 'exit 130' INT
+trap 'exit 143' TERM
 
 Xvfb "$DISPLAY_NR" -screen 0 1600x1000x24 >"$OUT/xvfb.log" 2>&1 &
 pids+=($!)
@@ -79,6 +93,7 @@ export DISPLAY=$DISPLAY_NR
 "$ROOT/target/release/cosim" run cflib-lab --out "$OUT/run" --no-plots --quiet --no-build \
     --set crtp=udp:127.0.0.1:$PORT --set crtp_idle_s=10 >"$OUT/cosim.log" 2>&1 &
 cosim=$!
+pids+=("$cosim")
 sleep 3
 HOME=$HOME_DIR "$CFCLIENT" --debug info >"$OUT/cfclient.log" 2>&1 &
 pids+=($!)
@@ -91,7 +106,7 @@ tab() { # the tabs' row
         toc) click 351 145 ;; params) click 455 145 ;;
     esac
 }
-shot() { import -window root "$OUT/$1.png"; }
+shot() { scrot --overwrite "$OUT/$1.png"; }
 
 click 304 47 # Connect
 sleep 6
@@ -102,6 +117,7 @@ if [ "$KEYS" = 1 ]; then
     "$(dirname "$CFCLIENT")/python" "$ROOT/scripts/cfclient-keys.py" \
         --script "t@0, r@4:1, up@6:2, left@9:1.5, q@11.5:1, l@14" >"$OUT/keys.log" 2>&1 &
     keys=$!
+    pids+=("$keys")
     sleep 10.5
     shot cfclient-keys
     wait "$keys"

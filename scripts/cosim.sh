@@ -49,7 +49,11 @@ cleanup() {
     [ -n "$WORLD_PID" ] && kill "$WORLD_PID" 2>/dev/null || true
     rm -rf "$SOCKDIR"
 }
-trap cleanup EXIT INT TERM
+# On every way out; a signal ends the script (a handler alone would let it
+# go on where it was interrupted).
+trap cleanup EXIT
+trap 'exit 130' INT
+trap 'exit 143' TERM
 
 # Every line a program prints is prefixed so the two logs can be told apart.
 # The output goes through a FIFO (not a pipe) so that $! is the program's

@@ -3,8 +3,8 @@
 # missing (one place for .ci/run and scripts/test-all.sh): GNU parallel, the
 # RISC-V cross compiler and picolibc, clang-19 (CORE-V XCV, DESIGN.md §12),
 # python3-venv, and for cfclient under Xvfb (python/tests/test_cfclient_keys.py,
-# docs/CFLIB.md "cfclient") Xvfb, xdotool and the libraries PyQt6's xcb
-# platform loads. From apt-get (root, or sudo when there is one); with
+# docs/CFLIB.md "cfclient") Xvfb, xdotool, scrot (scripts/cfclient-xvfb.sh's
+# screenshots) and the libraries PyQt6's xcb platform loads. From apt-get (root, or sudo when there is one); with
 # COSIM_NO_INSTALL=1 it only checks and fails with what is missing.
 set -euo pipefail
 
@@ -36,6 +36,7 @@ command -v clang-19 >/dev/null 2>&1 || missing+=(clang-19)
 python3 -c 'import venv, ensurepip' 2>/dev/null || missing+=(python3-venv)
 command -v Xvfb >/dev/null 2>&1 || missing+=(xvfb)
 command -v xdotool >/dev/null 2>&1 || missing+=(xdotool)
+command -v scrot >/dev/null 2>&1 || missing+=(scrot)
 for lib in libegl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 \
     libxcb-shape0 libxcb-randr0 libxcb-render-util0 libxcb-image0 libxcb-xinerama0 \
     libgl1 libfontconfig1 libdbus-1-3; do

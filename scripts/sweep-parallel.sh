@@ -76,9 +76,25 @@ echo "sweep-parallel: $runs runs of $name in $shards shards -> $out" >&2
 
 # A shard with a failed run exits 1; the run is still recorded, so the
 # merge runs whatever parallel says and decides the exit code.
+# parallel runs in the background so that a signal to this script is
+# handled at once: GNU parallel stops starting jobs at the first TERM and
+# kills the running ones at the second (each cosim then stops its own
+# processes); then this script exits without merging.
 set +e
-parallel "${popts[@]}" "$cmd" ::: $(seq 1 "$shards")
+parallel "${popts[@]}" "$cmd" ::: $(seq 1 "$shards") &
+ppid=$!
+stop() {
+  kill -TERM "$ppid" 2>/dev/null
+  sleep 1
+  kill -TERM "$ppid" 2>/dev/null
+  wait "$ppid"
+  exit "$1"
+}
+trap 'stop 130' INT
+trap 'stop 143' TERM
+wait "$ppid"
 prc=$?
+trap - INT TERM
 "$cosim" sweep --merge "$out" --out "$out"
 mrc=$?
 set -e

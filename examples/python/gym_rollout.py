@@ -18,6 +18,7 @@ import time
 import crazyflie_cosim  # noqa: F401  (registers crazyflie_cosim/World-v0)
 import gymnasium as gym
 import numpy as np
+from crazyflie_cosim.env import velocity_action
 from crazyflie_cosim.server import WorldServerError
 
 
@@ -26,7 +27,7 @@ def policy(env, obs):
     status = env.status[env.names[0]]
     x, y, z = obs[0:3]
     if status.next_gate >= len(env.gates):
-        return np.array([0.0, 0.0, -0.3, 0.0])  # every gate passed: descend
+        return velocity_action(0.0, 0.0, -0.3)  # every gate passed: descend
     g = env.gates[status.next_gate]
     nx, ny, _ = g.normal
     cx, cy, cz = g.centre
@@ -42,7 +43,7 @@ def policy(env, obs):
     speed = min(0.5, d)
     v = (dx / d * speed, dy / d * speed) if d > 1e-9 else (0.0, 0.0)
     vz = float(np.clip(cz - z, -0.3, 0.3))
-    return np.array([v[0], v[1], vz, 0.0])
+    return velocity_action(v[0], v[1], vz)
 
 
 def main():

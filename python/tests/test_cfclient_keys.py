@@ -23,7 +23,8 @@ from crazyflie_cosim.cfclient_keys import (
 from crazyflie_cosim.lab.keys import Hold, ScriptedKeys
 
 ROOT = Path(__file__).resolve().parents[2]
-CFCLIENT = Path(os.environ.get("CFCLIENT", "/tmp/cfclient-venv/bin/cfclient"))
+# cfclient's own venv, as scripts/test-all.sh makes it.
+CFCLIENT = Path(os.environ.get("CFCLIENT", ROOT / "target" / "cfclient-venv" / "bin" / "cfclient"))
 
 
 class Clock:

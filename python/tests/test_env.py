@@ -6,7 +6,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import crazyflie_cosim  # noqa: F401  (registers the environment)
-from crazyflie_cosim.env import GateProgress, WorldEnv
+from crazyflie_cosim.env import GateProgress, WorldEnv, motor_action, velocity_action
 
 
 def rollout(env, seed, steps=40):
@@ -58,10 +58,10 @@ def test_velocity_mode_flies_the_demand_through_the_ported_controller():
     obs, _ = env.reset(seed=1)
     z0 = obs[2]
     for _ in range(100):  # 3.2 s: climb at 0.3 m/s
-        obs, *_ = env.step(np.array([0.0, 0.0, 0.3, 0.0]))
+        obs, *_ = env.step(velocity_action(0.0, 0.0, 0.3))
     assert obs[2] - z0 == pytest.approx(0.96, abs=0.35)
     for _ in range(100):  # 3.2 s: 0.5 m/s towards world +y
-        obs, *_ = env.step(np.array([0.0, 0.5, 0.0, 0.0]))
+        obs, *_ = env.step(velocity_action(0.0, 0.5, 0.0))
     assert obs[4] == pytest.approx(0.5, abs=0.15)  # world vy
     assert abs(obs[3]) < 0.15 and abs(obs[6]) < 0.2 and abs(obs[7]) < 0.2
     env.close()
@@ -79,7 +79,7 @@ def test_the_reward_is_pluggable_and_the_time_limit_truncates():
     env.reset(seed=0)
     steps = 0
     while True:
-        _, r, term, trunc, info = env.step(np.full(4, 100.0))
+        _, r, term, trunc, info = env.step(motor_action(np.full(4, 100.0)))
         steps += 1
         assert r <= 0.0
         if term or trunc:
@@ -97,7 +97,7 @@ def test_three_drones_in_one_environment(three_drone_world):
     # at 30 rad/s per s): each drone flies its own demand.
     climb = {"alpha": 0.3, "bravo": 0.4, "charlie": 0.5}
     for _ in range(100):
-        obs, _, _, _, info = env.step({n: np.array([0.0, 0.0, climb[n], 0.0]) for n in env.names})
+        obs, _, _, _, info = env.step({n: velocity_action(0.0, 0.0, climb[n]) for n in env.names})
     assert set(info["rewards"]) == {"alpha", "bravo", "charlie"}
     z = [obs[n][2] for n in env.names]
     assert 0.2 < z[0] < z[1] < z[2], z

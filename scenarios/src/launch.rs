@@ -4,14 +4,17 @@
 
 use std::ffi::OsString;
 use std::fs::File;
-use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::Command;
 use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use protocol::Endpoint;
+
+use crate::signals::Role;
+pub(crate) use crate::supervise::{
+    describe, wait_for_socket, Echo, LogSink, Supervised, CONSOLE_ECHO_LINES,
+};
 
 use crate::scenario::Scenario;
 
@@ -111,29 +114,34 @@ impl Binaries {
 }
 
 /// `cargo build -p sim-core -p world-server` into the profile directory
-/// `exe_dir` (target/<profile>) of the running cosim.
+/// `exe_dir` (target/<profile>) of the running cosim. Said on stderr
+/// first, with cargo's own progress: on a fresh clone it takes minutes.
 fn cargo_build(cargo: &OsString, exe_dir: &Path) -> Result<(), LaunchError> {
     let mut cmd = Command::new(cargo);
-    cmd.args(["build", "--quiet", "-p", "sim-core", "-p", "world-server"]);
-    match exe_dir.file_name().and_then(|n| n.to_str()) {
-        Some("debug") => {}
+    cmd.args(["build", "-p", "sim-core", "-p", "world-server"]);
+    let profile = match exe_dir.file_name().and_then(|n| n.to_str()) {
+        Some("debug") => "debug",
         Some("release") => {
             cmd.arg("--release");
+            "release"
         }
         Some(other) => {
             cmd.args(["--profile", other]);
+            other
         }
         None => return Ok(()),
-    }
+    };
     if let Some(target) = exe_dir.parent() {
         cmd.env("CARGO_TARGET_DIR", target);
     }
     // Build from the source tree cosim itself was built from.
     cmd.current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."));
-    tracing::info!("bringing sim-core and world-server up to date with cargo build");
-    let status = cmd
-        .status()
+    eprintln!("cosim: building sim-core and world-server ({profile}) with cargo ...");
+    let status = crate::signals::run_to_end(&mut cmd, crate::signals::Role::First)
         .map_err(|e| LaunchError::Build(e.to_string()))?;
+    if let Some(sig) = crate::signals::requested() {
+        return Err(LaunchError::Build(crate::signals::interrupted(sig)));
+    }
     if status.success() {
         Ok(())
     } else {
@@ -202,183 +210,6 @@ impl RunStatus {
     }
 }
 
-/// Shared log file + optional echo, one line at a time so lines of the two
-/// processes never interleave mid-line.
-#[derive(Clone)]
-pub(crate) struct LogSink {
-    pub(crate) file: Arc<Mutex<File>>,
-    pub(crate) echo: bool,
-    /// Where echoed lines go while progress bars are drawn (above them).
-    pub(crate) bars: Option<indicatif::MultiProgress>,
-}
-
-impl LogSink {
-    pub(crate) fn line(&self, prefix: &str, line: &str) {
-        let text = format!("[{prefix}] {line}\n");
-        if let Ok(mut f) = self.file.lock() {
-            // A failing log write must not stop the run; the run's own
-            // outputs are what matter.
-            let _ = f.write_all(text.as_bytes());
-        }
-        if self.echo {
-            match &self.bars {
-                Some(bars) if !bars.is_hidden() => bars.suspend(|| eprint!("{text}")),
-                _ => eprint!("{text}"),
-            }
-        }
-    }
-
-    /// Forwards the lines of `stream` with `prefix`; the last one is also
-    /// shown on `bar` (the progress display of several processes).
-    fn forward(
-        &self,
-        prefix: String,
-        stream: impl Read + Send + 'static,
-        bar: Option<indicatif::ProgressBar>,
-    ) -> JoinHandle<()> {
-        let sink = self.clone();
-        std::thread::spawn(move || {
-            let mut r = BufReader::new(stream);
-            let mut buf = Vec::new();
-            loop {
-                buf.clear();
-                match r.read_until(b'\n', &mut buf) {
-                    Ok(0) | Err(_) => break,
-                    Ok(_) => {
-                        let text = String::from_utf8_lossy(&buf);
-                        let text = text.trim_end_matches(['\n', '\r']);
-                        sink.line(&prefix, text);
-                        if let Some(bar) = &bar {
-                            if !text.trim().is_empty() {
-                                bar.set_message(text.trim().to_string());
-                            }
-                        }
-                    }
-                }
-            }
-        })
-    }
-}
-
-/// A child process with its log forwarders.
-pub(crate) struct Supervised {
-    pub(crate) what: String,
-    child: Child,
-    status: Option<ExitStatus>,
-    forwarders: Vec<JoinHandle<()>>,
-}
-
-impl Supervised {
-    pub(crate) fn spawn(
-        what: &'static str,
-        cmd: Command,
-        sink: &LogSink,
-    ) -> Result<Self, LaunchError> {
-        Self::spawn_named(what, what.to_string(), cmd, sink, None)
-    }
-
-    /// `kind` names the program in errors, `what` (its log prefix) the
-    /// process; `bar` shows its last line.
-    pub(crate) fn spawn_named(
-        kind: &'static str,
-        what: String,
-        mut cmd: Command,
-        sink: &LogSink,
-        bar: Option<indicatif::ProgressBar>,
-    ) -> Result<Self, LaunchError> {
-        tracing::debug!(?cmd, "starting {what}");
-        let mut child = cmd
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .map_err(|source| LaunchError::Spawn {
-                what: kind,
-                path: PathBuf::from(cmd.get_program()),
-                source,
-            })?;
-        let mut forwarders = Vec::new();
-        if let Some(out) = child.stdout.take() {
-            forwarders.push(sink.forward(what.clone(), out, bar.clone()));
-        }
-        if let Some(err) = child.stderr.take() {
-            forwarders.push(sink.forward(what.clone(), err, bar));
-        }
-        Ok(Supervised {
-            what,
-            child,
-            status: None,
-            forwarders,
-        })
-    }
-
-    pub(crate) fn poll(&mut self) -> Option<ExitStatus> {
-        if self.status.is_none() {
-            self.status = self.child.try_wait().ok().flatten();
-        }
-        self.status
-    }
-
-    pub(crate) fn kill(&mut self) {
-        if self.poll().is_none() {
-            let _ = self.child.kill();
-            self.status = self.child.wait().ok();
-        }
-    }
-
-    /// Waits up to `grace` for the process to end by itself, then kills it.
-    pub(crate) fn finish_within(&mut self, grace: Duration) -> bool {
-        let until = Instant::now() + grace;
-        while Instant::now() < until {
-            if self.poll().is_some() {
-                return true;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        tracing::warn!("{} did not exit within {grace:?}; killing it", self.what);
-        self.kill();
-        false
-    }
-
-    pub(crate) fn join(self) -> Option<ExitStatus> {
-        for f in self.forwarders {
-            let _ = f.join();
-        }
-        self.status
-    }
-}
-
-/// Waits (up to 30 s) for the world server to create its socket, so that
-/// sim-core's connection does not depend on its retry patience; a world that
-/// dies first, or never listens (it is then killed), is the error returned.
-pub(crate) fn wait_for_socket(world: &mut Supervised, socket: &Path) -> Option<String> {
-    let until = Instant::now() + Duration::from_secs(30);
-    while !socket.exists() {
-        if let Some(st) = world.poll() {
-            return Some(format!(
-                "world-server exited before listening ({})",
-                describe(Some(st))
-            ));
-        }
-        if Instant::now() > until {
-            world.kill();
-            return Some("world-server did not create its socket within 30 s".into());
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    None
-}
-
-pub(crate) fn describe(status: Option<ExitStatus>) -> String {
-    match status {
-        Some(s) => match s.code() {
-            Some(c) => format!("exit code {c}"),
-            None => format!("{s}"),
-        },
-        None => "still running".into(),
-    }
-}
-
 /// Runs one scenario into `out` (created). Returns how the processes ended;
 /// the outputs they wrote stay in `out` whatever happened.
 pub fn launch(
@@ -423,17 +254,18 @@ pub fn launch(
     }
 
     let started = Instant::now();
-    let mut world = Supervised::spawn("world", world_cmd, &sink)?;
+    let mut world = Supervised::spawn("world", world_cmd, &sink, Role::First, Echo::All)?;
     if let Some(error) = wait_for_socket(&mut world, &socket) {
         let w = world.join();
         return Ok(RunStatus {
             sim_core: None,
             world: w.and_then(|s| s.code()),
-            error: Some(error),
+            error: Some(crate::signals::requested().map_or(error, crate::signals::interrupted)),
             wall: started.elapsed(),
         });
     }
-    let mut sim = match Supervised::spawn("sim-core", sim_cmd, &sink) {
+    let console = Echo::First(CONSOLE_ECHO_LINES);
+    let mut sim = match Supervised::spawn("sim-core", sim_cmd, &sink, Role::Follower, console) {
         Ok(s) => s,
         Err(e) => {
             world.kill();
@@ -459,8 +291,13 @@ pub fn launch(
                     "world-server failed ({}); sim-core killed",
                     describe(Some(st))
                 ));
-                // Let sim-core report the broken link itself first.
-                sim.finish_within(Duration::from_secs(2));
+                // Let sim-core report the broken link itself first (a
+                // signal stopped the world: as long as crate::signals lets it).
+                let grace = match crate::signals::requested() {
+                    Some(_) => crate::signals::FOLLOWER_GRACE + crate::signals::KILL_GRACE,
+                    None => Duration::from_secs(2),
+                };
+                sim.finish_within(grace);
                 break;
             }
             // The world ended cleanly (after STOP): sim-core writes its outputs.
@@ -481,6 +318,9 @@ pub fn launch(
     }
     let sim_status = sim.join();
     let world_status = world.join();
+    if let Some(sig) = crate::signals::requested() {
+        error = Some(crate::signals::interrupted(sig));
+    }
     if error.is_none() {
         match (
             sim_status.map(|s| s.success()),
@@ -518,7 +358,8 @@ fn launch_platform_only(
     let started = Instant::now();
     sink.line("cosim", &format!("world at {world} (not started here)"));
     let cmd = sim_core_command(scenario, bins, world, out, opts);
-    let mut sim = Supervised::spawn("sim-core", cmd, sink)?;
+    let console = Echo::First(CONSOLE_ECHO_LINES);
+    let mut sim = Supervised::spawn("sim-core", cmd, sink, Role::First, console)?;
     let mut error = None;
     while sim.poll().is_none() {
         if let Some(limit) = opts.timeout {
@@ -533,6 +374,9 @@ fn launch_platform_only(
         std::thread::sleep(Duration::from_millis(10));
     }
     let status = sim.join();
+    if let Some(sig) = crate::signals::requested() {
+        error = Some(crate::signals::interrupted(sig));
+    }
     if error.is_none() && !status.is_some_and(|s| s.success()) {
         error = Some(format!("sim-core failed ({})", describe(status)));
     }

@@ -12,6 +12,7 @@
 //! - [`mapping`]: the map of an exploration run scored against the world.
 //! - [`bench_race`]: `cosim bench race`, what the thesis's race costs.
 //! - [`foxglove`]: `run.mcap`, the world's and the platforms' channels merged.
+//! - [`signals`]: SIGINT/SIGTERM reach every child; none outlives cosim.
 
 pub mod bench_cluster;
 pub mod bench_iss;
@@ -26,6 +27,8 @@ pub mod perturb;
 pub mod plot;
 pub mod report;
 pub mod scenario;
+pub mod signals;
+mod supervise;
 pub mod swarm;
 pub mod sweep;
 pub mod tracetool;

@@ -407,6 +407,10 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    if let Err(e) = scenarios::signals::install() {
+        eprintln!("cosim: cannot receive SIGINT/SIGTERM: {e}");
+        return ExitCode::from(2);
+    }
     let bins = cli.bins;
     let result = match cli.command {
         Cmd::Run {
@@ -557,11 +561,17 @@ fn main() -> ExitCode {
             what: BenchCmd::Iss { elfs, qemu, repeat },
         } => cmd_bench_iss(elfs, qemu, repeat, bins),
     };
-    match result {
+    let code = match result {
         Ok(code) => code,
         Err(e) => {
             eprintln!("cosim: {e:#}");
             ExitCode::from(2)
         }
+    };
+    // Stopped by a signal: the shell's convention, whatever the command
+    // made of its shortened run.
+    match scenarios::signals::requested() {
+        Some(sig) => ExitCode::from((128 + sig) as u8),
+        None => code,
     }
 }

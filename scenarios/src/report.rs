@@ -225,22 +225,30 @@ pub fn summary_text(
         "   setup          {} ms timestep, {} model, battery {}, sync {}\n",
         s.timestep_ms, s.power_model, s.battery.model, s.sync
     );
-    // Counts of the firmware's SET_TARGETs; a firmware that moves its
-    // target before reaching it (vision_race: standoff points, the seen
-    // gate) has them counted as replaced, so the four add up to the total.
-    let replaced = if s.targets_replaced > 0 {
-        format!(", {} replaced before reached", s.targets_replaced)
-    } else {
-        String::new()
-    };
-    t += &format!(
-        "   targets        {}/{} reached, {} bypassed (UNLOCK_CYCLES){replaced}, {} skipped (low battery)\n",
-        s.targets_reached, s.targets_total, s.targets_bypassed, s.targets_skipped_low_battery
-    );
+    // The world's gate count first: it is the race's result. The targets
+    // are the firmware's SET_TARGETs; a firmware that moves its target
+    // before reaching it (vision_race: standoff points, the seen gate) has
+    // them counted as replaced, so the four add up to the total: a passing
+    // race may reach few of them.
     if let Some(total) = s.gates_total {
         t += &format!(
             "   gates          {}/{total} passed (the world's count at STOP, DESIGN.md §10)\n",
             s.gates_passed.map_or("?".into(), |g| g.to_string())
+        );
+    }
+    if s.targets_replaced > 0 {
+        t += &format!(
+            "   targets        {} set by the firmware: {} reached, {} moved on before reached (the firmware re-aimed), {} bypassed (UNLOCK_CYCLES), {} skipped (low battery)\n",
+            s.targets_total,
+            s.targets_reached,
+            s.targets_replaced,
+            s.targets_bypassed,
+            s.targets_skipped_low_battery
+        );
+    } else {
+        t += &format!(
+            "   targets        {}/{} reached, {} bypassed (UNLOCK_CYCLES), {} skipped (low battery)\n",
+            s.targets_reached, s.targets_total, s.targets_bypassed, s.targets_skipped_low_battery
         );
     }
     t += &format!(

@@ -44,6 +44,8 @@ pub enum ScenarioError {
     },
     #[error("{what} {path} does not exist")]
     Missing { what: &'static str, path: PathBuf },
+    #[error("scenario {0} does not exist; `cosim list` lists the scenarios")]
+    UnknownScenario(PathBuf),
     #[error("platform for drone {drone:?}: {what} {path} does not exist")]
     PlatformMissing {
         drone: String,
@@ -610,10 +612,7 @@ pub fn resolve_scenario(arg: Option<&str>) -> Result<PathBuf, ScenarioError> {
             return Ok(found);
         }
     }
-    Err(ScenarioError::Missing {
-        what: "scenario",
-        path: p,
-    })
+    Err(ScenarioError::UnknownScenario(p))
 }
 
 #[cfg(test)]

@@ -313,7 +313,7 @@ fn bad_input_is_one_clear_line() {
     let cases: [(&[&str], &str); 4] = [
         (
             &["run", "no-such-scenario"],
-            "scenario no-such-scenario does not exist",
+            "scenario no-such-scenario does not exist; `cosim list` lists the scenarios",
         ),
         (&["run", "short-hop", "--set", "battery=nine"], "battery"),
         (

@@ -15,13 +15,22 @@ Spaces (per drone):
 - observation ``state``: float64[12] = position (m, world ENU), velocity
   (m/s, world), roll, pitch, yaw (rad, the InertialUnit's Z-Y-X angles),
   body angular rates (rad/s); with ``image=True`` a dict ``{"state",
-  "image"}``, the image uint8[320, 320] (grey, row 0 at the top).
-- action ``"motors"``: float64[4], the four motor speed magnitudes in rad/s,
-  0..600 (``world-server/src/crazyflie.rs``: ``maxVelocity 600``).
-- action ``"velocity"``: float64[4] = world-frame vx, vy (m/s, ±1), vertical
-  speed vz (m/s, ±0.5), yaw rate (rad/s, ±72°/s, ``motion.rs``
+  "image"}``, the image uint8[320, 320] (grey, row 0 at the top).  The
+  bounds are finite (:func:`state_bounds`): the position within
+  ``max_distance_m`` (plus the start jitter) of the world file's starts,
+  the speed within ``MAX_OBS_SPEED``, the angles within ±π, the rates within
+  the Crazyflie gyro's ±2000°/s; a state beyond them (the step that ends an
+  episode by leaving, a crash) is clipped to them, as the gyro saturates.
+- action ``"motors"``: float64[4] in [0, 1], the four motor speed magnitudes
+  as fractions of 600 rad/s (``world-server/src/crazyflie.rs``:
+  ``maxVelocity 600``); :func:`motor_action` converts from rad/s.
+- action ``"velocity"``: float64[4] in [-1, 1], fractions of world-frame vx,
+  vy (±1 m/s), vertical speed vz (±0.5 m/s), yaw rate (±72°/s, ``motion.rs``
   ``MAX_YAW_RATE``), flown by the STM32's controller ported in
-  :mod:`.controller`.
+  :mod:`.controller`; :func:`velocity_action` converts from m/s and rad/s.
+
+Both action spaces are normalized, as RL libraries want them (Gymnasium's
+``check_env``, Stable-Baselines3).
 
 Several drones: observation and action are ``Dict`` spaces keyed by drone
 name (world-file order); the reward is the sum over the drones (each
@@ -39,7 +48,7 @@ from __future__ import annotations
 import math
 import shutil
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -47,6 +56,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from . import ENV_ID
 from . import protocol as p
 from .client import World
 from .controller import VelocityController, euler
@@ -63,9 +73,43 @@ MAX_YAW_RATE = 72.0 * math.pi / 180.0
 #: (Listing 4.3) times 2.5 vertically.
 MAX_HORIZONTAL_SPEED = 1.0
 MAX_VERTICAL_SPEED = 0.5
+#: What a velocity action of 1 means per component: vx, vy, vz (m/s), yaw rate (rad/s).
+VELOCITY_SCALE = np.array([MAX_HORIZONTAL_SPEED, MAX_HORIZONTAL_SPEED, MAX_VERTICAL_SPEED, MAX_YAW_RATE])
+#: The observed speed's bound per axis (m/s): far above the drone's (the
+#: velocity mode's 1 m/s; a free fall over the episode's distance limit).
+MAX_OBS_SPEED = 50.0
+#: The observed body rates' bound: the Crazyflie gyro's range (BMI088,
+#: ±2000°/s), rad/s.
+MAX_OBS_RATE = 2000.0 * math.pi / 180.0
 #: The AI deck camera (PROTOCOL.md §5).
 IMAGE_SIZE = 320
 STATE_SIZE = 12
+
+
+def motor_action(speeds) -> np.ndarray:
+    """A ``"motors"`` action from four motor speeds in rad/s."""
+    return np.asarray(speeds, dtype=np.float64).reshape(4) / MAX_MOTOR_SPEED
+
+
+def velocity_action(vx: float, vy: float, vz: float, yaw_rate: float = 0.0) -> np.ndarray:
+    """A ``"velocity"`` action from a world-frame velocity demand (m/s) and a
+    yaw rate (rad/s)."""
+    return np.array([vx, vy, vz, yaw_rate], dtype=np.float64) / VELOCITY_SCALE
+
+
+def state_bounds(starts, max_distance_m: float, jitter_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """The ``state`` observation's low and high: positions within
+    ``max_distance_m + jitter_m`` of every start (an episode ends once a
+    drone is farther than ``max_distance_m`` from its jittered start)."""
+    reach = max_distance_m + jitter_m
+    pos = np.array([d.position for d in starts], dtype=np.float64)
+    high = np.concatenate(
+        [pos.max(axis=0) + reach, np.full(3, MAX_OBS_SPEED), np.full(3, math.pi), np.full(3, MAX_OBS_RATE)]
+    )
+    low = np.concatenate(
+        [pos.min(axis=0) - reach, np.full(3, -MAX_OBS_SPEED), np.full(3, -math.pi), np.full(3, -MAX_OBS_RATE)]
+    )
+    return low, high
 
 
 @dataclass
@@ -188,20 +232,31 @@ class WorldEnv(gym.Env):
         #: After an episode's world stopped: its STOP replies' GATES_PASSED.
         self.world_gates_passed: dict[str, int | None] = {}
 
+        self._state_low, self._state_high = state_bounds(self.starts, max_distance_m, start_jitter_m)
         one_obs = self._drone_obs_space()
-        if action == "motors":
-            one_act = spaces.Box(0.0, MAX_MOTOR_SPEED, (4,), np.float64)
-        else:
-            hi = np.array([MAX_HORIZONTAL_SPEED, MAX_HORIZONTAL_SPEED, MAX_VERTICAL_SPEED, MAX_YAW_RATE])
-            one_act = spaces.Box(-hi, hi, (4,), np.float64)
+        low = 0.0 if action == "motors" else -1.0
         if len(self.names) == 1:
             self.observation_space = one_obs
-            self.action_space = one_act
+            self.action_space = spaces.Box(low, 1.0, (4,), np.float64)
         else:
             self.observation_space = spaces.Dict({n: self._drone_obs_space() for n in self.names})
-            self.action_space = spaces.Dict(
-                {n: spaces.Box(one_act.low, one_act.high, (4,), np.float64) for n in self.names}
-            )
+            self.action_space = spaces.Dict({n: spaces.Box(low, 1.0, (4,), np.float64) for n in self.names})
+        # Made directly (not by gymnasium.make): the spec of the same
+        # environment, so that tools that remake it (check_env's render
+        # modes) get this one.
+        if self.spec is None and ENV_ID in gym.registry:
+            self.spec = replace(
+                gym.spec(ENV_ID),
+                kwargs={
+                    "world": str(self.world_path), "drones": drones, "seed": seed, "action": action,
+                    "image": image, "reward": reward, "max_time_s": max_time_s,
+                    "steps_per_action": steps_per_action, "timestep_ms": timestep_ms,
+                    "start_jitter_m": start_jitter_m, "start_jitter_yaw": start_jitter_yaw,
+                    "max_distance_m": max_distance_m, "image_encoding": image_encoding,
+                    "world_server": world_server, "render_mode": render_mode,
+                    "reply_timeout_s": reply_timeout_s,
+                },
+            )  # fmt: skip
 
     # -- set-up ----------------------------------------------------------------
 
@@ -238,7 +293,7 @@ class WorldEnv(gym.Env):
         return existing
 
     def _drone_obs_space(self) -> spaces.Space:
-        state = spaces.Box(-np.inf, np.inf, (STATE_SIZE,), np.float64)
+        state = spaces.Box(self._state_low, self._state_high, (STATE_SIZE,), np.float64)
         if not self.image:
             return state
         img = spaces.Box(0, 255, (IMAGE_SIZE, IMAGE_SIZE), np.uint8)
@@ -353,12 +408,14 @@ class WorldEnv(gym.Env):
             if not np.all(np.isfinite(a)):
                 raise ValueError(f"action of drone {n} is not finite: {a}")
             box = self.action_space[n] if isinstance(self.action_space, spaces.Dict) else self.action_space
-            out[n] = np.clip(a, box.low, box.high)
+            a = np.clip(a, box.low, box.high)
+            # Physical units from here on.
+            out[n] = a * MAX_MOTOR_SPEED if self.action_mode == "motors" else a * VELOCITY_SCALE
         return out
 
     def _motors(self, name: str, a: np.ndarray) -> tuple[float, float, float, float]:
         if self.action_mode == "motors":
-            return tuple(float(x) for x in a)
+            return tuple(min(float(x), MAX_MOTOR_SPEED) for x in a)
         s = self.status[name]
         st = s.state
         roll, pitch, yaw = euler(st.qw, st.qx, st.qy, st.qz)
@@ -400,6 +457,9 @@ class WorldEnv(gym.Env):
             [st.x, st.y, st.z, st.vx, st.vy, st.vz, roll, pitch, yaw, st.omega_x, st.omega_y, st.omega_z],
             dtype=np.float64,
         )
+        # Within the space (the module's documentation): only a state past
+        # the episode's end or a crash is changed.
+        np.clip(state, self._state_low, self._state_high, out=state)
         if not self.image:
             return state
         return {"state": state, "image": self._images[name]}

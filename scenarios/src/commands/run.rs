@@ -167,8 +167,7 @@ pub(crate) fn cmd_world(a: WorldArgs, bins: BinArgs) -> anyhow::Result<ExitCode>
             .map(|(k, v)| format!(" --set {k}={v}"))
             .collect::<String>(),
     );
-    let status = cmd
-        .status()
+    let status = scenarios::signals::run_to_end(&mut cmd, scenarios::signals::Role::First)
         .with_context(|| format!("cannot start {}", bins.world_server.display()))?;
     Ok(if status.success() {
         ExitCode::SUCCESS

@@ -62,6 +62,14 @@ pub(crate) fn cmd_sweep(a: SweepArgs, bins: BinArgs) -> anyhow::Result<ExitCode>
     let opts = launch_options(&a.run, false)?;
     let rows = sweep::run_planned(&plan, a.shard, &bins, &out, a.jobs, &opts)?;
     let failed = rows.iter().filter(|r| r.error.is_some()).count();
+    if let Some(sig) = scenarios::signals::requested() {
+        eprintln!(
+            "cosim: the sweep was stopped by {}: {} of its {} runs not started",
+            scenarios::signals::name(sig),
+            plan.select(a.shard).len() - rows.len(),
+            plan.select(a.shard).len()
+        );
+    }
     match a.shard {
         None => {
             let md = std::fs::read_to_string(out.join(sweep::files::MARKDOWN))

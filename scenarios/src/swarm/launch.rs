@@ -19,10 +19,11 @@ use std::time::{Duration, Instant};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::launch::{
-    abs, describe, files, io_err, run_toml, wait_for_socket, Binaries, LaunchError, LaunchOptions,
-    LogSink, Supervised,
+    abs, describe, files, io_err, run_toml, wait_for_socket, Binaries, Echo, LaunchError,
+    LaunchOptions, LogSink, Supervised,
 };
 use crate::scenario::Scenario;
+use crate::signals::Role;
 
 /// The world's outputs of a run with several drones (besides DESIGN.md §6's
 /// `trajectory.csv` and `world.trace`).
@@ -41,6 +42,9 @@ const FAILURE_GRACE: Duration = Duration::from_secs(5);
 const WORLD_GRACE: Duration = Duration::from_secs(10);
 /// After the world ended cleanly: time for the platforms to write their outputs.
 const CLEAN_GRACE: Duration = Duration::from_secs(60);
+/// Where no progress bar is drawn: how often a platform's last console line
+/// is shown.
+const PLAIN_PROGRESS_EVERY: Duration = Duration::from_secs(15);
 
 /// How the processes of a run with several drones ended.
 #[derive(Debug, Clone)]
@@ -347,6 +351,8 @@ pub fn launch_swarm(
         world_command(scenario, bins, &socket, &out, opts)?,
         &sink,
         world_bar.clone(),
+        Role::First,
+        Echo::All,
     )?;
     let finish_bar = |bar: &Option<ProgressBar>, status: Option<ExitStatus>| {
         if let Some(b) = bar {
@@ -363,16 +369,31 @@ pub fn launch_swarm(
                 .iter()
                 .map(|p| (p.drone.clone(), None))
                 .collect(),
-            error: Some(error),
+            error: Some(crate::signals::requested().map_or(error, crate::signals::interrupted)),
             wall: started.elapsed(),
         });
     }
 
+    // The platforms' consoles (thousands of lines: a swarm's estimates at
+    // 100 Hz) go to the logs; the terminal shows each one's last line on
+    // its progress bar, or, where no bar is drawn, one line now and then.
+    let console = match &bars {
+        Some(b) if !b.is_hidden() => Echo::Never,
+        _ => Echo::Every(PLAIN_PROGRESS_EVERY),
+    };
     let mut sims: Vec<(Supervised, Option<ProgressBar>)> = Vec::new();
     for (i, p) in scenario.platforms.iter().enumerate() {
         let bar = new_bar(&p.drone);
         let cmd = sim_command(scenario, bins, &socket, &out, i, opts);
-        match Supervised::spawn_named("sim-core", p.drone.clone(), cmd, &sink, bar.clone()) {
+        match Supervised::spawn_named(
+            "sim-core",
+            p.drone.clone(),
+            cmd,
+            &sink,
+            bar.clone(),
+            Role::Follower,
+            console,
+        ) {
             Ok(s) => sims.push((s, bar)),
             Err(e) => {
                 for (s, _) in &mut sims {
@@ -491,6 +512,9 @@ pub fn launch_swarm(
     let world_status = world.join();
     if !world_bar.as_ref().is_some_and(|b| b.is_finished()) {
         finish_bar(&world_bar, world_status);
+    }
+    if let Some(sig) = crate::signals::requested() {
+        error = Some(crate::signals::interrupted(sig));
     }
     if error.is_none() {
         error = blame(&failures, scenario, &out);

@@ -187,6 +187,11 @@ pub fn run_planned(
     std::thread::scope(|scope| {
         for _ in 0..jobs.clamp(1, planned.len().max(1)) {
             scope.spawn(|| loop {
+                // Stopped by a signal: the runs started end (crate::signals),
+                // no new one starts; the table has the runs that exist.
+                if crate::signals::requested().is_some() {
+                    break;
+                }
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(run) = planned.get(i) else {
                     break;
