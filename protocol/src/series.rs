@@ -20,10 +20,10 @@ use std::path::{Path, PathBuf};
 /// The extension a compressed series adds to its CSV name.
 pub const ZST_EXT: &str = "zst";
 
-/// zstd's level for series: its default, which keeps the race's ~100 MB of
-/// CSV well under its 30 MB budget at a few percent of the run's wall time
-/// (docs/COSIM.md "Outputs").
-pub const ZSTD_LEVEL: i32 = 3;
+/// zstd's level for series: 1, the fastest of the standard levels and, on
+/// these logs, also the smallest (the race's power.csv: 5.2 MB at level 1,
+/// 6.0 MB at 3, 5.6 MB at 7; docs/COSIM.md "Outputs").
+pub const ZSTD_LEVEL: i32 = 1;
 
 /// How a run stores its series.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
