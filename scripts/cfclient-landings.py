@@ -162,7 +162,9 @@ def tilt(r: dict[str, float]) -> float:
 
 def replay(cosim: Path, rec: Path, out: Path) -> list[dict[str, float]]:
     p = subprocess.run([str(cosim), "run", "cflib-lab", "--out", str(out), "--no-plots", "--quiet",
-                        "--no-build", "--set", f"crtp=replay:{rec}", "--set", "crtp_idle_s=2"],
+                        "--no-build", "--set", f"crtp=replay:{rec}", "--set", "crtp_idle_s=2",
+                        # the plain trajectory.csv, kept after the run
+                        "--set", "output.compress=false"],
                        cwd=ROOT, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"cfclient-landings: cosim run failed:\n{p.stdout}{p.stderr}")

@@ -19,6 +19,8 @@
 //! - [`tokio_transport`]: a `tokio_util` codec on `LengthDelimitedCodec`,
 //!   for the world server.
 //! - [`trace`]: JSON-lines traces, writer and reader.
+//! - [`series`]: a run's series files (CSV, plain or zstd-compressed),
+//!   writer and reader.
 //! - [`Endpoint`]: `unix:PATH` (default) or `tcp:HOST:PORT`.
 //!
 //! The calls the two binaries make:
@@ -48,6 +50,7 @@ pub mod heap;
 mod image;
 mod message;
 pub mod radio;
+pub mod series;
 pub mod shm;
 pub mod tokio_transport;
 pub mod trace;

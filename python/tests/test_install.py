@@ -1,5 +1,6 @@
 """`pip install ./python` into a fresh venv works, and the installed package
-(no dependencies: the client is standard library only) flies a drone."""
+(the client is standard library only; the readers' one dependency is
+zstandard) flies a drone."""
 
 import os
 import subprocess

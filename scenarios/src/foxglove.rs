@@ -225,14 +225,14 @@ fn read_power(
         path: path.clone(),
         message: e.to_string(),
     };
-    let mut r = match csv::Reader::from_path(&path) {
-        Ok(r) => r,
-        // A platform that died before writing its log: nothing to merge.
-        Err(e) if matches!(e.kind(), csv::ErrorKind::Io(io) if io.kind() == std::io::ErrorKind::NotFound) => {
-            return Ok(())
-        }
-        Err(e) => return Err(rerr(&e)),
-    };
+    // A platform that died before writing its log: nothing to merge.
+    if !protocol::series::exists(&path) {
+        return Ok(());
+    }
+    // Of a log whose writer died, its valid prefix (the report says what
+    // was dropped).
+    let text = protocol::series::read(&path).map_err(|e| rerr(&e))?;
+    let mut r = csv::Reader::from_reader(&text.bytes[..]);
     let header = r.byte_headers().map_err(|e| rerr(&e))?.clone();
     let names: Vec<String> = header
         .iter()

@@ -409,7 +409,7 @@ pub fn world_command(
         .arg("--substeps")
         .arg(scenario.substeps.to_string())
         .arg("--trajectory")
-        .arg(out.join(files::TRAJECTORY))
+        .arg(out.join(scenario.run.series.file_name(files::TRAJECTORY)))
         .arg("--busy-poll-us")
         .arg(scenario.busy_poll_us.to_string());
     mcap_args(&mut cmd, scenario, out);

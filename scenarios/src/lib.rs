@@ -239,6 +239,11 @@ pub fn run_scenario(
             if let Some(m) = &map {
                 t.push_str(&mapping::summary_line(m));
             }
+            // A peer killed mid-run left its series cut short: the report
+            // above was made from what they hold.
+            for w in report::torn_series(out) {
+                t.push_str(&format!("   dropped        {w}\n"));
+            }
             if let Some(e) = &report_error {
                 t.push_str(&format!("   report error   {e}\n"));
             }

@@ -105,7 +105,11 @@ pub(crate) const PALETTE: [RGBColor; 8] = [
     RGBColor(23, 190, 207),
 ];
 
-/// One line chart in `area`.
+/// More points than this in a chart 1000 px wide: drawn one pixel wide.
+const DENSE_POINTS: usize = 1500;
+
+/// One line chart in `area`; `y_range` fixes the y axis (points beyond it
+/// are drawn at its edge), else it spans the points.
 fn line_chart(
     area: &DrawingArea<BitMapBackend<'_>, Shift>,
     title: &str,
@@ -113,15 +117,19 @@ fn line_chart(
     y_label: &str,
     series: &[Series],
     markers: bool,
+    y_range: Option<(f64, f64)>,
 ) -> Result<(), String> {
     let xs = span(
         series.iter().flat_map(|s| s.points.iter().map(|p| p.0)),
         0.0,
     );
-    let ys = span(
-        series.iter().flat_map(|s| s.points.iter().map(|p| p.1)),
-        0.05,
-    );
+    let ys = y_range.unwrap_or_else(|| {
+        span(
+            series.iter().flat_map(|s| s.points.iter().map(|p| p.1)),
+            0.05,
+        )
+    });
+    let clamp = |(x, y): (f64, f64)| (x, y.clamp(ys.0, ys.1));
     let mut chart = ChartBuilder::on(area)
         .caption(title, (FONT, 20))
         .margin(8)
@@ -140,10 +148,16 @@ fn line_chart(
         .map_err(|e| e.to_string())?;
     for (i, s) in series.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
+        // A series denser than the pixels (a decimated 1 ms log) zigzags
+        // within a pixel column; plotters joins thick lines with miters,
+        // which at such sharp turns shoot needles far off the chart (the
+        // race's take-off looked like a spike off the top). One pixel wide
+        // has no joins.
+        let width = if s.points.len() > DENSE_POINTS { 1 } else { 2 };
         let drawn = chart
             .draw_series(LineSeries::new(
-                s.points.iter().copied(),
-                color.stroke_width(2),
+                s.points.iter().copied().map(clamp),
+                color.stroke_width(width),
             ))
             .map_err(|e| e.to_string())?;
         if series.len() > 1 {
@@ -153,7 +167,11 @@ fn line_chart(
         }
         if markers {
             chart
-                .draw_series(s.points.iter().map(|&p| Circle::new(p, 4, color.filled())))
+                .draw_series(
+                    s.points
+                        .iter()
+                        .map(|&p| Circle::new(clamp(p), 4, color.filled())),
+                )
                 .map_err(|e| e.to_string())?;
         }
     }
@@ -178,13 +196,26 @@ pub fn panels(
     charts: &[(String, String, Vec<Series>)],
     markers: bool,
 ) -> Result<(), PlotError> {
+    panels_in(path, x_label, charts, markers, None)
+}
+
+/// As [`panels`], every panel on the y range `y_range` (a shared axis, so
+/// that the panels compare at a glance).
+pub fn panels_in(
+    path: &Path,
+    x_label: &str,
+    charts: &[(String, String, Vec<Series>)],
+    markers: bool,
+    y_range: Option<(f64, f64)>,
+) -> Result<(), PlotError> {
     fonts();
     let height = 300 * charts.len().max(1) as u32;
     let root = BitMapBackend::new(path, (1000, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(path, e))?;
     let areas = root.split_evenly((charts.len().max(1), 1));
     for (area, (title, y_label, series)) in areas.iter().zip(charts) {
-        line_chart(area, title, x_label, y_label, series, markers).map_err(|e| err(path, e))?;
+        line_chart(area, title, x_label, y_label, series, markers, y_range)
+            .map_err(|e| err(path, e))?;
     }
     root.present().map_err(|e| err(path, e))
 }
@@ -201,7 +232,7 @@ pub fn overlay(
     fonts();
     let root = BitMapBackend::new(path, (1000, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(path, e))?;
-    line_chart(&root, title, x_label, y_label, series, markers).map_err(|e| err(path, e))?;
+    line_chart(&root, title, x_label, y_label, series, markers, None).map_err(|e| err(path, e))?;
     root.present().map_err(|e| err(path, e))
 }
 

@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use protocol::series;
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
 use sim_core::kernel::Summary;
@@ -46,22 +47,55 @@ pub fn read_summary(out: &Path) -> Result<Summary, ReportError> {
     serde_json::from_str(&text).map_err(|e| read_err(&path, e))
 }
 
-/// Reads every row of a CSV file into `T` (columns by header name).
-pub fn read_csv<T: DeserializeOwned>(path: &Path) -> Result<Vec<T>, ReportError> {
-    let mut r = csv::Reader::from_path(path).map_err(|e| read_err(path, e))?;
-    r.deserialize()
-        .collect::<Result<Vec<T>, _>>()
-        .map_err(|e| read_err(path, e))
+impl From<series::SeriesError> for ReportError {
+    fn from(e: series::SeriesError) -> Self {
+        read_err(&e.path, e.source)
+    }
 }
 
-/// The first row of a CSV file (`None`: no rows), without reading the rest:
+/// Reads every row of a series or CSV file into `T` (columns by header
+/// name). `path` names the series in either form (`out/power.csv` reads
+/// `out/power.csv.zst`, [`series::read`]); of a file whose writer died, the
+/// valid prefix is read, with one warning saying what was dropped.
+pub fn read_csv<T: DeserializeOwned>(path: &Path) -> Result<Vec<T>, ReportError> {
+    let text = series::read(path)?;
+    if let Some(w) = text.warning() {
+        tracing::warn!("{w}");
+    }
+    csv::Reader::from_reader(&text.bytes[..])
+        .deserialize()
+        .collect::<Result<Vec<T>, _>>()
+        .map_err(|e| read_err(&text.path, e))
+}
+
+/// The first row of a series (`None`: no rows), without reading the rest:
 /// a race's `power.csv` is tens of MB.
 pub fn read_first<T: DeserializeOwned>(path: &Path) -> Result<Option<T>, ReportError> {
-    let mut r = csv::Reader::from_path(path).map_err(|e| read_err(path, e))?;
+    let mut r = csv::Reader::from_reader(series::open(path)?);
     r.deserialize()
         .next()
         .transpose()
-        .map_err(|e| read_err(path, e))
+        .map_err(|e| read_err(&series::resolve(path), e))
+}
+
+/// The series a run's report reads, by their CSV names.
+pub fn run_series() -> Vec<String> {
+    std::iter::once(POWER_CSV.to_string())
+        .chain(PowerModelKind::ALL.map(model_csv_name))
+        .chain(std::iter::once(files::TRAJECTORY.to_string()))
+        .collect()
+}
+
+/// One line per series of `out` whose writer stopped mid-file (a peer
+/// killed mid-run): what was kept and what was dropped. Whole files cost a
+/// read of their bytes, no decoding.
+pub fn torn_series(out: &Path) -> Vec<String> {
+    run_series()
+        .iter()
+        .map(|name| out.join(name))
+        .filter(|p| series::exists(p) && !series::is_whole(p).unwrap_or(true))
+        .filter_map(|p| series::read(&p).ok()?.warning())
+        .collect()
 }
 
 /// The columns of `power.csv` the report uses.
@@ -110,11 +144,39 @@ pub fn initial_soc(power: &[PowerRow]) -> f64 {
     power.first().map_or(1.0, |r| r.soc)
 }
 
+/// The columns of `power.csv` the battery plot uses.
+#[derive(Debug, Clone, Deserialize)]
+struct BatteryRow {
+    time_s: f64,
+    v_oc_v: f64,
+    v_battery_v: f64,
+    soc: f64,
+}
+
+/// The top of the power plot's shared axis: the largest power once the
+/// propellers have run [`SETTLE_S`], with a margin. The take-off transient
+/// before it (D'Andrea's and Stolaroff's accelerations, tens of W for a few
+/// samples) would squash the flight into the bottom of the axis; it is
+/// drawn at the edge and its peak named in the title.
+fn power_ceiling(models: &[Vec<(f64, f64)>]) -> Option<f64> {
+    let settled = models.iter().flat_map(|pts| {
+        let t0 = pts.first().map_or(0.0, |p| p.0);
+        pts.iter()
+            .filter(move |p| p.0 >= t0 + SETTLE_S)
+            .map(|p| p.1)
+    });
+    let top = settled.fold(f64::NEG_INFINITY, f64::max);
+    (top.is_finite() && top > 0.0).then_some(top * 1.1)
+}
+
+/// Seconds of propeller time the take-off transient lasts, at most.
+const SETTLE_S: f64 = 1.0;
+
 /// The platform's two plots (Fig. 5.5): the three models' power, and the
 /// battery's SOC and voltage, from the CSVs in `out`.
 pub fn draw_power_plots(scenario: &Scenario, out: &Path) -> Result<[PathBuf; 2], ReportError> {
-    let power: Vec<PowerRow> = read_csv(&out.join(POWER_CSV))?;
-    let mut charts = Vec::new();
+    let power: Vec<BatteryRow> = read_csv(&out.join(POWER_CSV))?;
+    let mut models = Vec::new();
     for kind in PowerModelKind::ALL {
         let rows: Vec<ModelRow> = read_csv(&out.join(model_csv_name(kind)))?;
         // As the thesis's plotting script (§5.1): samples with the
@@ -124,27 +186,91 @@ pub fn draw_power_plots(scenario: &Scenario, out: &Path) -> Result<[PathBuf; 2],
             .filter(|r| r.mean_omega_rad_s > 0.0)
             .map(|r| (r.time_s, r.power_w))
             .collect();
-        let title = match kind {
-            PowerModelKind::Empirical => "Empirical model (Eq. 3.1-3.3)",
-            PowerModelKind::DAndrea => "D'Andrea model (Table 4.4)",
-            PowerModelKind::Stolaroff => "Stolaroff model (Table 4.5, x5)",
-        };
-        charts.push((
-            title.to_string(),
-            "power (W)".to_string(),
-            vec![Series {
-                label: kind.name().to_string(),
-                points: plot::decimate(&pts, 4000),
-            }],
-        ));
+        models.push((kind, pts));
+    }
+    let pts: Vec<Vec<(f64, f64)>> = models.iter().map(|(_, p)| p.clone()).collect();
+    let peak = models
+        .iter()
+        .flat_map(|(k, p)| p.iter().map(move |q| (q.1, *k)))
+        .fold(None, |m: Option<(f64, PowerModelKind)>, (v, k)| match m {
+            Some((mv, _)) if mv >= v => m,
+            _ => Some((v, k)),
+        });
+    let ceiling = power_ceiling(&pts);
+    let factor = scenario.run.models.stolaroff_factor;
+    let label = |k: PowerModelKind| match k {
+        PowerModelKind::Empirical => "empirical (Eq. 3.1-3.3)".to_string(),
+        PowerModelKind::DAndrea => "D'Andrea (Table 4.4)".to_string(),
+        PowerModelKind::Stolaroff => {
+            format!("Stolaroff (Table 4.5) x{factor} correction (sec. 5.1)")
+        }
+    };
+    let off_scale = match (peak, ceiling) {
+        (Some((p, k)), Some(c)) if p > c => {
+            format!("; take-off peak {p:.1} W ({}) off the scale", k.name())
+        }
+        _ => String::new(),
+    };
+    let all: Vec<Series> = models
+        .iter()
+        .map(|(k, p)| Series {
+            label: label(*k),
+            points: plot::decimate(p, 4000),
+        })
+        .collect();
+    let mut charts = vec![(
+        format!("The three motor models on one axis{off_scale}"),
+        "power (W)".to_string(),
+        all.clone(),
+    )];
+    for s in all {
+        charts.push((format!("{} model", s.label), "power (W)".into(), vec![s]));
     }
     let power_png = out.join(plots::POWER);
-    plot::panels(&power_png, "time (s)", &charts, false)?;
+    plot::panels_in(
+        &power_png,
+        "time (s)",
+        &charts,
+        false,
+        ceiling.map(|c| (0.0, c)),
+    )?;
 
     let battery_png = out.join(plots::BATTERY);
     let soc: Vec<(f64, f64)> = power.iter().map(|r| (r.time_s, r.soc * 100.0)).collect();
     let volt: Vec<(f64, f64)> = power.iter().map(|r| (r.time_s, r.v_battery_v)).collect();
+    let v_oc: Vec<(f64, f64)> = power.iter().map(|r| (r.time_s, r.v_oc_v)).collect();
     let model = scenario.run.get("battery").unwrap_or_default();
+    // The thesis's battery (no internal resistance to speak of) follows its
+    // fitted curve, which for the LiPol rises as the charge falls: said on
+    // the plot, so that nobody reads it as a battery that charges itself.
+    let rising = match (power.first(), power.last()) {
+        (Some(a), Some(b)) => b.v_battery_v > a.v_battery_v && b.soc < a.soc,
+        _ => false,
+    };
+    let load = scenario.run.get("battery_load").unwrap_or_default();
+    let volt_title = if rising {
+        format!(
+            "Battery voltage: rises as the charge falls (the thesis's fitted curve; battery_load = {load})"
+        )
+    } else {
+        format!("Battery voltage (battery_load = {load})")
+    };
+    let mut volt_series = vec![Series {
+        label: "terminal".into(),
+        points: plot::decimate(&volt, 4000),
+    }];
+    // The open-circuit curve too when the load visibly pulls the terminal
+    // voltage under it (battery_load = sag).
+    let sag = power
+        .iter()
+        .map(|r| r.v_oc_v - r.v_battery_v)
+        .fold(0.0, f64::max);
+    if sag > 0.01 {
+        volt_series.push(Series {
+            label: "open-circuit".into(),
+            points: plot::decimate(&v_oc, 4000),
+        });
+    }
     plot::panels(
         &battery_png,
         "time (s)",
@@ -157,14 +283,7 @@ pub fn draw_power_plots(scenario: &Scenario, out: &Path) -> Result<[PathBuf; 2],
                     points: plot::decimate(&soc, 4000),
                 }],
             ),
-            (
-                "Battery voltage".into(),
-                "V (V)".into(),
-                vec![Series {
-                    label: "V".into(),
-                    points: plot::decimate(&volt, 4000),
-                }],
-            ),
+            (volt_title, "V (V)".into(), volt_series),
         ],
         false,
     )?;
@@ -176,7 +295,7 @@ pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, R
     let [power_png, battery_png] = draw_power_plots(scenario, out)?;
 
     let traj_path = out.join(files::TRAJECTORY);
-    if !traj_path.exists() {
+    if !series::exists(&traj_path) {
         // Another world server (`--world-cmd`) writes no trajectory.
         tracing::warn!("no {}: no top view", traj_path.display());
         return Ok(vec![power_png, battery_png]);

@@ -59,7 +59,7 @@ fn the_kernel_runs_the_cluster_and_logs_its_power() {
         console.contains("cluster: 8 cores, counter 4000"),
         "{console}"
     );
-    let csv = std::fs::read_to_string(dir.path().join("power.csv")).unwrap();
+    let csv = series_text(&dir.path().join("power.csv"));
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
@@ -89,7 +89,7 @@ fn without_a_cluster_section_power_csv_keeps_its_columns() {
     let (dir, out) = run("hello", PlatformConfig::default_crazyflie());
     assert!(out.error.is_none(), "{:?}", out.error);
     assert_eq!(out.summary.energy_j.cluster, None);
-    let csv = std::fs::read_to_string(dir.path().join("power.csv")).unwrap();
+    let csv = series_text(&dir.path().join("power.csv"));
     assert!(!csv.lines().next().unwrap().contains("cluster"));
     // And a cluster program on that platform is a clear failure, not a
     // hang: its first L1 access faults.
@@ -99,4 +99,10 @@ fn without_a_cluster_section_power_csv_keeps_its_columns() {
         err.contains("load access fault") && err.contains("mtval 0x10008000"),
         "{err}"
     );
+}
+
+/// A series file's text, in whichever form the run wrote it
+/// (`power.csv` or `power.csv.zst`).
+fn series_text(path: &std::path::Path) -> String {
+    String::from_utf8(protocol::series::read(path).unwrap().bytes).unwrap()
 }

@@ -168,7 +168,7 @@ fn run(ts_ms: u64) {
         "{uwb} vs {expected}"
     );
     assert_eq!(s.energy_j.p2p, Some(0.0));
-    let csv = std::fs::read_to_string(dir.path().join("power.csv")).unwrap();
+    let csv = series_text(&dir.path().join("power.csv"));
     assert!(csv.lines().next().unwrap().ends_with(",i_uwb_a,i_p2p_a"));
 }
 
@@ -198,8 +198,14 @@ fn a_single_drone_platform_reports_no_radio_columns() {
         unreachable!()
     };
     assert_eq!(*drone, None);
-    let csv = std::fs::read_to_string(dir.path().join("power.csv")).unwrap();
+    let csv = series_text(&dir.path().join("power.csv"));
     assert!(csv.lines().next().unwrap().ends_with(",power_model"));
     let json = std::fs::read_to_string(dir.path().join("summary.json")).unwrap();
     assert!(!json.contains("\"drone\"") && !json.contains("\"radios\""));
+}
+
+/// A series file's text, in whichever form the run wrote it
+/// (`power.csv` or `power.csv.zst`).
+fn series_text(path: &std::path::Path) -> String {
+    String::from_utf8(protocol::series::read(path).unwrap().bytes).unwrap()
 }

@@ -195,6 +195,7 @@ fn non_default(key: &str) -> &'static str {
         "crtp_idle_s" => "2.5",
         "cluster.cores" => "4",
         "cluster.mhz" => "90",
+        "output.compress" => "false",
         // The ISS back end that is not the host's default.
         "iss" if cfg!(target_arch = "x86_64") => "interp",
         "iss" => "jit",

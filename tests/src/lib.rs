@@ -147,14 +147,33 @@ pub fn output_text(o: &Output) -> String {
     )
 }
 
-/// Asserts that each of `files` (paths relative to `a` and `b`) has the same
-/// bytes in both directories: the byte-identical-outputs check of every
-/// end-to-end test. `what` ends the message ("between two runs").
+/// The file that holds a series named by its CSV name (`out/power.csv` is
+/// `out/power.csv.zst` when the run compressed its series); any other path
+/// as it is.
+pub fn series_file(path: &Path) -> PathBuf {
+    protocol::series::resolve(path)
+}
+
+/// The text of a series or CSV file, in either form; a file torn by a
+/// writer that died fails the test.
+pub fn read_series(path: &Path) -> String {
+    let text = protocol::series::read(path).unwrap_or_else(|e| panic!("{e}"));
+    if let Some(w) = text.warning() {
+        panic!("{w}");
+    }
+    String::from_utf8(text.bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Asserts that each of `files` (paths relative to `a` and `b`; a series by
+/// its CSV name, in whichever form the runs wrote it) has the same bytes in
+/// both directories: the byte-identical-outputs check of every end-to-end
+/// test. `what` ends the message ("between two runs").
 pub fn assert_same_files<S: AsRef<str>>(a: &Path, b: &Path, files: &[S], what: &str) {
     for f in files {
         let f = f.as_ref();
         let read = |dir: &Path| {
-            std::fs::read(dir.join(f)).unwrap_or_else(|e| panic!("{}: {e}", dir.join(f).display()))
+            let p = series_file(&dir.join(f));
+            std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
         };
         // Not assert_eq!: a mismatch would print two whole files.
         assert!(read(a) == read(b), "{f} differs {what}");

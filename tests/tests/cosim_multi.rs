@@ -20,7 +20,7 @@ fn json(path: &Path) -> Value {
 }
 
 fn csv_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let text = e2e_tests::read_series(path);
     let mut lines = text.lines();
     let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
     let rows = lines
@@ -65,7 +65,8 @@ fn check_platform(dir: &Path, s: &Value) {
         "report.txt",
         "trajectory.csv",
     ] {
-        assert!(dir.join(f).is_file(), "{} missing", dir.join(f).display());
+        let p = e2e_tests::series_file(&dir.join(f));
+        assert!(p.is_file(), "{} missing", p.display());
     }
     assert_eq!(&json(&dir.join("summary.json")), s);
     // The platform's trace has every frame it exchanged.
@@ -615,5 +616,5 @@ fn killing_one_platform_ends_the_run_with_the_outputs_flushed() {
     assert_eq!(d1["completed"], false, "{d1}");
     assert!(d1["error"].is_string(), "{d1}");
     assert!(!trace_lines(&out.join("d1/platform.trace")).is_empty());
-    assert!(out.join("d1/power.csv").is_file());
+    assert!(e2e_tests::series_file(&out.join("d1/power.csv")).is_file());
 }

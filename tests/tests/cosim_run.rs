@@ -20,7 +20,7 @@ fn deterministic(mut s: Value) -> Value {
 }
 
 fn csv_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let text = e2e_tests::read_series(path);
     let mut lines = text.lines();
     let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
     let rows = lines
@@ -388,7 +388,10 @@ fn a_failed_run_is_a_row_of_the_sweep() {
     assert!(out.join("sweep_soc.png").is_file());
     // The failed run's partial outputs are kept.
     let failed_dir = out.join("run-001_max_time_s=3");
-    assert!(failed_dir.join("power.csv").is_file() && failed_dir.join("cosim.log").is_file());
+    assert!(
+        e2e_tests::series_file(&failed_dir.join("power.csv")).is_file()
+            && failed_dir.join("cosim.log").is_file()
+    );
 }
 
 #[test]

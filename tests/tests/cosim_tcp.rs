@@ -13,7 +13,7 @@ use std::path::Path;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
-use e2e_tests::{output_text as text, CosimBins as Bins, PLATFORM_FILES};
+use e2e_tests::{output_text as text, series_file, CosimBins as Bins, PLATFORM_FILES};
 use serde_json::Value;
 
 /// `cosim world ... --listen tcp:127.0.0.1:PORT`, in the background.
@@ -116,14 +116,14 @@ fn the_short_hop_split_over_tcp_is_the_unix_socket_run() {
     );
     same_bytes(&unix.join("world.trace"), &world_out.join("world.trace"));
     same_bytes(
-        &unix.join("trajectory.csv"),
-        &world_out.join("trajectory.csv"),
+        &series_file(&unix.join("trajectory.csv")),
+        &series_file(&world_out.join("trajectory.csv")),
     );
     for f in PLATFORM_FILES {
-        same_bytes(&unix.join(f), &platform.join(f));
+        same_bytes(&series_file(&unix.join(f)), &series_file(&platform.join(f)));
     }
     // The world's outputs are where the world ran, not beside the platform's.
-    assert!(!platform.join("trajectory.csv").exists());
+    assert!(!series_file(&platform.join("trajectory.csv")).exists());
     assert!(std::fs::read_to_string(platform.join("cosim.log"))
         .unwrap()
         .contains(&format!("world at {endpoint}")));

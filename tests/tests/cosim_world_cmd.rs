@@ -39,6 +39,6 @@ fn cosim_runs_the_python_world_in_place_of_ours() {
     assert_eq!(summary["targets_reached"], 1);
     assert_eq!(summary["estimate_error_pct"], 0.0);
     // Our world's trajectory is not there; the power plots are.
-    assert!(!out.path().join("trajectory.csv").exists());
+    assert!(!e2e_tests::series_file(&out.path().join("trajectory.csv")).exists());
     assert!(out.path().join("power_models.png").exists());
 }

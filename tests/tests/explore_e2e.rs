@@ -71,7 +71,7 @@ fn an_unseen_room_is_explored_landed_and_reproduced() {
     assert!(m["goals"].as_u64().unwrap() >= 1, "{m}");
     assert!(m["map_cycles"].as_u64().unwrap() > 0, "{m}");
     // Landed: the trajectory ends on the ground.
-    let traj = std::fs::read_to_string(dirs[0].join("trajectory.csv")).unwrap();
+    let traj = e2e_tests::read_series(&dirs[0].join("trajectory.csv"));
     let last: Vec<f64> = traj
         .lines()
         .last()

@@ -67,7 +67,8 @@ fn run(b: &Bins, out: &Path, extra: &[&str]) {
 }
 
 fn trajectory_times(path: &Path, drone: Option<&str>) -> Vec<u64> {
-    let mut r = csv::Reader::from_path(path).unwrap();
+    let text = e2e_tests::read_series(path);
+    let mut r = csv::Reader::from_reader(text.as_bytes());
     r.records()
         .map(|rec| rec.unwrap())
         .filter(|rec| drone.is_none_or(|d| &rec[1] == d))
@@ -123,7 +124,8 @@ fn a_flight_writes_a_complete_run_mcap_the_same_twice_and_none_with_no_mcap() {
         assert_eq!(ns, m.2);
     }
     // The last pose is the trajectory's last position.
-    let mut r = csv::Reader::from_path(a.join("trajectory.csv")).unwrap();
+    let traj = e2e_tests::read_series(&a.join("trajectory.csv"));
+    let mut r = csv::Reader::from_reader(traj.as_bytes());
     let last = r.records().last().unwrap().unwrap();
     let x: f64 = last[1].parse().unwrap();
     assert_eq!(
@@ -160,11 +162,11 @@ fn a_flight_writes_a_complete_run_mcap_the_same_twice_and_none_with_no_mcap() {
     // Power and battery: rows 0, 10, 20, … of power.csv (the default
     // mcap_power_every) and its last, at their times; the last SOC the
     // summary's.
-    let t_ps: Vec<u64> = csv::Reader::from_path(a.join("power.csv"))
-        .unwrap()
-        .deserialize::<std::collections::HashMap<String, String>>()
-        .map(|r| r.unwrap()["t_ps"].parse().unwrap())
-        .collect();
+    let t_ps: Vec<u64> =
+        csv::Reader::from_reader(e2e_tests::read_series(&a.join("power.csv")).as_bytes())
+            .deserialize::<std::collections::HashMap<String, String>>()
+            .map(|r| r.unwrap()["t_ps"].parse().unwrap())
+            .collect();
     let kept: Vec<u64> = t_ps
         .iter()
         .enumerate()
@@ -273,7 +275,8 @@ fn check_cut_world_file_merges(a: &Path, tmp: &Path) {
     let cut: PathBuf = tmp.join("cut");
     std::fs::create_dir(&cut).unwrap();
     std::fs::write(cut.join("world.mcap"), &bytes[..bytes.len() / 2]).unwrap();
-    std::fs::copy(a.join("power.csv"), cut.join("power.csv")).unwrap();
+    let power = e2e_tests::series_file(&a.join("power.csv"));
+    std::fs::copy(&power, cut.join(power.file_name().unwrap())).unwrap();
     let merged = scenarios::foxglove::write_run_mcap(
         &cut,
         &[scenarios::foxglove::DroneOutputs {

@@ -60,7 +60,7 @@ fn failed_run(mut cmd: Command, dir: &Path) -> (String, serde_json::Value) {
         "motor_dandrea.csv",
         "motor_stolaroff.csv",
     ] {
-        let text = std::fs::read_to_string(dir.join("out").join(csv)).unwrap();
+        let text = e2e_tests::read_series(&dir.join("out").join(csv));
         let widths: Vec<usize> = text.lines().map(|l| l.split(',').count()).collect();
         assert!(!widths.is_empty(), "{csv} is empty");
         assert!(

@@ -57,8 +57,7 @@ struct Run {
 
 impl Run {
     fn read(&self, name: &str) -> String {
-        std::fs::read_to_string(self.dir.path().join(name))
-            .unwrap_or_else(|e| panic!("{name}: {e}"))
+        e2e_tests::read_series(&self.dir.path().join(name))
     }
 
     /// The distances a drone printed (m).

@@ -60,7 +60,7 @@ fn estimate(console: &str, what: &str) -> [f64; 4] {
 
 /// The trajectory's rows as numbers (header skipped).
 fn trajectory(dir: &Path) -> Vec<Vec<f64>> {
-    let t = std::fs::read_to_string(dir.join("trajectory.csv")).unwrap();
+    let t = e2e_tests::read_series(&dir.join("trajectory.csv"));
     t.lines()
         .skip(1)
         .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())

@@ -240,7 +240,7 @@ fn shards_through_gnu_parallel_merge_into_the_one_machine_table() {
     let o = b.cosim(&["sweep", "--merge", &s(&sharded), "--out", &s(&elsewhere)]);
     assert!(o.status.success(), "{}", text(&o));
     assert_eq!(comparable(&elsewhere.join("sweep.csv")).1, frows);
-    assert!(run_dir(&elsewhere, "run-003_").join("power.csv").is_file());
+    assert!(e2e_tests::series_file(&run_dir(&elsewhere, "run-003_").join("power.csv")).is_file());
 
     // Refusals, each one line naming what is wrong, nothing written.
     let missing = tmp.path().join("missing");

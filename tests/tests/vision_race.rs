@@ -29,7 +29,7 @@ fn run(bins: &CosimBins, firmware: &str, out: &Path) -> std::process::Output {
 /// The last row's `collisions` and `gates_passed` (the world's running
 /// counts, there even when the run never reached STOP).
 fn last_counts(dir: &Path) -> (u64, u64) {
-    let t = std::fs::read_to_string(dir.join("trajectory.csv")).unwrap();
+    let t = e2e_tests::read_series(&dir.join("trajectory.csv"));
     let header: Vec<&str> = t.lines().next().unwrap().split(',').collect();
     let last: Vec<&str> = t.lines().last().unwrap().split(',').collect();
     let col = |name: &str| {

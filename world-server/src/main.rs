@@ -57,7 +57,8 @@ struct Cli {
     #[arg(long, value_name = "DIR")]
     frames_dir: Option<PathBuf>,
     /// Write one CSV row per world step (time, pose, velocities, motors, collisions);
-    /// with several drones one row per drone per step, with a `drone` column.
+    /// with several drones one row per drone per step, with a `drone` column;
+    /// zstd-compressed when FILE ends in `.zst`.
     #[arg(long, value_name = "FILE")]
     trajectory: Option<PathBuf>,
     /// Write one CSV row per radio frame and receiver with its outcome.

@@ -2,10 +2,13 @@
 //! position, attitude, velocities, signed motor speeds, collisions. With
 //! several drones (DESIGN.md §7): one row per drone per step, in world-file
 //! order, with a `drone` column second; one drone keeps [`HEADER`] exactly.
+//!
+//! A series file ([`protocol::series`]): a `FILE` ending in `.zst` is
+//! written zstd-compressed.
 
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::Path;
+
+use protocol::series::SeriesWriter;
 
 use crate::sensors::DroneState;
 
@@ -33,10 +36,11 @@ pub const HEADER: [&str; 17] = [
 /// The name of the column a world with several drones adds (second).
 pub const DRONE_COLUMN: &str = "drone";
 
-/// Writes the trajectory; call [`TrajectoryWriter::flush`] on every exit path
-/// (dropping it also flushes, but cannot report an error).
+/// Writes the trajectory; call [`TrajectoryWriter::finish`] on every exit
+/// path (dropping it also finishes, but cannot report an error).
 pub struct TrajectoryWriter {
-    out: csv::Writer<BufWriter<File>>,
+    /// `None` once finished.
+    out: Option<csv::Writer<SeriesWriter>>,
     multi: bool,
     rec: csv::StringRecord,
 }
@@ -44,8 +48,9 @@ pub struct TrajectoryWriter {
 impl TrajectoryWriter {
     /// `multi`: the world has several drones (rows carry the drone's name).
     pub fn create(path: &Path, multi: bool) -> Result<TrajectoryWriter, csv::Error> {
-        let file = File::create(path)?;
-        let mut out = csv::Writer::from_writer(BufWriter::new(file));
+        // The series writer buffers; the csv crate's own buffer in front of
+        // it stays at its default.
+        let mut out = csv::Writer::from_writer(SeriesWriter::create(path)?);
         if multi {
             let mut h = HEADER.to_vec();
             h.insert(1, DRONE_COLUMN);
@@ -54,7 +59,7 @@ impl TrajectoryWriter {
             out.write_record(HEADER)?;
         }
         Ok(TrajectoryWriter {
-            out,
+            out: Some(out),
             multi,
             rec: csv::StringRecord::with_capacity(256, HEADER.len() + 1),
         })
@@ -79,11 +84,19 @@ impl TrajectoryWriter {
         rec.push_field(&s.collisions.to_string());
         rec.push_field(&s.ground_contacts.to_string());
         rec.push_field(&s.gates_passed.to_string());
-        self.out.write_record(&*rec)
+        match &mut self.out {
+            Some(out) => out.write_record(&*rec),
+            None => Err(std::io::Error::other("trajectory written after its end").into()),
+        }
     }
 
-    pub fn flush(&mut self) -> std::io::Result<()> {
-        self.out.flush()
+    /// Writes every row and ends the file (a compressed file's frame);
+    /// later rows fail.
+    pub fn finish(&mut self) -> std::io::Result<()> {
+        match self.out.take() {
+            Some(out) => out.into_inner().map_err(|e| e.into_error())?.finish(),
+            None => Ok(()),
+        }
     }
 }
 
@@ -109,7 +122,7 @@ mod tests {
             gates_passed: 3,
         };
         w.row(&s, "cf1").unwrap();
-        w.flush().unwrap();
+        w.finish().unwrap();
         let mut r = csv::Reader::from_path(&path).unwrap();
         assert_eq!(r.headers().unwrap().iter().collect::<Vec<_>>(), HEADER);
         let rec = r.records().next().unwrap().unwrap();
@@ -139,9 +152,16 @@ mod tests {
         };
         w.row(&s, "A").unwrap();
         w.row(&s, "B").unwrap();
-        w.flush().unwrap();
+        w.finish().unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         let lines: Vec<&str> = text.lines().collect();
+        // The compressed form holds the same text.
+        let zst = dir.path().join("t.csv.zst");
+        let mut w = TrajectoryWriter::create(&zst, true).unwrap();
+        w.row(&s, "A").unwrap();
+        w.row(&s, "B").unwrap();
+        w.finish().unwrap();
+        assert_eq!(protocol::series::read(&zst).unwrap().bytes, text.as_bytes());
         assert!(
             lines[0].starts_with("time_ms,drone,x,y,z,roll"),
             "{}",

@@ -13,13 +13,22 @@ Tables are pandas DataFrames when pandas is installed (``tables="pandas"``,
 the default ``"auto"``) and lists of dicts otherwise (``tables="rows"``):
 numbers become ``int``/``float``, empty cells ``None``, other text stays
 ``str``.
+
+The series (``power.csv``, the motor CSVs, ``trajectory.csv``) are stored
+zstd-compressed by default (``power.csv.zst``; run key ``output.compress``):
+every reader here takes a series by its CSV name and finds either form
+(:func:`series_path`). A file whose writer died mid-run (a torn last row, a
+cut zstd frame) is read up to its last whole row, with one warning
+(:class:`TornSeriesWarning`) saying what was dropped.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +37,55 @@ MOTOR_MODELS = ("empirical", "dandrea", "stolaroff")
 
 class OutputError(ValueError):
     """A missing or malformed output file."""
+
+
+class TornSeriesWarning(UserWarning):
+    """A series file whose writer stopped mid-file: its valid prefix was read."""
+
+
+def series_path(path: str | os.PathLike) -> Path:
+    """The file that holds the series ``path`` names in either form:
+    ``out/power.csv`` finds ``out/power.csv.zst``."""
+    path = Path(path)
+    if path.exists():
+        return path
+    other = path.with_suffix("") if path.suffix == ".zst" else path.with_name(path.name + ".zst")
+    return other if other.is_file() else path
+
+
+def read_series_bytes(path: str | os.PathLike) -> bytes:
+    """The whole lines of a series file in either form (plain or ``.zst``).
+    Of a file whose writer died, the valid prefix, with one
+    :class:`TornSeriesWarning`."""
+    path = series_path(path)
+    if not path.is_file():
+        raise OutputError(f"{path}: no such file")
+    data = path.read_bytes()
+    frame_note = ""
+    if path.suffix == ".zst":
+        try:
+            import zstandard
+        except ImportError:
+            raise OutputError(f"{path}: reading .zst series needs the `zstandard` package (pip install zstandard)") from None
+        # A decompressobj, unlike a whole-frame decompress, gives what it can
+        # of a frame that breaks off and says so (eof stays False).
+        d = zstandard.ZstdDecompressor().decompressobj()
+        try:
+            data = d.decompress(data)
+        except zstandard.ZstdError as e:
+            raise OutputError(f"{path}: not a readable zstd file ({e})") from None
+        if not d.eof:
+            frame_note = ", and the rows the writer had not yet compressed to the file (the zstd frame is incomplete)"
+    cut = data.rfind(b"\n") + 1
+    partial = len(data) - cut
+    if partial or frame_note:
+        data = data[:cut]
+        rows = max(data.count(b"\n") - 1, 0)
+        note = f"{path}: its writer stopped mid-file: kept {rows} rows"
+        if partial:
+            note += f", dropped a torn last row ({partial} bytes)"
+        warnings.warn(note + frame_note, TornSeriesWarning, stacklevel=2)
+    return data
 
 
 def _have_pandas() -> bool:
@@ -53,21 +111,21 @@ def _cell(text: str) -> Any:
 
 def read_csv(path: str | os.PathLike, tables: str = "auto"):
     """One of our CSV files (a header line, then rows) as a DataFrame or
-    a list of dicts (see the module's documentation)."""
-    path = Path(path)
-    if not path.is_file():
-        raise OutputError(f"{path}: no such file")
+    a list of dicts (see the module's documentation); a series in either
+    form (:func:`read_series_bytes`)."""
     use_pandas = tables == "pandas" or (tables == "auto" and _have_pandas())
     if tables not in ("auto", "pandas", "rows"):
         raise ValueError(f'tables must be "auto", "pandas" or "rows", not {tables!r}')
+    path = series_path(path)
+    data = read_series_bytes(path)
     if use_pandas:
         import pandas as pd
 
         try:
-            return pd.read_csv(path)
+            return pd.read_csv(io.BytesIO(data))
         except pd.errors.EmptyDataError:
             raise OutputError(f"{path}: empty file (no header)") from None
-    with open(path, newline="") as f:
+    with io.TextIOWrapper(io.BytesIO(data), newline="") as f:
         reader = csv.reader(f)
         try:
             header = next(reader)
@@ -123,7 +181,7 @@ class Run:
         return read_csv(self.file(name), self.tables)
 
     def power(self):
-        """``power.csv``: 1 ms rows of bus currents, battery current, voltage
+        """``power.csv`` (or ``power.csv.zst``): 1 ms rows of bus currents, battery current, voltage
         and SOC."""
         return self._csv("power.csv")
 

@@ -141,7 +141,7 @@ fn world_command(
         .arg("--substeps")
         .arg(scenario.substeps.to_string())
         .arg("--trajectory")
-        .arg(out.join(files::TRAJECTORY))
+        .arg(out.join(scenario.run.series.file_name(files::TRAJECTORY)))
         .arg("--radio-log")
         .arg(out.join(swarm_files::RADIO_LOG))
         .arg("--connect-timeout")

@@ -88,7 +88,7 @@ pub fn run_swarm(
     // The world's outputs, per drone. Another world server (--world-cmd)
     // may write no trajectory: then there is no top view.
     let traj = out.join(files::TRAJECTORY);
-    let tracks = if traj.exists() {
+    let tracks = if protocol::series::exists(&traj) {
         match report::split_trajectory(out, &names) {
             Ok(t) => t,
             Err(e) => {

@@ -6,6 +6,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use protocol::series::{self, SeriesFormat, SeriesWriter};
 use serde::{Deserialize, Serialize};
 use sim_core::kernel::Summary;
 
@@ -36,8 +37,14 @@ pub fn split_trajectory(
     out: &Path,
     drones: &[String],
 ) -> Result<BTreeMap<String, DroneTrack>, ReportError> {
-    let path = out.join(files::TRAJECTORY);
-    let mut r = csv::Reader::from_path(&path).map_err(|e| read_err(&path, e))?;
+    let text = series::read(&out.join(files::TRAJECTORY))?;
+    if let Some(w) = text.warning() {
+        tracing::warn!("{w}");
+    }
+    // Each drone's file in the form of the world's.
+    let form = SeriesFormat::of_path(&text.path);
+    let path = text.path;
+    let mut r = csv::Reader::from_reader(&text.bytes[..]);
     let header = r.headers().map_err(|e| read_err(&path, e))?.clone();
     let col = |name: &str| header.iter().position(|h| h == name);
     let drone_col = col("drone");
@@ -60,8 +67,9 @@ pub fn split_trajectory(
     };
     let mut writers = BTreeMap::new();
     for d in drones {
-        let p = crate::swarm::launch::drone_dir(out, d).join(files::TRAJECTORY);
-        let mut w = csv::Writer::from_path(&p).map_err(|e| read_err(&p, e))?;
+        let p = crate::swarm::launch::drone_dir(out, d).join(form.file_name(files::TRAJECTORY));
+        let mut w =
+            csv::Writer::from_writer(SeriesWriter::create(&p).map_err(|e| read_err(&p, e))?);
         w.write_record(&strip(&header))
             .map_err(|e| read_err(&p, e))?;
         writers.insert(d.clone(), w);
@@ -93,8 +101,11 @@ pub fn split_trajectory(
             .points
             .push((time, [num(x)?, num(y)?, num(z)?]));
     }
-    for (d, mut w) in writers {
-        w.flush().map_err(|e| read_err(&out.join(&d), e))?;
+    for (d, w) in writers {
+        w.into_inner()
+            .map_err(|e| e.to_string())
+            .and_then(|mut s| s.finish().map_err(|e| e.to_string()))
+            .map_err(|e| read_err(&out.join(&d), e))?;
     }
     Ok(tracks)
 }

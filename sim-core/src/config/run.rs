@@ -40,7 +40,7 @@ pub fn flatten_run_table(table: &toml::Table) -> Vec<(String, toml::Value)> {
 }
 
 /// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 25] = [
+pub const RUN_KEYS: [(&str, &str); 26] = [
     (
         "power_model",
         "motor model that drains the battery: empirical | dandrea | stolaroff",
@@ -132,6 +132,10 @@ pub const RUN_KEYS: [(&str, &str); 25] = [
         "cluster.mhz",
         "the GAP8 cluster's clock in MHz, in place of the platform file's (platform: the file's)",
     ),
+    (
+        "output.compress",
+        "store the series (power.csv, motor_*.csv, trajectory.csv) zstd-compressed as NAME.csv.zst (true, default) or as plain CSV (false); same columns, same values",
+    ),
 ];
 
 /// The run configuration. [`RunConfig::default`] is the thesis's setting of
@@ -190,6 +194,9 @@ pub struct RunConfig {
     /// file's (`None`: the file's), so that a sweep varies them.
     pub cluster_cores: Option<usize>,
     pub cluster_mhz: Option<u64>,
+    /// How the series files are stored (a host-side choice: no simulated
+    /// result depends on it).
+    pub series: protocol::series::SeriesFormat,
 }
 
 /// The prefix of the firmware-parameter keys (`firmware.NAME`).
@@ -231,6 +238,7 @@ impl Default for RunConfig {
             iss: crate::iss::Backend::DEFAULT,
             cluster_cores: None,
             cluster_mhz: None,
+            series: protocol::series::SeriesFormat::Zstd,
         }
     }
 }
@@ -379,6 +387,13 @@ impl RunConfig {
                     },
                 }
             }
+            "output.compress" => {
+                self.series = match value.trim() {
+                    "true" => protocol::series::SeriesFormat::Zstd,
+                    "false" => protocol::series::SeriesFormat::Plain,
+                    _ => return Err(bad("expected true or false".into())),
+                }
+            }
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -441,6 +456,7 @@ impl RunConfig {
             "cluster.mhz" => self
                 .cluster_mhz
                 .map_or_else(|| "platform".to_string(), |v| v.to_string()),
+            "output.compress" => (self.series == protocol::series::SeriesFormat::Zstd).to_string(),
             _ => {
                 return Err(ConfigError::UnknownKey {
                     key: key.to_string(),
@@ -524,6 +540,11 @@ impl RunConfig {
             if key == "iss" && self.iss == crate::iss::Backend::DEFAULT {
                 continue;
             }
+            // Like the back end, the series' form changes no result: named
+            // only when it is not the default.
+            if key == "output.compress" && self.series == default.series {
+                continue;
+            }
             // The cluster keys only when they override the platform file.
             if (key == "cluster.cores" && self.cluster_cores.is_none())
                 || (key == "cluster.mhz" && self.cluster_mhz.is_none())
@@ -556,6 +577,7 @@ impl RunConfig {
                     Ok(i) => toml::Value::Integer(i),
                     Err(_) => toml::Value::String(text),
                 },
+                "output.compress" => toml::Value::Boolean(text == "true"),
                 _ => toml::Value::String(text),
             };
             table.insert(key.to_string(), value);

@@ -284,8 +284,12 @@ impl<W: WorldLink> Run<W> {
 
         let mut power = PowerNetwork::new(&cfg.platform, &cfg.run)?;
         if let Some(dir) = &cfg.out_dir {
-            let logger =
-                PowerLogger::create_with_cluster(dir, cfg.reports_radios(), cluster.is_some())?;
+            let logger = PowerLogger::create_with_cluster(
+                dir,
+                cfg.reports_radios(),
+                cluster.is_some(),
+                cfg.run.series,
+            )?;
             // The logs are written while the link waits for the world.
             world.add_idle_work(logger.idle_work());
             power.attach_logger(logger);
@@ -504,7 +508,7 @@ impl<W: WorldLink> Run<W> {
                 error.get_or_insert(KernelError::Io(e));
             }
         }
-        if let Err(e) = self.power.flush() {
+        if let Err(e) = self.power.finish_logs() {
             error.get_or_insert(KernelError::Power(e));
         }
         if let (Some(map), Some(dir)) = (&self.map, &cfg.out_dir) {

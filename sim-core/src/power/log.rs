@@ -9,25 +9,32 @@
 //! columns always add up; a run that never switches a radio on writes the
 //! same bytes as before the radios existed.
 //!
+//! The files are series files ([`protocol::series`]): plain CSV or
+//! zstd-compressed (`power.csv.zst`, run key `output.compress`).
+//!
 //! Every file gets its header when it is created and is flushed by
-//! [`PowerLogger::flush`] and again when the logger is dropped — on normal
-//! exit, on an error return and while unwinding from a panic — so the files
-//! are always valid CSV (a row is handed to the buffer whole, [`CsvLine`]).
+//! [`PowerLogger::flush`] and finished when the logger is dropped — on
+//! normal exit, on an error return and while unwinding from a panic — so
+//! the files are always valid (a row is handed to the buffer whole,
+//! [`CsvLine`]); a process killed mid-run leaves a valid prefix, which the
+//! readers take ([`protocol::series::read`]).
 
 use std::collections::VecDeque;
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
+
+use protocol::series::{SeriesFormat, SeriesWriter};
 
 use super::csv_line::CsvLine;
 use super::models::PowerModelKind;
 use super::{PowerError, PowerSample};
 
-/// File name of the network log.
+/// Series name of the network log (its file: `power.csv` or
+/// `power.csv.zst`, [`SeriesFormat::file_name`]).
 pub const POWER_CSV: &str = "power.csv";
 
-/// File name of one motor model's log (`motor_empirical.csv`, …).
+/// Series name of one motor model's log (`motor_empirical.csv`, …).
 pub fn model_csv_name(kind: PowerModelKind) -> String {
     format!("motor_{}.csv", kind.name())
 }
@@ -79,31 +86,31 @@ const MODEL_HEADER: [&str; 10] = [
 
 struct CsvFile {
     path: PathBuf,
-    writer: BufWriter<File>,
+    writer: SeriesWriter,
     line: CsvLine,
 }
 
 impl CsvFile {
     fn create(path: PathBuf, header: &[&str]) -> Result<CsvFile, PowerError> {
-        let file = File::create(&path).map_err(|source| PowerError::Io {
+        let writer = SeriesWriter::create(&path).map_err(|source| PowerError::Io {
             path: path.clone(),
             source,
         })?;
         let mut f = CsvFile {
             path,
-            writer: BufWriter::with_capacity(1 << 16, file),
+            writer,
             line: CsvLine::new(),
         };
         for h in header {
             f.line.ident(h);
         }
-        f.finish()?;
+        f.end_row()?;
         f.flush()?;
         Ok(f)
     }
 
     /// Appends the row built in `self.line`.
-    fn finish(&mut self) -> Result<(), PowerError> {
+    fn end_row(&mut self) -> Result<(), PowerError> {
         self.line
             .finish(&mut self.writer)
             .map_err(|source| PowerError::Io {
@@ -114,6 +121,13 @@ impl CsvFile {
 
     fn flush(&mut self) -> Result<(), PowerError> {
         self.writer.flush().map_err(|source| PowerError::Io {
+            path: self.path.clone(),
+            source,
+        })
+    }
+
+    fn finish(&mut self) -> Result<(), PowerError> {
+        self.writer.finish().map_err(|source| PowerError::Io {
             path: self.path.clone(),
             source,
         })
@@ -188,18 +202,19 @@ fn lock(shared: &Mutex<Shared>) -> std::sync::MutexGuard<'_, Shared> {
 }
 
 impl PowerLogger {
-    /// Creates (truncates) the four files in `dir`, headers written;
-    /// `radio_columns` adds the radios' columns to `power.csv`.
+    /// Creates (truncates) the four files in `dir` as plain CSV, headers
+    /// written; `radio_columns` adds the radios' columns to `power.csv`.
     pub fn create(dir: &Path, radio_columns: bool) -> Result<PowerLogger, PowerError> {
-        Self::create_with_cluster(dir, radio_columns, false)
+        Self::create_with_cluster(dir, radio_columns, false, SeriesFormat::Plain)
     }
 
-    /// As [`PowerLogger::create`]; `cluster_columns` adds the cluster's
-    /// columns after all others.
+    /// As [`PowerLogger::create`], in the form `format`; `cluster_columns`
+    /// adds the cluster's columns after all others.
     pub fn create_with_cluster(
         dir: &Path,
         radio_columns: bool,
         cluster_columns: bool,
+        format: SeriesFormat,
     ) -> Result<PowerLogger, PowerError> {
         let mut header: Vec<&str> = POWER_HEADER.to_vec();
         if radio_columns {
@@ -208,8 +223,13 @@ impl PowerLogger {
         if cluster_columns {
             header.extend(CLUSTER_HEADER);
         }
-        let power = CsvFile::create(dir.join(POWER_CSV), &header)?;
-        let model = |k: PowerModelKind| CsvFile::create(dir.join(model_csv_name(k)), &MODEL_HEADER);
+        let power = CsvFile::create(dir.join(format.file_name(POWER_CSV)), &header)?;
+        let model = |k: PowerModelKind| {
+            CsvFile::create(
+                dir.join(format.file_name(&model_csv_name(k))),
+                &MODEL_HEADER,
+            )
+        };
         let files = Files {
             power,
             models: [
@@ -264,11 +284,24 @@ impl PowerLogger {
 
     /// Writes every queued sample and flushes every file.
     pub fn flush(&mut self) -> Result<(), PowerError> {
+        self.write_all_then(Files::flush)
+    }
+
+    /// Writes every queued sample and ends every file (a compressed file's
+    /// frame); later logs fail. The end of a run.
+    pub fn finish(&mut self) -> Result<(), PowerError> {
+        self.write_all_then(Files::finish)
+    }
+
+    fn write_all_then(
+        &mut self,
+        then: fn(&mut Files) -> Result<(), PowerError>,
+    ) -> Result<(), PowerError> {
         let mut g = lock(&self.shared);
         let n = g.queue.len();
         g.write_some(n);
         g.result()?;
-        if let Err(e) = g.files.flush() {
+        if let Err(e) = then(&mut g.files) {
             g.error = Some(again(&e));
             return Err(e);
         }
@@ -325,7 +358,7 @@ impl Files {
                 .f64(c.leakage_w)
                 .f64(c.total_w());
         }
-        self.power.finish()?;
+        self.power.end_row()?;
         for (kind, file) in PowerModelKind::ALL.iter().zip(self.models.iter_mut()) {
             let out = s.models[kind.index()];
             // The columns of MODEL_HEADER, in order.
@@ -340,7 +373,7 @@ impl Files {
                 .f64(out.power.0)
                 .f64(s.v_battery.0)
                 .u64(u64::from(*kind == s.selected));
-            file.finish()?;
+            file.end_row()?;
         }
         Ok(())
     }
@@ -350,6 +383,15 @@ impl Files {
         self.power.flush()?;
         for f in &mut self.models {
             f.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Ends every file.
+    fn finish(&mut self) -> Result<(), PowerError> {
+        self.power.finish()?;
+        for f in &mut self.models {
+            f.finish()?;
         }
         Ok(())
     }
@@ -373,8 +415,8 @@ fn again(e: &PowerError) -> PowerError {
 impl Drop for PowerLogger {
     fn drop(&mut self) {
         // Best effort on the error and panic paths; the normal path calls
-        // `flush` and sees its errors.
-        if let Err(e) = self.flush() {
+        // `finish` and sees its errors.
+        if let Err(e) = self.finish() {
             tracing::error!("power logs not flushed: {e}");
         }
     }

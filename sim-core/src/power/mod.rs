@@ -538,11 +538,19 @@ impl PowerNetwork {
         Ok(last)
     }
 
-    /// Flushes the logs (call at the end of a run, also after an error;
-    /// dropping the network flushes too, ignoring errors).
+    /// Flushes the logs.
     pub fn flush(&mut self) -> Result<(), PowerError> {
         match &mut self.logger {
             Some(logger) => logger.flush(),
+            None => Ok(()),
+        }
+    }
+
+    /// Ends the logs (call at the end of a run, also after an error;
+    /// dropping the network ends them too, ignoring errors).
+    pub fn finish_logs(&mut self) -> Result<(), PowerError> {
+        match &mut self.logger {
+            Some(logger) => logger.finish(),
             None => Ok(()),
         }
     }

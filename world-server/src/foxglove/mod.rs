@@ -50,21 +50,29 @@ const LINK_LIFETIME_NS: u64 = 250_000_000;
 /// h 0.03 m) as a 0.1 × 0.1 × 0.03 m box.
 const BODY_SIZE: [f64; 3] = [0.1, 0.1, 0.03];
 
-/// Writer options of `cosim`'s `run.mcap`: uncompressed chunks. lz4 (the
-/// cheapest codec the crate has) put the race's `cosim run` at +12 % of
-/// wall time on a loaded machine, over the 10 % budget; zstd at level 1
-/// was slower still (docs/FOXGLOVE.md "Cost"). No worker pool either: its
-/// size would depend on the host, and so would the bytes.
+/// Writer options of `cosim`'s `run.mcap`: zstd chunks of the crate's
+/// default 1 MiB (Foxglove reads such chunks one at a time as it seeks), at
+/// level [`RUN_MCAP_ZSTD_LEVEL`]: a race's run output fits in its budget
+/// (docs/FOXGLOVE.md "Cost"). No worker pool: its size would depend on the
+/// host, and so would the bytes.
 pub fn write_options() -> mcap::WriteOptions {
     mcap::WriteOptions::new()
-        .compression(None)
+        .compression(Some(mcap::Compression::Zstd))
+        .compression_level(RUN_MCAP_ZSTD_LEVEL)
         .compression_threads(0)
 }
 
-/// Writer options of the world's file: the same (the world is on the run's
-/// critical path: every platform waits for it).
+/// zstd's level for `run.mcap`'s chunks: 1, as for the series (protocol::series).
+pub const RUN_MCAP_ZSTD_LEVEL: u32 = 1;
+
+/// Writer options of the world's file: uncompressed chunks. The world is on
+/// the run's critical path (every platform waits for it) and its file is
+/// only the raw material `cosim` merges into `run.mcap`; lz4 there put the
+/// race at +12 % of wall time on a loaded machine (docs/FOXGLOVE.md "Cost").
 pub fn world_write_options() -> mcap::WriteOptions {
-    write_options()
+    mcap::WriteOptions::new()
+        .compression(None)
+        .compression_threads(0)
 }
 
 /// World time (ms) as MCAP time (ns).

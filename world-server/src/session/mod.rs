@@ -418,13 +418,13 @@ impl Session {
         }
     }
 
-    /// Flushes the trajectory and the radio log and finishes the MCAP file
+    /// Ends the trajectory, flushes the radio log and finishes the MCAP file
     /// (every exit path calls it; the MCAP file is closed even when another
     /// output failed).
     pub fn flush(&mut self) -> Result<(), SessionError> {
         let mcap = self.mcap.as_mut().map_or(Ok(()), McapLog::finish);
         if let Some(t) = self.trajectory.as_mut() {
-            t.flush().map_err(|e| SessionError::Trajectory(e.into()))?;
+            t.finish().map_err(|e| SessionError::Trajectory(e.into()))?;
         }
         mcap?;
         self.channel
