@@ -514,6 +514,12 @@ impl<W: WorldLink> Run<W> {
         }
         let now = self.cpu.now().max(self.end_time);
         let time = self.platform.time.report(now);
+        if let Some(dir) = &cfg.out_dir {
+            // The world's time base for the platform's logs (run.mcap).
+            if let Err(e) = self.platform.time.time_map().write(dir) {
+                error.get_or_insert(KernelError::Io(e));
+            }
+        }
         let summary = Summary::build(
             cfg,
             &self.cpu,
