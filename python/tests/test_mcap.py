@@ -50,13 +50,16 @@ def test_schemas_transforms_times_and_images(run_dir):
         assert px.shape == (320, 320) and px.dtype == np.uint8
         assert px.std() > 0  # a rendered view of the course
 
-    # The battery channel is power.csv's rows 0, 5, 10, … (mcap_power_every=5)
-    # and its last.
-    battery = [m.data for m in msgs if m.topic == "/cf1/battery"]
+    # The power channel is power.csv's rows 0, 5, 10, … (mcap_power_every=5)
+    # and its last (with the row's own time_s, platform time); the battery
+    # channel the same rows at the world's time, its log time.
+    power_msgs = [m for m in msgs if m.topic == "/cf1/power"]
+    battery = [m for m in msgs if m.topic == "/cf1/battery"]
     power = run.power()
     kept = [r for i, r in enumerate(power) if i % 5 == 0 or i == len(power) - 1]
-    assert [b["time_s"] for b in battery] == pytest.approx([r["time_s"] for r in kept])
-    assert battery[-1]["soc"] == pytest.approx(run.summary["battery"]["soc_end"], abs=1e-6)
+    assert [m.data["time_s"] for m in power_msgs] == pytest.approx([r["time_s"] for r in kept])
+    assert [b.data["time_s"] for b in battery] == pytest.approx([b.log_time * 1e-9 for b in battery])
+    assert battery[-1].data["soc"] == pytest.approx(run.summary["battery"]["soc_end"], abs=1e-6)
 
 
 def test_topics_filter_and_clear_errors(run_dir, tmp_path):

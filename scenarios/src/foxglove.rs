@@ -19,6 +19,7 @@ use std::sync::Arc;
 
 use base64::Engine as _;
 use serde_json::json;
+use sim_core::sync::time_map::{world_at, Knot, TIME_MAP_CSV};
 use world_server::foxglove::{
     drone_topic, schemas, stamp, write_message, write_options, Channels, KnownChannels,
 };
@@ -233,6 +234,8 @@ fn read_power(
     // was dropped).
     let text = protocol::series::read(&path).map_err(|e| rerr(&e))?;
     let mut r = csv::Reader::from_reader(&text.bytes[..]);
+    // Its rows carry platform time; the file's log time is the world's.
+    let time_map = read_time_map(dir)?;
     let header = r.byte_headers().map_err(|e| rerr(&e))?.clone();
     let names: Vec<String> = header
         .iter()
@@ -284,7 +287,6 @@ fn read_power(
             .insert("power_model".into(), model);
     }
     let battery = channels.add(&drone_topic(drone, "battery"), &battery_schema);
-    let time_s = col("time_s");
     // `"name":` of each column, escaped once.
     let key = |k: &str| {
         let mut v = Vec::new();
@@ -325,7 +327,7 @@ fn read_power(
                 String::from_utf8_lossy(&rec[t_ps])
             )));
         };
-        let t_ns = t / 1000;
+        let t_ns = world_ps(&time_map, t) / 1000;
         let mut p = Vec::with_capacity(512);
         p.push(b'{');
         for (j, (k, i)) in power_keys.iter().enumerate() {
@@ -339,10 +341,8 @@ fn read_power(
         let mut b = Vec::with_capacity(160);
         b.push(b'{');
         b.extend_from_slice(&time_key);
-        match time_s {
-            Some(i) => json_field(&mut b, &rec[i]),
-            None => b.extend_from_slice((t as f64 * 1e-12).to_string().as_bytes()),
-        }
+        // The world's time of the row (power.csv's time_s is the platform's).
+        b.extend_from_slice((t_ns as f64 * 1e-9).to_string().as_bytes());
         for (k, i) in &battery_keys {
             b.push(b',');
             b.extend_from_slice(k);
@@ -363,6 +363,40 @@ fn read_power(
         more = has_next;
     }
     Ok(())
+}
+
+/// The platform's `time_map.csv` (platform → world time, DESIGN.md §3):
+/// none from a platform that did not write one (it died first), whose
+/// rows then keep their platform time.
+fn read_time_map(dir: &Path) -> Result<Option<Vec<Knot>>, McapMergeError> {
+    let path = dir.join(TIME_MAP_CSV);
+    let rerr = |e: &dyn std::fmt::Display| McapMergeError::Read {
+        path: path.clone(),
+        message: e.to_string(),
+    };
+    let mut r = match csv::Reader::from_path(&path) {
+        Ok(r) => r,
+        Err(e) if matches!(e.kind(), csv::ErrorKind::Io(io) if io.kind() == std::io::ErrorKind::NotFound) => {
+            return Ok(None)
+        }
+        Err(e) => return Err(rerr(&e)),
+    };
+    let knots = r
+        .deserialize::<Knot>()
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| rerr(&e))?;
+    if knots.windows(2).any(|w| w[1].0 < w[0].0) {
+        return Err(rerr(&"platform times out of order"));
+    }
+    Ok(Some(knots))
+}
+
+/// World time (ps, never negative) of the platform time `t_ps`.
+fn world_ps(map: &Option<Vec<Knot>>, t_ps: u64) -> u64 {
+    match map {
+        Some(knots) => world_at(knots, t_ps).max(0) as u64,
+        None => t_ps,
+    }
 }
 
 fn json_key(out: &mut Vec<u8>, key: &str) {

@@ -177,4 +177,7 @@ fn with_battery_empty_end_the_cut_off_ends_the_flight_normally() {
     assert!(end > empty && end < empty + 2.0, "{end} vs {empty}");
     // The world was told STOP: its time is in the summary.
     assert!(summary["world_time_s"].as_f64().unwrap() > 0.0);
+    // The cut-off falls on a 1 ms sample, inside a delay: the clocks are
+    // settled before STOP, so the world estimate is exact (DESIGN.md §3).
+    assert_eq!(summary["estimate_error_pct"].as_f64(), Some(0.0));
 }

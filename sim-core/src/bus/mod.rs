@@ -239,6 +239,31 @@ impl<W: WorldLink> Platform<W> {
         self.radios.iter().any(RadioDevice::irq)
     }
 
+    /// Settles the clocks at a cut-off that falls at platform time `now`,
+    /// which may be inside a device delay (the battery's cut-off falls on a
+    /// 1 ms sample): the iteration delays counted but not yet sent to the
+    /// world (a camera capture, an ITER_ADVANCE before the PID step) are
+    /// sent now, rounded as the PID step would have sent them, as the
+    /// firmware's PRINT_SIMUL_TIME does before its end. Returns the
+    /// platform time at which the two clocks then agree: the end of the
+    /// delays counted, at least `now`.
+    pub fn settle(&mut self, now: Picos) -> Result<Picos, DeviceError> {
+        let pending = self.time.take_iteration();
+        if pending.0 > 0 && self.session.is_live() {
+            let steps = self.time.iteration_steps(pending);
+            if steps > 0 {
+                let time = steps * self.time.timestep().0;
+                self.world
+                    .send(&Request::AdvanceTime { time }, now)
+                    .map_err(|error| DeviceError::World {
+                        device: "platform",
+                        error,
+                    })?;
+            }
+        }
+        Ok(now.max(self.time.accounted_until()))
+    }
+
     /// The firmware has ended (docs/SWARM.md §4.1): if the world session is
     /// open and no STOP was sent, send it now so the world can go on without
     /// this drone. Returns the platform time at the end of the motors' stop

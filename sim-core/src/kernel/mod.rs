@@ -368,12 +368,17 @@ impl<W: WorldLink> Run<W> {
                 if cfg.run.battery_empty == OnEmpty::End =>
             {
                 self.exit_code = Some(0);
+                // The cut-off falls on a 1 ms sample, often inside a device
+                // delay: STOP where platform and world agree (at `now` the
+                // estimate would be off by the rest of the delay, or by the
+                // iteration delays the world had not been sent yet).
+                let at = self.platform.settle(now).map_err(KernelError::Device)?;
                 let end = self
                     .platform
-                    .end_session(now)
+                    .end_session(at)
                     .map_err(KernelError::Device)?
-                    .unwrap_or(now)
-                    .max(now);
+                    .unwrap_or(at)
+                    .max(at);
                 self.end_time = end;
                 // The motors' stop after STOP, as at a firmware exit.
                 self.take_samples(end)?;
@@ -518,6 +523,12 @@ impl<W: WorldLink> Run<W> {
         }
         let now = self.cpu.now().max(self.end_time);
         let time = self.platform.time.report(now);
+        if let Some(dir) = &cfg.out_dir {
+            // The world's time base for the platform's logs (run.mcap).
+            if let Err(e) = self.platform.time.time_map().write(dir) {
+                error.get_or_insert(KernelError::Io(e));
+            }
+        }
         let summary = Summary::build(
             cfg,
             &self.cpu,

@@ -21,6 +21,8 @@
 
 use crate::units::{Millis, Picos};
 
+pub mod time_map;
+
 /// How remainders are handled.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -85,6 +87,8 @@ pub struct TimeKeeper {
     world_sent_ms: u64,
     /// Delays of the current PID iteration (camera + inference + PID path).
     iter_delay_ms: u64,
+    /// Platform → world time as the bookkeeping goes ([`time_map`]).
+    map: time_map::TimeMapRecorder,
 }
 
 /// Figures printed at PRINT_SIMUL_TIME and written to `summary.json`.
@@ -106,7 +110,21 @@ impl TimeKeeper {
             accounted_until: Picos::ZERO,
             world_sent_ms: 0,
             iter_delay_ms: 0,
+            map: time_map::TimeMapRecorder::default(),
         }
+    }
+
+    /// Platform → world time so far (DESIGN.md §3; `time_map.csv`).
+    pub fn time_map(&self) -> &time_map::TimeMapRecorder {
+        &self.map
+    }
+
+    /// A knot of the map at the end of what has been accounted: there the
+    /// world's time is the platform's minus the offsets.
+    fn note_map(&mut self) {
+        let p = self.accounted_until;
+        let world = p.0 as i64 - self.sensors_offset_ps - self.sim_off_accum_ps;
+        self.map.note(p, world);
     }
 
     pub fn mode(&self) -> SyncMode {
@@ -130,6 +148,7 @@ impl TimeKeeper {
                 SyncMode::Bounded => self.sensors_offset_ps += gap,
             }
             self.accounted_until = now;
+            self.note_map();
         }
     }
 
@@ -137,6 +156,7 @@ impl TimeKeeper {
     fn account_delay(&mut self, d: Millis, now: Picos) {
         self.account_gap(now);
         self.accounted_until = self.accounted_until.max(now) + d.to_picos();
+        self.note_map();
     }
 
     /// A device delay of `d` starting at platform time `now` that the world
@@ -204,6 +224,7 @@ impl TimeKeeper {
     pub fn iteration_steps(&mut self, d: Millis) -> u64 {
         if self.timestep_ms == 0 {
             self.sensors_offset_ps += d.to_picos().0 as i64;
+            self.note_map();
             return 0;
         }
         let q = match self.mode {
@@ -221,6 +242,7 @@ impl TimeKeeper {
             }
         } as u64;
         self.world_sent_ms += q * self.timestep_ms;
+        self.note_map();
         q
     }
 
@@ -317,6 +339,10 @@ mod tests {
             let report = tk.report(now);
             let world_ms = tk.world_sent().0 as f64;
             prop_assert!((report.world_time_estimate_ms - world_ms).abs() < 1e-9);
+            // The platform's last instant maps to the world's time (the
+            // map of time_map.csv ends where the estimate does).
+            let end = time_map::world_at(&tk.time_map().knots(), now.0);
+            prop_assert_eq!(end, (tk.world_sent().0 * Picos::PER_MS) as i64);
         }
     }
 
