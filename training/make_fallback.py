@@ -9,7 +9,7 @@ it exists so that the kernels' fallback paths (conv.c: the depthwise
 kernel for a one-plane layer and for both strides, the 2x4 kernel's CHW,
 HWC and int16 outputs) run in a test: nn_eval_fallback.elf on the golden
 images equals training/fallback/golden.json bit for bit
-(tests/tests/nn_eval.rs), and tests/test_nn.py checks the committed files
+(tests/tests/e2e/nn_eval.rs), and tests/test_nn.py checks the committed files
 are this script's output (numpy only):
 
     python3 training/make_fallback.py

@@ -267,6 +267,8 @@ enum Cmd {
     },
     /// Lists the scenarios shipped in scenarios/.
     List,
+    /// Every key `--set` accepts: default, accepted values, meaning.
+    Keys,
     /// Measurements (not tests): what a run costs.
     Bench {
         #[command(subcommand)]
@@ -510,6 +512,7 @@ fn main() -> ExitCode {
             tolerance,
         } => cmd_trace_check(trace, world_cmd, world, tolerance, bins),
         Cmd::List => cmd_list(),
+        Cmd::Keys => commands::keys::cmd_keys(),
         Cmd::Nn {
             what:
                 NnCmd::Eval {

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use std::sync::Mutex;
+use std::sync::OnceLock;
 
 /// The repository's root (the workspace).
 pub fn repo_root() -> PathBuf {
@@ -25,32 +25,72 @@ fn bin_dir() -> PathBuf {
         .to_path_buf()
 }
 
-static BUILD: Mutex<()> = Mutex::new(());
+/// The environment variable naming a directory that holds `cosim`,
+/// `sim-core` and `world-server` already built (the test command builds
+/// them once, in the same cargo invocation as the tests, and sets it; the
+/// Python tests read the same variable): the tests then start those and
+/// build nothing.
+pub const BIN_DIR_ENV: &str = "COSIM_BIN_DIR";
 
-/// The path of a workspace binary, built first if needed: a test of
-/// `e2e-tests` alone does not make cargo build the other packages' binaries,
-/// so we ask cargo (a no-op when they are up to date).
+/// The packages and binaries the end-to-end tests start.
+const BINARIES: [(&str, &str); 3] = [
+    ("scenarios", "cosim"),
+    ("sim-core", "sim-core"),
+    ("world-server", "world-server"),
+];
+
+static BUILT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+
+/// The directory with the three binaries: `$COSIM_BIN_DIR`, or this test's
+/// profile directory after one `cargo build` of all three (a test of
+/// `e2e-tests` alone does not make cargo build other packages' binaries).
+/// The build prints cargo's progress: the first test of a fresh checkout
+/// waits for it, and says why.
+fn built_bin_dir() -> PathBuf {
+    let result = BUILT.get_or_init(|| {
+        if let Some(dir) = std::env::var_os(BIN_DIR_ENV) {
+            return Ok(PathBuf::from(dir));
+        }
+        let dir = bin_dir();
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        let release = dir.file_name().is_some_and(|n| n == "release");
+        let mut cmd = Command::new(cargo);
+        cmd.current_dir(repo_root()).arg("build");
+        for (package, name) in BINARIES {
+            cmd.args(["-p", package, "--bin", name]);
+        }
+        if release {
+            cmd.arg("--release");
+        }
+        // Build into the same target directory as this test.
+        if let Some(target) = dir.parent() {
+            cmd.env("CARGO_TARGET_DIR", target);
+        }
+        eprintln!(
+            "e2e-tests: building cosim, sim-core and world-server into {} \
+             (set {BIN_DIR_ENV} to use binaries built already)",
+            dir.display()
+        );
+        match cmd.status() {
+            Ok(s) if s.success() => Ok(dir),
+            Ok(s) => Err(format!("cargo build of the binaries failed: {s}")),
+            Err(e) => Err(format!("cannot run cargo: {e}")),
+        }
+    });
+    match result {
+        Ok(dir) => dir.clone(),
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// The path of a workspace binary (`package` is the package that builds
+/// it): from `$COSIM_BIN_DIR`, or built first, once per test process.
 pub fn binary(package: &str, name: &str) -> PathBuf {
-    let dir = bin_dir();
-    let path = dir.join(name);
-    let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let release = dir.file_name().is_some_and(|n| n == "release");
-    let mut cmd = Command::new(cargo);
-    cmd.current_dir(repo_root())
-        .args(["build", "--quiet", "-p", package, "--bin", name]);
-    if release {
-        cmd.arg("--release");
-    }
-    // Build into the same target directory as this test.
-    if let Some(target) = dir.parent() {
-        cmd.env("CARGO_TARGET_DIR", target);
-    }
-    let status = cmd.status().expect("run cargo build");
     assert!(
-        status.success(),
-        "cargo build -p {package} --bin {name} failed"
+        BINARIES.contains(&(package, name)),
+        "{package}/{name} is not one of the binaries the tests build"
     );
+    let path = built_bin_dir().join(name);
     assert!(path.exists(), "{} was not built", path.display());
     path
 }

@@ -57,7 +57,7 @@ def test_int8_reference_reproduces_the_golden_outputs(checkpoint, _, golden, bas
 
 def test_fallback_network_is_the_scaled_sep_checkpoint_out_of_the_clip_first_form(base_net):
     """training/make_fallback.py's network, which nn_eval_fallback.elf runs
-    against training/fallback/golden.json (tests/tests/nn_eval.rs): the
+    against training/fallback/golden.json (tests/tests/e2e/nn_eval.rs): the
     committed files are the script's output, and the layers it means to
     take out of the kernels' clip-first requantization are out of it, in
     the forms it names (so the e2e test runs the fallback paths)."""

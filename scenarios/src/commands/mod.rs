@@ -2,6 +2,7 @@
 //! command line itself (clap) is in `main.rs`.
 
 pub(crate) mod bench;
+pub(crate) mod keys;
 pub(crate) mod nn;
 pub(crate) mod run;
 pub(crate) mod sweep;

@@ -1,6 +1,6 @@
 /*
  * Self-test of the kernels' integer arithmetic on the ISS (docs/NN_KERNELS.md
- * "Int8 arithmetic"), run by tests/tests/nn_eval.rs: the requantizations
+ * "Int8 arithmetic"), run by tests/tests/e2e/nn_eval.rs: the requantizations
  * of conv.h (the general one, used when a layer's shift is below 15, which
  * no layer of today's weights has, the fast one, and the clip-first one
  * with its records from nn_rq_make) against the plain 64-bit formula, on

@@ -1,5 +1,5 @@
 /*
- * Host-driven test program for the gate detector (tests/tests/vision_detector.rs).
+ * Host-driven test program for the gate detector (tests/tests/e2e/vision_detector.rs).
  *
  * The host runs it on the ISS with `ebreak_stops` (a plain ebreak stops the
  * run, like a debugger breakpoint). At every stop the host may write a frame

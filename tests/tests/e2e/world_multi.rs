@@ -2,7 +2,7 @@
 //! docs/SWARM.md §1–§2): a real `world-server` process and hand-written
 //! platforms over real sockets, one thread each.
 
-mod multi;
+use crate::multi;
 
 use std::thread;
 use std::time::{Duration, Instant};

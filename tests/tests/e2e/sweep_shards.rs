@@ -195,6 +195,9 @@ fn shards_through_gnu_parallel_merge_into_the_one_machine_table() {
         ])
         .args(["--", "--param", PARAM, "--no-trace"])
         .env("COSIM", &b.cosim)
+        // Under `cargo test`, cosim would `cargo build` sim-core and
+        // world-server itself (it does under `cargo run`): they are built.
+        .env_remove("CARGO")
         .current_dir(repo_root())
         .output()
         .unwrap();
@@ -346,6 +349,9 @@ fn shards_on_ssh_hosts_through_gnu_parallel() {
         .args(["--out", out.to_str().unwrap()])
         .args(["--", "--param", "battery=lipol250,ufx250", "--no-trace"])
         .env("COSIM", &b.cosim)
+        // Under `cargo test`, cosim would `cargo build` sim-core and
+        // world-server itself (it does under `cargo run`): they are built.
+        .env_remove("CARGO")
         .env("PARALLEL_SSH", &ssh)
         .current_dir(repo_root())
         .output()

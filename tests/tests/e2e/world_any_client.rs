@@ -5,7 +5,7 @@
 //! replies one after the other. Before §15 the second drone's reply never
 //! came: the lockstep waited for the first drone's *next* request.
 
-mod multi;
+use crate::multi;
 
 use std::io::{Read, Write};
 use std::os::fd::{FromRawFd, OwnedFd};

@@ -1,4 +1,4 @@
-//! Helpers of tests/tests/vision_detector.rs: the gate detector's test
+//! Helpers of tests/tests/e2e/vision_detector.rs: the gate detector's test
 //! program on the ISS, and the scenes, poses and expected answers.
 #![allow(dead_code)]
 

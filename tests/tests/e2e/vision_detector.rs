@@ -19,7 +19,7 @@
 //! half depth (3 cm) along its normal, which the detector corrects only
 //! along the optical axis.
 
-mod vision_util;
+use crate::vision_util;
 
 use std::path::Path;
 

@@ -2,7 +2,7 @@
 //! (DESIGN.md §8, docs/SWARM.md §3): RADIO_SEND / RADIO_RECV between
 //! hand-written platforms, against the closed form, and bad radio input.
 
-mod multi;
+use crate::multi;
 
 use std::thread;
 

@@ -1,7 +1,7 @@
 //! The network in the loop end to end (DESIGN.md §13, docs/NN.md
 //! "nn-race"): on vision-race's short course (one gate displaced 0.45 m
 //! sideways from its waypoint, `scenarios/worlds/short-gate-displaced.toml`,
-//! which the blind race misses: tests/tests/vision_race.rs), nn_race_short.elf
+//! which the blind race misses: tests/tests/e2e/vision_race.rs), nn_race_short.elf
 //! (the int8 network on the AI deck's cluster, the shared guidance) passes
 //! the gate without a collision; summary.json's `nn` block is there and
 //! consistent with itself and with the platform; a second run gives the same
