@@ -8,10 +8,15 @@
 //! The writer is buffered; every record is one complete line handed to the
 //! buffer at once, and [`TraceWriter::flush`] pushes it out. A crash can
 //! leave at most a partial last line, which [`TraceReader`] reports and skips.
+//!
+//! A trace file is stored as a run's series are ([`crate::series`]): plain
+//! (`world.trace`) or zstd-compressed (`world.trace.zst`, the default of a
+//! `cosim` run: the race's two traces are 14 MB plain, 2.3 MB compressed),
+//! chosen by the path's extension; [`TraceReader::open`] reads either form,
+//! given either name.
 
 use std::collections::VecDeque;
-use std::fs::File;
-use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::io::{self, BufRead, Write};
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -19,6 +24,7 @@ use serde_json::Value;
 
 use crate::dump::{write_key, write_object, write_str, write_u64, Val};
 use crate::image::{sha256_hex, Image};
+use crate::series::SeriesWriter;
 
 /// Direction of a frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -81,7 +87,7 @@ impl TraceClock {
 }
 
 /// Writes a trace.
-pub struct TraceWriter<W: Write = BufWriter<File>> {
+pub struct TraceWriter<W: Write = SeriesWriter> {
     out: W,
     clock: TraceClock,
     keep_images: bool,
@@ -89,20 +95,24 @@ pub struct TraceWriter<W: Write = BufWriter<File>> {
     line: Vec<u8>,
 }
 
-impl TraceWriter<BufWriter<File>> {
-    /// Creates (truncates) `path`.
+impl TraceWriter<SeriesWriter> {
+    /// Creates (truncates) `path`, compressed if it ends in `.zst`
+    /// ([`SeriesWriter`]: same records, same bytes).
     pub fn create(path: &Path, clock: TraceClock, keep_images: bool) -> io::Result<Self> {
-        let f = File::create(path).map_err(|e| {
+        let f = SeriesWriter::create(path).map_err(|e| {
             io::Error::new(
                 e.kind(),
                 format!("cannot create trace {}: {e}", path.display()),
             )
         })?;
-        Ok(Self::new(
-            BufWriter::with_capacity(1 << 20, f),
-            clock,
-            keep_images,
-        ))
+        Ok(Self::new(f, clock, keep_images))
+    }
+
+    /// Writes what is buffered and ends the file (a compressed trace's
+    /// frame); later records fail. Dropping the writer also ends it, without
+    /// reporting an error.
+    pub fn finish(&mut self) -> io::Result<()> {
+        self.out.finish()
     }
 }
 
@@ -264,7 +274,7 @@ const HASH_SLICE: usize = 16 * 1024;
 /// those of a [`TraceWriter`] recording the same events, in the same
 /// order; a line that needs no hash is written at once when nothing is
 /// queued before it. [`TraceQueue::flush`] and drop write what is queued.
-pub struct TraceQueue<W: Write = BufWriter<File>> {
+pub struct TraceQueue<W: Write = SeriesWriter> {
     writer: TraceWriter<W>,
     queue: VecDeque<Queued>,
     /// How many of the queued records are images.
@@ -423,6 +433,15 @@ impl<W: Write> TraceQueue<W> {
     }
 }
 
+impl TraceQueue<SeriesWriter> {
+    /// Writes every queued line and ends the file ([`TraceWriter::finish`]).
+    pub fn finish(&mut self) -> io::Result<()> {
+        while self.work() {}
+        self.failed()?;
+        self.writer.finish()
+    }
+}
+
 impl<W: Write> Drop for TraceQueue<W> {
     fn drop(&mut self) {
         // Best effort (the normal path flushes and sees the errors).
@@ -502,15 +521,13 @@ pub struct TraceReader<R> {
     done: bool,
 }
 
-impl TraceReader<BufReader<File>> {
+impl TraceReader<Box<dyn BufRead>> {
+    /// Opens the trace a path names, in either form (`world.trace` finds
+    /// `world.trace.zst`: [`crate::series::open`]).
     pub fn open(path: &Path) -> io::Result<Self> {
-        let f = File::open(path).map_err(|e| {
-            io::Error::new(
-                e.kind(),
-                format!("cannot open trace {}: {e}", path.display()),
-            )
-        })?;
-        Ok(Self::new(BufReader::new(f)))
+        let r = crate::series::open(path)
+            .map_err(|e| io::Error::new(e.source.kind(), format!("cannot open trace: {e}")))?;
+        Ok(Self::new(r))
     }
 }
 

@@ -23,7 +23,7 @@
 //! world answers in order), so both co-simulated runs use it. A
 //! measurement, not a test: the numbers depend on the machine and its load.
 
-use std::io::{BufRead, BufReader};
+use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -308,9 +308,10 @@ pub struct RecordedRequest {
 /// body as it crossed the socket).
 pub fn load_requests(trace: &Path) -> Result<Vec<RecordedRequest>, BenchError> {
     let bad = |m: String| BenchError::Output(format!("{}: {m}", trace.display()));
-    let f = std::fs::File::open(trace).map_err(|e| bad(e.to_string()))?;
+    // Either form (`world.trace` or `world.trace.zst`).
+    let f = protocol::series::open(trace).map_err(|e| bad(e.to_string()))?;
     let mut out = Vec::new();
-    for (i, line) in BufReader::new(f).lines().enumerate() {
+    for (i, line) in f.lines().enumerate() {
         let line = line.map_err(|e| bad(e.to_string()))?;
         let r: RawRecord<'_> =
             serde_json::from_str(&line).map_err(|e| bad(format!("line {}: {e}", i + 1)))?;

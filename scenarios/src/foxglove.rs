@@ -374,13 +374,12 @@ fn read_time_map(dir: &Path) -> Result<Option<Vec<Knot>>, McapMergeError> {
         path: path.clone(),
         message: e.to_string(),
     };
-    let mut r = match csv::Reader::from_path(&path) {
-        Ok(r) => r,
-        Err(e) if matches!(e.kind(), csv::ErrorKind::Io(io) if io.kind() == std::io::ErrorKind::NotFound) => {
-            return Ok(None)
-        }
-        Err(e) => return Err(rerr(&e)),
-    };
+    // Either form; none from a platform that died before writing it.
+    if !protocol::series::exists(&path) {
+        return Ok(None);
+    }
+    let text = protocol::series::read(&path).map_err(|e| rerr(&e))?;
+    let mut r = csv::Reader::from_reader(&text.bytes[..]);
     let knots = r
         .deserialize::<Knot>()
         .collect::<Result<Vec<_>, _>>()

@@ -414,7 +414,8 @@ pub fn world_command(
         .arg(scenario.busy_poll_us.to_string());
     mcap_args(&mut cmd, scenario, out);
     if opts.traces {
-        cmd.arg("--trace").arg(out.join(files::WORLD_TRACE));
+        cmd.arg("--trace")
+            .arg(out.join(scenario.run.series.file_name(files::WORLD_TRACE)));
         if opts.trace_images {
             cmd.arg("--trace-images");
         }
@@ -475,7 +476,8 @@ pub fn sim_core_command(
         }
     }
     if opts.traces {
-        cmd.arg("--trace").arg(out.join(files::PLATFORM_TRACE));
+        cmd.arg("--trace")
+            .arg(out.join(scenario.run.series.file_name(files::PLATFORM_TRACE)));
         if opts.trace_images {
             cmd.arg("--trace-images");
         }

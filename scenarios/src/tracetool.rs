@@ -137,8 +137,13 @@ pub fn trace_drones(records: &[TraceRecord]) -> Vec<String> {
 /// byte (what `cosim replay --drone` serves to one platform). Returns how
 /// many lines were kept.
 pub fn extract_drone(path: &Path, drone: &str, dest: &Path) -> Result<usize, TraceToolError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| TraceToolError::Io(format!("{}: {e}", path.display())))?;
+    // Either form (`world.trace` or `world.trace.zst`).
+    let text = protocol::series::read(path)
+        .map_err(|e| TraceToolError::Io(e.to_string()))
+        .and_then(|t| {
+            String::from_utf8(t.bytes)
+                .map_err(|e| TraceToolError::Io(format!("{}: {e}", path.display())))
+        })?;
     let mut kept = String::new();
     let mut n = 0;
     for (i, line) in text.lines().enumerate() {

@@ -10,7 +10,7 @@
 //! file by name), checked against the hash, and encoded as negotiated.
 //!
 
-use std::io::{BufRead, BufReader};
+use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
 use protocol::blocking::{Options, Server};
@@ -70,10 +70,11 @@ pub fn load_trace(path: &Path) -> Result<Vec<Exchange>, ReplayError> {
         path: path.to_path_buf(),
         message,
     };
-    let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+    // Either form (`world.trace` or `world.trace.zst`).
+    let file = protocol::series::open(path).map_err(|e| bad(e.to_string()))?;
     let mut out: Vec<Exchange> = Vec::new();
     let mut images = 0usize;
-    for (n, line) in BufReader::new(file).lines().enumerate() {
+    for (n, line) in file.lines().enumerate() {
         let line = line.map_err(|e| bad(e.to_string()))?;
         if line.trim().is_empty() {
             continue;

@@ -153,7 +153,7 @@ pub async fn serve(cfg: ServerConfig) -> Result<(), ServerError> {
     // Flush outputs on every path; the first error wins.
     let flushed = session.flush().map_err(ServerError::from);
     let traced = match trace.as_mut() {
-        Some(t) => t.flush().map_err(|source| ServerError::Output {
+        Some(t) => t.finish().map_err(|source| ServerError::Output {
             path: cfg.trace.clone().unwrap_or_default(),
             source,
         }),

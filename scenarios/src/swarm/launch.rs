@@ -106,7 +106,8 @@ fn sim_command(
         cmd.arg("--max-time").arg(t.to_string());
     }
     if opts.traces {
-        cmd.arg("--trace").arg(dir.join(files::PLATFORM_TRACE));
+        cmd.arg("--trace")
+            .arg(dir.join(scenario.run.series.file_name(files::PLATFORM_TRACE)));
         if opts.trace_images {
             cmd.arg("--trace-images");
         }
@@ -150,7 +151,8 @@ fn world_command(
         .arg(scenario.busy_poll_us.to_string());
     crate::launch::mcap_args(&mut c, scenario, out);
     if opts.traces {
-        c.arg("--trace").arg(out.join(files::WORLD_TRACE));
+        c.arg("--trace")
+            .arg(out.join(scenario.run.series.file_name(files::WORLD_TRACE)));
         if opts.trace_images {
             c.arg("--trace-images");
         }

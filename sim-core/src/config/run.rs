@@ -134,7 +134,7 @@ pub const RUN_KEYS: [(&str, &str); 26] = [
     ),
     (
         "output.compress",
-        "store the series (power.csv, motor_*.csv, trajectory.csv) zstd-compressed as NAME.csv.zst (true, default) or as plain CSV (false); same columns, same values",
+        "store the series (power.csv, motor_*.csv, trajectory.csv, time_map.csv) and the traces (world.trace, platform.trace) zstd-compressed as NAME.zst (true, default) or plain (false); same bytes once decompressed",
     ),
 ];
 

@@ -525,7 +525,7 @@ impl<W: WorldLink> Run<W> {
         let time = self.platform.time.report(now);
         if let Some(dir) = &cfg.out_dir {
             // The world's time base for the platform's logs (run.mcap).
-            if let Err(e) = self.platform.time.time_map().write(dir) {
+            if let Err(e) = self.platform.time.time_map().write(dir, cfg.run.series) {
                 error.get_or_insert(KernelError::Io(e));
             }
         }

@@ -249,10 +249,11 @@ impl SocketWorld {
         })
     }
 
-    /// Flushes the trace (also done when the link is dropped).
-    pub fn flush_trace(&self) -> std::io::Result<()> {
+    /// Writes the rest of the trace and ends its file (done when the link
+    /// is dropped, at the end of the run).
+    pub fn finish_trace(&self) -> std::io::Result<()> {
         match &self.trace {
-            Some(t) => t.lock().expect("trace lock").flush(),
+            Some(t) => t.lock().expect("trace lock").finish(),
             None => Ok(()),
         }
     }
@@ -279,8 +280,8 @@ impl SocketWorld {
 
 impl Drop for SocketWorld {
     fn drop(&mut self) {
-        if let Err(e) = self.flush_trace() {
-            tracing::error!("cannot flush the trace: {e}");
+        if let Err(e) = self.finish_trace() {
+            tracing::error!("cannot write the trace: {e}");
         }
     }
 }

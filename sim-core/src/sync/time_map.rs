@@ -18,6 +18,8 @@
 use std::io::Write;
 use std::path::Path;
 
+use protocol::series::{SeriesFormat, SeriesWriter};
+
 use crate::units::Picos;
 
 /// File name of the map in a platform's output directory.
@@ -71,14 +73,16 @@ impl TimeMapRecorder {
         r.knots
     }
 
-    /// Writes `time_map.csv` into `dir`.
-    pub fn write(&self, dir: &Path) -> std::io::Result<()> {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join(TIME_MAP_CSV))?);
+    /// Writes `time_map.csv` into `dir`, in the run's form for series
+    /// (`time_map.csv.zst` compressed: the race's 22,044 knots are 0.67 MB
+    /// plain, 52 kB compressed).
+    pub fn write(&self, dir: &Path, form: SeriesFormat) -> std::io::Result<()> {
+        let mut f = SeriesWriter::create(&dir.join(form.file_name(TIME_MAP_CSV)))?;
         writeln!(f, "platform_ps,world_ps")?;
         for (p, w) in self.knots() {
             writeln!(f, "{p},{w}")?;
         }
-        f.flush()
+        f.finish()
     }
 }
 

@@ -38,8 +38,8 @@ fn col(header: &[String], name: &str) -> usize {
 
 /// Every line of a trace is one complete JSON object.
 fn trace_lines(path: &Path) -> Vec<Value> {
-    std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    // Either form (`world.trace` or `world.trace.zst`).
+    e2e_tests::read_series(path)
         .lines()
         .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{}: {e}: {l}", path.display())))
         .collect()
@@ -353,8 +353,8 @@ fn two_hovering_drones_repeat_replay_check_and_sweep() {
     assert!(sim.status.success(), "{}", text(&sim));
     assert!(replay_out.status.success(), "{}", text(&replay_out));
     assert!(
-        std::fs::read(a.join("d2/platform.trace")).unwrap()
-            == std::fs::read(c.join("platform.trace")).unwrap(),
+        e2e_tests::read_series(&a.join("d2/platform.trace"))
+            == e2e_tests::read_series(&c.join("platform.trace")),
         "the replayed platform trace differs from the recorded one"
     );
     assert_eq!(
@@ -386,10 +386,7 @@ fn two_hovering_drones_repeat_replay_check_and_sweep() {
     // ... and finds one altered reply of d2.
     let mut altered = String::new();
     let mut target = None;
-    for l in std::fs::read_to_string(a.join("world.trace"))
-        .unwrap()
-        .lines()
-    {
+    for l in e2e_tests::read_series(&a.join("world.trace")).lines() {
         let mut v: Value = serde_json::from_str(l).unwrap();
         if target.is_none()
             && v["drone"] == "d2"
@@ -570,8 +567,15 @@ fn killing_one_platform_ends_the_run_with_the_outputs_flushed() {
             child.try_wait().unwrap().is_none(),
             "cosim ended before the kill"
         );
-        let flying = std::fs::read_to_string(&trace)
-            .map(|t| t.lines().filter(|l| l.contains("\"drone\":\"d2\"")).count() > 2000)
+        // The trace being written: the part that reached the disk.
+        let flying = protocol::series::read(&trace)
+            .map(|t| {
+                String::from_utf8_lossy(&t.bytes)
+                    .lines()
+                    .filter(|l| l.contains("\"drone\":\"d2\""))
+                    .count()
+                    > 2000
+            })
             .unwrap_or(false);
         if flying {
             if let Some(pid) = platform_pid(&out, "d2") {

@@ -38,8 +38,8 @@ fn column(header: &[String], rows: &[Vec<String>], name: &str) -> Vec<f64> {
 }
 
 fn trace_lines(path: &Path) -> Vec<Value> {
-    std::fs::read_to_string(path)
-        .unwrap()
+    // Either form (`world.trace` or `world.trace.zst`).
+    e2e_tests::read_series(path)
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect()
@@ -236,8 +236,8 @@ fn run_outputs_agree_repeat_bit_for_bit_and_replay() {
     assert!(String::from_utf8_lossy(&replay_out.stderr).contains("all as recorded"));
     assert_eq!(deterministic(summary(&a)), deterministic(summary(&c)));
     assert!(
-        std::fs::read(a.join("platform.trace")).unwrap()
-            == std::fs::read(c.join("platform.trace")).unwrap(),
+        e2e_tests::read_series(&a.join("platform.trace"))
+            == e2e_tests::read_series(&c.join("platform.trace")),
         "the replayed run's platform trace differs from the recorded one"
     );
 
@@ -257,7 +257,7 @@ fn run_outputs_agree_repeat_bit_for_bit_and_replay() {
     );
 
     // ... and against a trace with one altered altitude.
-    let lines = std::fs::read_to_string(a.join("world.trace")).unwrap();
+    let lines = e2e_tests::read_series(&a.join("world.trace"));
     let mut altered = String::new();
     let mut target_seq = None;
     for l in lines.lines() {

@@ -17,8 +17,7 @@ use serde_json::Value;
 /// The trace's lines with `len` of image replies and GET_INIT_DATA lines
 /// left out (they name or reflect the encoding); everything else verbatim.
 fn comparable_trace(path: &Path) -> Vec<String> {
-    std::fs::read_to_string(path)
-        .unwrap()
+    e2e_tests::read_series(path)
         .lines()
         .filter(|l| !l.contains("\"GET_INIT_DATA\""))
         .map(|l| {

@@ -68,8 +68,10 @@ fn summary(dir: &Path) -> Value {
     s
 }
 
+/// The same text in both files, each in either form (a trace `cosim`
+/// compressed against one a binary started by hand wrote plain).
 fn same_bytes(a: &Path, b: &Path) {
-    let (x, y) = (std::fs::read(a).unwrap(), std::fs::read(b).unwrap());
+    let (x, y) = (e2e_tests::read_series(a), e2e_tests::read_series(b));
     assert!(
         x == y,
         "{} and {} differ ({} vs {} bytes)",

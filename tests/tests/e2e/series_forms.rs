@@ -1,19 +1,23 @@
-//! A run's series (DESIGN.md §6, §19) in both forms: `cosim run short-hop`
-//! writes `*.csv.zst` by default and plain `*.csv` with
-//! `--set output.compress=false`; the two hold the same rows, byte for
-//! byte once decompressed, and the report reads either.
+//! A run's series and traces (DESIGN.md §6, §19) in both forms: `cosim run
+//! short-hop` writes `*.csv.zst` and `*.trace.zst` by default and plain
+//! `*.csv` and `*.trace` with `--set output.compress=false`; the two hold
+//! the same rows, byte for byte once decompressed, and the report and the
+//! trace tools read either.
 
 use std::path::Path;
 
 use e2e_tests::{output_text as text, read_series, summary, CosimBins as Bins};
 
-/// The series of a single-drone run, by their CSV names.
-const SERIES: [&str; 5] = [
+/// The series and traces of a single-drone run, by their plain names.
+const SERIES: [&str; 8] = [
     "power.csv",
     "motor_empirical.csv",
     "motor_dandrea.csv",
     "motor_stolaroff.csv",
     "trajectory.csv",
+    "time_map.csv",
+    "world.trace",
+    "platform.trace",
 ];
 
 fn run(b: &Bins, out: &Path, extra: &[&str]) {
@@ -42,9 +46,13 @@ fn compressed_and_plain_series_hold_the_same_rows() {
         let decoded = zstd::decode_all(&std::fs::read(&z).unwrap()[..]).unwrap();
         let csv = std::fs::read(plain.join(name)).unwrap();
         assert!(decoded == csv, "{name}: the two forms differ");
-        assert!(csv.len() > 1000, "{name}: {} bytes", csv.len());
+        assert!(csv.len() > 20, "{name}: {} bytes", csv.len());
         assert_eq!(read_series(&zst.join(name)).as_bytes(), &csv[..]);
     }
+    // The trace tools take the compressed trace by its plain name.
+    let o = b.cosim(&["trace", "show", zst.join("world.trace").to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("GET_INIT_DATA"), "{}", text(&o));
     // The runs are the same run: the summary and the report's plots.
     let strip = |mut s: serde_json::Value| {
         let o = s.as_object_mut().unwrap();
