@@ -18,7 +18,7 @@ use sim_core::cluster::power::{Meter, Totals};
 use sim_core::cluster::{Cluster, ClusterConfig};
 use sim_core::config::PlatformConfig;
 use sim_core::iss::{load_elf, Backend, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason};
-use sim_core::machine::run_elf::build_memory;
+use sim_core::machine::{run_elf::build_memory, Machine};
 use sim_core::units::{Hertz, Picos};
 
 /// `nn_command` values (nn_eval.c).
@@ -169,14 +169,15 @@ impl NnMachine {
             idle_skip: true,
             iss,
         };
-        let mut cluster = Cluster::new(cfg, &mut mem).context("the cluster")?;
-        let mut fc = Cpu::new(Cluster::fc_config(CpuConfig {
+        let fc_cfg = CpuConfig {
             clock: Hertz(plat.core.frequency),
             ebreak_stops: true,
             iss,
             ..CpuConfig::default()
-        }));
-        Cluster::attach_fc(&mut fc);
+        };
+        let Machine { mut fc, cluster } =
+            Machine::new(&mut mem, fc_cfg, Some(cfg)).context("the cluster")?;
+        let mut cluster = cluster.expect("a cluster was asked for");
         // The program's console (errors only) must not mix with cosim's
         // stdout, which carries the results.
         fc.set_console(Box::new(std::io::stderr()));

@@ -35,6 +35,7 @@ use crate::cluster::power::{Meter, Totals};
 use crate::cluster::Cluster;
 use crate::config::{PlatformConfig, RunConfig};
 use crate::iss::{load_elf, Cpu, CpuConfig, ElfError, Memory, StopReason};
+use crate::machine::Machine;
 use crate::peripherals::radio::{self, RadioDevice};
 use crate::peripherals::stm32::crtp::console::ConsoleTap;
 use crate::peripherals::stm32::crtp::{CrtpConfig, CrtpServer, PowerTelemetry};
@@ -215,15 +216,11 @@ impl<W: WorldLink> Run<W> {
         elf.load_into(&mut mem)?;
         firmware_params::apply(&elf, &mut mem, &cfg.run.firmware_params)?;
 
-        let cluster = match &cfg.platform.cluster {
-            Some(section) => {
-                let cc = section.cluster_config(cfg.idle_skip, cfg.run.iss);
-                let c =
-                    Cluster::new(cc, &mut mem).map_err(|e| KernelError::Config(e.to_string()))?;
-                Some((c, Meter::new(cc.vref, cc.clock)))
-            }
-            None => None,
-        };
+        let cluster_cfg = cfg
+            .platform
+            .cluster
+            .as_ref()
+            .map(|section| section.cluster_config(cfg.idle_skip, cfg.run.iss));
         let fc_cfg = CpuConfig {
             clock: Hertz(cfg.platform.core.frequency),
             mmio_latency: Cycles(cfg.mmio_latency),
@@ -231,13 +228,14 @@ impl<W: WorldLink> Run<W> {
             iss: cfg.run.iss,
             ..CpuConfig::default()
         };
-        let mut cpu = Cpu::new(match cluster {
-            Some(_) => Cluster::fc_config(fc_cfg),
-            None => fc_cfg,
-        });
-        if cluster.is_some() {
-            Cluster::attach_fc(&mut cpu);
-        }
+        let Machine {
+            fc: mut cpu,
+            cluster,
+        } = Machine::new(&mut mem, fc_cfg, cluster_cfg)
+            .map_err(|e| KernelError::Config(e.to_string()))?;
+        let cluster = cluster
+            .zip(cluster_cfg)
+            .map(|(c, cc)| (c, Meter::new(cc.vref, cc.clock)));
         cpu.set_pc(elf.entry);
         if let Some(sp) = elf.symbol("__stack") {
             cpu.set_reg(2, sp);

@@ -10,7 +10,7 @@ use crate::cluster::{Cluster, ClusterConfig};
 use crate::units::{Hertz, Picos};
 
 use crate::iss::{
-    load_elf, map, Backend, Cpu, CpuConfig, IssError, LoadedElf, Memory, NoDevices, StopReason,
+    load_elf, map, Backend, CpuConfig, IssError, LoadedElf, Memory, NoDevices, StopReason,
 };
 
 /// Default RAM: 16 MiB from the lowest loaded address rounded down to 64 KiB.
@@ -139,28 +139,18 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
         iss: args.iss,
         ..CpuConfig::default()
     };
-    let mut cluster = if args.no_cluster {
-        None
-    } else {
-        let cfg = ClusterConfig {
-            cores: args.cluster_cores,
-            clock: Hertz(args.cluster_mhz.saturating_mul(1_000_000)),
-            idle_skip: !args.no_idle_skip,
-            iss: args.iss,
-            ..ClusterConfig::default()
-        };
-        Some(
-            Cluster::new(cfg, &mut mem)
-                .context("the cluster (--no-cluster to run the FC alone)")?,
-        )
-    };
-    let mut cpu = Cpu::new(match cluster {
-        Some(_) => Cluster::fc_config(fc_cfg),
-        None => fc_cfg,
+    let cluster_cfg = (!args.no_cluster).then(|| ClusterConfig {
+        cores: args.cluster_cores,
+        clock: Hertz(args.cluster_mhz.saturating_mul(1_000_000)),
+        idle_skip: !args.no_idle_skip,
+        iss: args.iss,
+        ..ClusterConfig::default()
     });
-    if cluster.is_some() {
-        Cluster::attach_fc(&mut cpu);
-    }
+    let super::Machine {
+        fc: mut cpu,
+        mut cluster,
+    } = super::Machine::new(&mut mem, fc_cfg, cluster_cfg)
+        .context("the cluster (--no-cluster to run the FC alone)")?;
     cpu.set_pc(elf.entry);
     cpu.set_tohost(elf.symbol("tohost"));
     cpu.set_instruction_limit(args.max_instructions);
