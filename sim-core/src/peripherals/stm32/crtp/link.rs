@@ -127,43 +127,26 @@ impl Source {
         match self {
             Source::Udp { socket, peer } => {
                 let mut buf = [0u8; 1500];
+                // `send` leaves the socket blocking.
+                socket.set_nonblocking(true)?;
                 loop {
-                    let wait = deadline.and_then(|d| d.checked_duration_since(Instant::now()));
-                    let got = match wait {
-                        Some(w) if w > Duration::ZERO => {
-                            socket.set_nonblocking(false)?;
-                            socket.set_read_timeout(Some(w))?;
-                            socket.recv_from(&mut buf)
-                        }
-                        _ => {
-                            socket.set_nonblocking(true)?;
-                            socket.recv_from(&mut buf)
-                        }
-                    };
-                    match got {
+                    match socket.recv_from(&mut buf) {
+                        // Answer a packet as soon as it came: the caller
+                        // dispatches between calls.
                         Ok((n, from)) => {
                             *peer = Some(from);
                             out.push(buf[..n].to_vec());
+                            break;
                         }
-                        Err(e)
-                            if matches!(
-                                e.kind(),
-                                io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                            ) =>
-                        {
-                            if wait.is_none_or(|w| w.is_zero()) {
-                                break;
-                            }
-                        }
+                        Err(e) if e.kind() == io::ErrorKind::WouldBlock => {}
                         // An ICMP "port unreachable" from a client that went
                         // away shows as a reset on some systems: not ours.
-                        Err(e) if e.kind() == io::ErrorKind::ConnectionReset => {}
+                        Err(e) if e.kind() == io::ErrorKind::ConnectionReset => continue,
                         Err(e) => return Err(e),
                     }
-                    // Answer a packet as soon as it came: the caller
-                    // dispatches between calls.
-                    if !out.is_empty() {
-                        break;
+                    match deadline.and_then(|d| d.checked_duration_since(Instant::now())) {
+                        Some(w) if !w.is_zero() => wait_readable(socket, w)?,
+                        _ => break,
                     }
                 }
             }
@@ -193,6 +176,56 @@ impl Source {
         }
         Ok(())
     }
+}
+
+/// Waits until `socket` has a datagram or `wait` has passed.
+///
+/// Not the socket's read timeout: SO_RCVTIMEO counts in the kernel's ticks
+/// (4 ms at HZ = 250), which released the steps of a paced run up to
+/// 12 ms late, 6.6 ms on average at pace 1 (docs/notes/2026-12-07-pacing.md);
+/// `ppoll`'s timeout is a high-resolution timer.
+#[cfg(target_os = "linux")]
+fn wait_readable(socket: &UdpSocket, wait: Duration) -> io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let mut fd = libc::pollfd {
+        fd: socket.as_raw_fd(),
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let ts = libc::timespec {
+        tv_sec: libc::time_t::try_from(wait.as_secs()).unwrap_or(libc::time_t::MAX),
+        tv_nsec: wait.subsec_nanos().into(),
+    };
+    // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+    let r = unsafe { libc::ppoll(&mut fd, 1, &ts, std::ptr::null()) };
+    if r < 0 {
+        let e = io::Error::last_os_error();
+        if e.kind() != io::ErrorKind::Interrupted {
+            return Err(e);
+        }
+    }
+    Ok(())
+}
+
+/// Elsewhere `poll`, in whole milliseconds (rounded up: never early).
+#[cfg(not(target_os = "linux"))]
+fn wait_readable(socket: &UdpSocket, wait: Duration) -> io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let mut fd = libc::pollfd {
+        fd: socket.as_raw_fd(),
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let ms = libc::c_int::try_from(wait.as_micros().div_ceil(1000)).unwrap_or(libc::c_int::MAX);
+    // SAFETY: one valid pollfd.
+    let r = unsafe { libc::poll(&mut fd, 1, ms) };
+    if r < 0 {
+        let e = io::Error::last_os_error();
+        if e.kind() != io::ErrorKind::Interrupted {
+            return Err(e);
+        }
+    }
+    Ok(())
 }
 
 fn read_recording(path: &Path) -> io::Result<VecDeque<(Picos, Vec<u8>)>> {
@@ -437,6 +470,34 @@ mod tests {
             "replay:a/crtp.jsonl".parse::<CrtpSpec>().unwrap(),
             CrtpSpec::Replay("a/crtp.jsonl".into())
         );
+    }
+
+    #[test]
+    fn the_pacing_figures_are_those_of_the_steps() {
+        // Pace 2: steps 1 s of simulated time apart are due 0.5 s apart;
+        // released 0, 50 and 150 ms late.
+        let mut p = Pacer::new(2.0);
+        let lags = [0, 50, 150].map(Duration::from_millis);
+        for (i, lag) in lags.iter().enumerate() {
+            let now = Picos::from_ms(1000 * (i as u64 + 3));
+            let d = p.deadline(now).unwrap();
+            p.ran(now, d, d + *lag).unwrap();
+        }
+        let s = p.summary().unwrap();
+        assert_eq!(s.steps, 3);
+        assert!((s.paced_s - 2.0).abs() < 1e-9);
+        assert!((s.wall_s - 1.15).abs() < 1e-6, "{s:?}");
+        assert!((s.achieved_pace - 2.0 / 1.15).abs() < 1e-5);
+        assert!((s.worst_lag_ms - 150.0).abs() < 1e-6);
+        assert!((s.worst_lag_at_s - 5.0).abs() < 1e-9);
+        assert!((s.mean_lag_ms - 200.0 / 3.0).abs() < 1e-6);
+        // 87 % of the pace and a lag past MAX_LAG_MS: not kept up.
+        assert!(!s.kept_up);
+        assert!(s.warning().unwrap().contains("worst lag 150 ms at 5.0 s"));
+        // Unpaced: no deadlines, no figures.
+        let mut u = Pacer::new(0.0);
+        assert_eq!(u.deadline(Picos::from_ms(5)), None);
+        assert_eq!(u.summary(), None);
     }
 
     #[test]
