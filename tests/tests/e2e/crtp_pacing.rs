@@ -95,6 +95,7 @@ fn a_paced_run_reports_its_achieved_pace_and_lag() {
     assert!((f("paced_s") / f("wall_s") - achieved).abs() < 1e-9, "{p}");
     assert!(f("worst_lag_ms") >= f("mean_lag_ms") && f("mean_lag_ms") >= 0.0);
     let steps = p["steps"].as_u64().unwrap();
+    assert!(p["steps_late"].as_u64().unwrap() <= steps);
     // One row a step, the 32 ms steps of the paced part.
     let csv = std::fs::read_to_string(out.join("pacing.csv")).unwrap();
     assert_eq!(csv.lines().next(), Some("platform_s,wall_s,lag_ms"));

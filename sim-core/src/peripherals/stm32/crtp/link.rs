@@ -301,6 +301,8 @@ struct Held {
     /// The last step's platform time and the wall time it ran at.
     last: Option<(Picos, Instant)>,
     lag_sum: Duration,
+    /// Steps that ran more than [`MAX_LAG_MS`] after their deadline.
+    late: u64,
     worst: Option<(Duration, Picos)>,
 }
 
@@ -328,6 +330,8 @@ pub struct PacingSummary {
     /// The platform time of that step (s).
     pub worst_lag_at_s: f64,
     pub mean_lag_ms: f64,
+    /// Steps that ran more than [`MAX_LAG_MS`] after their deadline.
+    pub steps_late: u64,
     /// Paced steps, and the simulated and wall time they spanned (s).
     pub steps: u64,
     pub paced_s: f64,
@@ -342,14 +346,16 @@ impl PacingSummary {
     pub fn warning(&self) -> Option<String> {
         (!self.kept_up).then(|| {
             format!(
-                "the simulator did not keep pace {}: achieved {:.2}x ({:.0} % of it), worst lag {:.0} ms at {:.1} s (limits {:.0} %, {:.0} ms; a busy host or too high a pace)",
+                "the simulator did not keep pace {}: achieved {:.3}x ({:.1} % of it, limit {:.0} %); {} of {} steps ran more than {:.0} ms late, the worst {:.0} ms at {:.1} s (a busy host or too high a pace)",
                 self.pace,
                 self.achieved_pace,
                 100.0 * self.achieved_pace / self.pace,
+                100.0 * MIN_PACE_SHARE,
+                self.steps_late,
+                self.steps,
+                MAX_LAG_MS,
                 self.worst_lag_ms,
                 self.worst_lag_at_s,
-                100.0 * MIN_PACE_SHARE,
-                MAX_LAG_MS
             )
         })
     }
@@ -401,6 +407,9 @@ impl Pacer {
         h.steps += 1;
         h.last = Some((now, at));
         h.lag_sum += lag;
+        if lag.as_secs_f64() * 1e3 > MAX_LAG_MS {
+            h.late += 1;
+        }
         if h.worst.is_none_or(|(w, _)| lag > w) {
             h.worst = Some((lag, now));
         }
@@ -442,6 +451,7 @@ impl Pacer {
             worst_lag_ms,
             worst_lag_at_s: worst_at.as_secs_f64(),
             mean_lag_ms: h.lag_sum.as_secs_f64() * 1e3 / h.steps as f64,
+            steps_late: h.late,
             steps: h.steps,
             paced_s,
             wall_s,
@@ -493,7 +503,12 @@ mod tests {
         assert!((s.mean_lag_ms - 200.0 / 3.0).abs() < 1e-6);
         // 87 % of the pace and a lag past MAX_LAG_MS: not kept up.
         assert!(!s.kept_up);
-        assert!(s.warning().unwrap().contains("worst lag 150 ms at 5.0 s"));
+        assert_eq!(s.steps_late, 1);
+        let w = s.warning().unwrap();
+        assert!(
+            w.contains("1 of 3 steps ran more than 100 ms late, the worst 150 ms at 5.0 s"),
+            "{w}"
+        );
         // Unpaced: no deadlines, no figures.
         let mut u = Pacer::new(0.0);
         assert_eq!(u.deadline(Picos::from_ms(5)), None);
