@@ -416,6 +416,15 @@ pub fn summary_text(
         s.messages,
         s.collisions.map_or("?".into(), |c| c.to_string()),
     );
+    if let Some(p) = &s.pacing {
+        t += &format!(
+            "   pacing         pace {} asked, {:.3}x achieved over {:.1} s wall ({} steps) | lag behind the wall clock: worst {:.1} ms at {:.1} s, mean {:.2} ms\n",
+            p.pace, p.achieved_pace, p.wall_s, p.steps, p.worst_lag_ms, p.worst_lag_at_s, p.mean_lag_ms
+        );
+        if let Some(w) = p.warning() {
+            t += &format!("   WARNING        {w}\n");
+        }
+    }
     if let Some(d) = &s.flow_drift {
         t += &format!(
             "   flow drift     estimate - GPS: final {:.3} m, max {:.3} m, mean {:.3} m\n",

@@ -152,7 +152,7 @@ pub fn run_platform(args: &PlatformArgs, run: RunConfig) -> anyhow::Result<i32> 
     let outcome = simulate(&firmware, &cfg, world);
     let s = &outcome.summary;
     eprintln!(
-        "sim-core: {} | targets {}/{} reached, {} bypassed, {} replaced, {} skipped | platform {:.3} s, world {} | estimate error {} | SOC {:.1} % | {:.2} s wall, {:.1}x real time",
+        "sim-core: {} | targets {}/{} reached, {} bypassed, {} replaced, {} skipped | platform {:.3} s, world {} | estimate error {} | SOC {:.1} % | {:.2} s wall, {:.1}x real time{}",
         if s.completed { "completed" } else { "did not complete" },
         s.targets_reached,
         s.targets_total,
@@ -165,6 +165,14 @@ pub fn run_platform(args: &PlatformArgs, run: RunConfig) -> anyhow::Result<i32> 
         s.battery.soc_end * 100.0,
         s.wall_time_s,
         s.realtime_factor,
+        // cosim leaves this line out and reports the pacing on its own.
+        s.pacing.as_ref().map_or(String::new(), |p| match p.warning() {
+            Some(w) => format!(" | WARNING: {w}"),
+            None => format!(
+                " | paced {:.3}x of {}, worst lag {:.1} ms",
+                p.achieved_pace, p.pace, p.worst_lag_ms
+            ),
+        }),
     );
     if let Some(e) = outcome.error {
         return Err(anyhow::Error::new(e));

@@ -52,6 +52,9 @@ pub const L2_BASE: u32 = 0x1C00_0000;
 pub const L2_SIZE: u32 = 512 * 1024;
 /// The CRTP link's arrivals in the output directory (docs/CFLIB.md).
 pub const CRTP_RECORDING: &str = "crtp.jsonl";
+/// A paced live CRTP link's steps: platform time, wall time, lag
+/// (docs/CFLIB.md "Pacing").
+pub const PACING_CSV: &str = "pacing.csv";
 /// Power samples every millisecond (DESIGN.md §4).
 pub const SAMPLE_PERIOD: Picos = Picos::from_ms(1);
 
@@ -265,6 +268,7 @@ impl<W: WorldLink> Run<W> {
                     pace: cfg.run.pace,
                     idle: Picos((cfg.run.crtp_idle_s * Picos::PER_S as f64).round() as u64),
                     record: cfg.out_dir.as_ref().map(|d| d.join(CRTP_RECORDING)),
+                    pacing_log: cfg.out_dir.as_ref().map(|d| d.join(PACING_CSV)),
                     ai_deck: cfg.platform.sensor("camera").is_some()
                         || cfg.platform.cluster.is_some(),
                     cluster: cfg.platform.cluster.is_some(),
@@ -513,6 +517,9 @@ impl<W: WorldLink> Run<W> {
         }
         if let Err(e) = self.power.finish_logs() {
             error.get_or_insert(KernelError::Power(e));
+        }
+        if let Err(e) = self.platform.stm32.flush_crtp() {
+            error.get_or_insert(KernelError::Io(e));
         }
         if let (Some(map), Some(dir)) = (&self.map, &cfg.out_dir) {
             if let Err(e) = map.dump(&self.mem, dir) {

@@ -131,6 +131,11 @@ pub struct Summary {
     /// only; docs/AIDECK_POWER.md).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub deck: Option<crate::power::deck::DeckSummary>,
+    /// How a paced live CRTP link held the wall clock (DESIGN.md §20,
+    /// docs/CFLIB.md "Pacing"); absent when unpaced (`pace = 0`, a replay,
+    /// no CRTP link).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pacing: Option<crate::peripherals::stm32::crtp::PacingSummary>,
 }
 
 /// The flow estimate's horizontal distance from the GPS over a run (m).
@@ -202,6 +207,7 @@ impl Summary {
             flow_drift: None,
             nn: None,
             deck: None,
+            pacing: None,
         }
     }
 
@@ -307,6 +313,7 @@ impl Summary {
                 platform_time_s,
             ));
         }
+        s.pacing = platform.stm32.crtp().and_then(|c| c.pacing());
         s.flow_drift = platform.stm32.flow_drift().map(|d| FlowDriftSummary {
             final_m: d.last_m,
             max_m: d.max_m,

@@ -24,6 +24,7 @@ mod cosim_signals;
 mod cosim_tcp;
 mod cosim_world_cmd;
 mod crtp_link;
+mod crtp_pacing;
 mod example_world_python;
 mod explore_e2e;
 mod foxglove_mcap;

@@ -127,43 +127,26 @@ impl Source {
         match self {
             Source::Udp { socket, peer } => {
                 let mut buf = [0u8; 1500];
+                // `send` leaves the socket blocking.
+                socket.set_nonblocking(true)?;
                 loop {
-                    let wait = deadline.and_then(|d| d.checked_duration_since(Instant::now()));
-                    let got = match wait {
-                        Some(w) if w > Duration::ZERO => {
-                            socket.set_nonblocking(false)?;
-                            socket.set_read_timeout(Some(w))?;
-                            socket.recv_from(&mut buf)
-                        }
-                        _ => {
-                            socket.set_nonblocking(true)?;
-                            socket.recv_from(&mut buf)
-                        }
-                    };
-                    match got {
+                    match socket.recv_from(&mut buf) {
+                        // Answer a packet as soon as it came: the caller
+                        // dispatches between calls.
                         Ok((n, from)) => {
                             *peer = Some(from);
                             out.push(buf[..n].to_vec());
+                            break;
                         }
-                        Err(e)
-                            if matches!(
-                                e.kind(),
-                                io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                            ) =>
-                        {
-                            if wait.is_none_or(|w| w.is_zero()) {
-                                break;
-                            }
-                        }
+                        Err(e) if e.kind() == io::ErrorKind::WouldBlock => {}
                         // An ICMP "port unreachable" from a client that went
                         // away shows as a reset on some systems: not ours.
-                        Err(e) if e.kind() == io::ErrorKind::ConnectionReset => {}
+                        Err(e) if e.kind() == io::ErrorKind::ConnectionReset => continue,
                         Err(e) => return Err(e),
                     }
-                    // Answer a packet as soon as it came: the caller
-                    // dispatches between calls.
-                    if !out.is_empty() {
-                        break;
+                    match deadline.and_then(|d| d.checked_duration_since(Instant::now())) {
+                        Some(w) if !w.is_zero() => wait_readable(socket, w)?,
+                        _ => break,
                     }
                 }
             }
@@ -193,6 +176,56 @@ impl Source {
         }
         Ok(())
     }
+}
+
+/// Waits until `socket` has a datagram or `wait` has passed.
+///
+/// Not the socket's read timeout: SO_RCVTIMEO counts in the kernel's ticks
+/// (4 ms at HZ = 250), which released the steps of a paced run up to
+/// 12 ms late, 6.6 ms on average at pace 1 (docs/notes/2026-12-07-pacing.md);
+/// `ppoll`'s timeout is a high-resolution timer.
+#[cfg(target_os = "linux")]
+fn wait_readable(socket: &UdpSocket, wait: Duration) -> io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let mut fd = libc::pollfd {
+        fd: socket.as_raw_fd(),
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let ts = libc::timespec {
+        tv_sec: libc::time_t::try_from(wait.as_secs()).unwrap_or(libc::time_t::MAX),
+        tv_nsec: wait.subsec_nanos().into(),
+    };
+    // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+    let r = unsafe { libc::ppoll(&mut fd, 1, &ts, std::ptr::null()) };
+    if r < 0 {
+        let e = io::Error::last_os_error();
+        if e.kind() != io::ErrorKind::Interrupted {
+            return Err(e);
+        }
+    }
+    Ok(())
+}
+
+/// Elsewhere `poll`, in whole milliseconds (rounded up: never early).
+#[cfg(not(target_os = "linux"))]
+fn wait_readable(socket: &UdpSocket, wait: Duration) -> io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let mut fd = libc::pollfd {
+        fd: socket.as_raw_fd(),
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let ms = libc::c_int::try_from(wait.as_micros().div_ceil(1000)).unwrap_or(libc::c_int::MAX);
+    // SAFETY: one valid pollfd.
+    let r = unsafe { libc::poll(&mut fd, 1, ms) };
+    if r < 0 {
+        let e = io::Error::last_os_error();
+        if e.kind() != io::ErrorKind::Interrupted {
+            return Err(e);
+        }
+    }
+    Ok(())
 }
 
 fn read_recording(path: &Path) -> io::Result<VecDeque<(Picos, Vec<u8>)>> {
@@ -246,17 +279,115 @@ impl Recorder {
     }
 }
 
-/// Wall-clock pacing of a live link.
-#[derive(Debug, Clone, Copy)]
+/// Wall-clock pacing of a live link, and how well it held.
+///
+/// Each step's deadline is absolute, `origin_wall + (t − t_origin)/pace`,
+/// never a sleep added to the last one: a step released late leaves the
+/// next deadlines where they were, so the world catches up (its next steps
+/// run at once) instead of drifting, and it never runs ahead of the wall
+/// clock by more than the step it is in.
 pub struct Pacer {
     pace: f64,
     origin: Option<(Instant, Picos)>,
+    held: Held,
+    /// `pacing.csv`: one row a paced step (see [`Pacer::with_log`]).
+    log: Option<BufWriter<File>>,
 }
+
+/// What the paced steps showed so far.
+#[derive(Debug, Clone, Copy, Default)]
+struct Held {
+    steps: u64,
+    /// The last step's platform time and the wall time it ran at.
+    last: Option<(Picos, Instant)>,
+    lag_sum: Duration,
+    /// Steps that ran more than [`MAX_LAG_MS`] after their deadline.
+    late: u64,
+    worst: Option<(Duration, Picos)>,
+}
+
+/// The achieved pace is at least this share of the requested one, or the
+/// run is reported as not kept up.
+pub const MIN_PACE_SHARE: f64 = 0.95;
+/// A step released more than this after its deadline (ms, wall) is reported
+/// as not kept up: cflib's MotionCommander and cfclient stream set-points
+/// at 10 Hz, so a lag past 100 ms puts the world a whole set-point period
+/// behind the script; and when the world catches up, lag × pace of
+/// simulated time passes in a burst without new packets, which at pace ≤ 4
+/// stays under the commander's 500 ms watchdog (`commander::WDT_STABILIZE`)
+/// for a client streaming at 10 Hz.
+pub const MAX_LAG_MS: f64 = 100.0;
+
+/// The pacing's figures (`summary.json`'s `pacing`, DESIGN.md §20).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PacingSummary {
+    /// The pace asked for (simulated seconds per wall second).
+    pub pace: f64,
+    /// Simulated time over wall time from the first paced step to the last.
+    pub achieved_pace: f64,
+    /// The largest wall time by which a step ran after its deadline (ms).
+    pub worst_lag_ms: f64,
+    /// The platform time of that step (s).
+    pub worst_lag_at_s: f64,
+    pub mean_lag_ms: f64,
+    /// Steps that ran more than [`MAX_LAG_MS`] after their deadline.
+    pub steps_late: u64,
+    /// Paced steps, and the simulated and wall time they spanned (s).
+    pub steps: u64,
+    pub paced_s: f64,
+    pub wall_s: f64,
+    /// The achieved pace was at least [`MIN_PACE_SHARE`] of the asked one
+    /// and no step lagged more than [`MAX_LAG_MS`].
+    pub kept_up: bool,
+}
+
+impl PacingSummary {
+    /// The one-line warning of a run whose simulator could not keep up.
+    pub fn warning(&self) -> Option<String> {
+        (!self.kept_up).then(|| {
+            format!(
+                "the simulator did not keep pace {}: achieved {:.3}x ({:.1} % of it, limit {:.0} %); {} of {} steps ran more than {:.0} ms late, the worst {:.0} ms at {:.1} s (a busy host or too high a pace)",
+                self.pace,
+                self.achieved_pace,
+                100.0 * self.achieved_pace / self.pace,
+                100.0 * MIN_PACE_SHARE,
+                self.steps_late,
+                self.steps,
+                MAX_LAG_MS,
+                self.worst_lag_ms,
+                self.worst_lag_at_s,
+            )
+        })
+    }
+}
+
+/// The header of `pacing.csv`: the step's platform time, the wall time it
+/// ran at since the first paced step, its lag behind its deadline.
+pub const PACING_CSV_HEADER: &str = "platform_s,wall_s,lag_ms";
 
 impl Pacer {
     /// `pace` = simulated seconds per wall second (0: as fast as possible).
     pub fn new(pace: f64) -> Self {
-        Pacer { pace, origin: None }
+        Pacer {
+            pace,
+            origin: None,
+            held: Held::default(),
+            log: None,
+        }
+    }
+
+    /// The same, writing each paced step to `path` (`pacing.csv`; nothing
+    /// is created when unpaced).
+    pub fn with_log(pace: f64, path: &Path) -> io::Result<Self> {
+        let mut p = Pacer::new(pace);
+        if pace > 0.0 {
+            let f =
+                File::create(path).map_err(io_err(format!("cannot create {}", path.display())))?;
+            let mut w = BufWriter::new(f);
+            writeln!(w, "{PACING_CSV_HEADER}")?;
+            p.log = Some(w);
+        }
+        Ok(p)
     }
 
     /// When the step at `now` may run (`None`: at once).
@@ -267,6 +398,65 @@ impl Pacer {
         let (w0, t0) = *self.origin.get_or_insert((Instant::now(), now));
         let sim = now.saturating_sub(t0).as_secs_f64();
         Some(w0 + Duration::from_secs_f64(sim / self.pace))
+    }
+
+    /// The step at `now`, due at `deadline`, runs at wall time `at`.
+    pub fn ran(&mut self, now: Picos, deadline: Instant, at: Instant) -> io::Result<()> {
+        let lag = at.saturating_duration_since(deadline);
+        let h = &mut self.held;
+        h.steps += 1;
+        h.last = Some((now, at));
+        h.lag_sum += lag;
+        if lag.as_secs_f64() * 1e3 > MAX_LAG_MS {
+            h.late += 1;
+        }
+        if h.worst.is_none_or(|(w, _)| lag > w) {
+            h.worst = Some((lag, now));
+        }
+        if let (Some(w), Some((w0, _))) = (&mut self.log, self.origin) {
+            writeln!(
+                w,
+                "{:.6},{:.6},{:.3}",
+                now.as_secs_f64(),
+                at.saturating_duration_since(w0).as_secs_f64(),
+                lag.as_secs_f64() * 1e3
+            )?;
+        }
+        Ok(())
+    }
+
+    pub fn flush(&mut self) -> io::Result<()> {
+        match &mut self.log {
+            Some(w) => w.flush(),
+            None => Ok(()),
+        }
+    }
+
+    /// The figures so far (`None`: unpaced, or fewer than two paced steps).
+    pub fn summary(&self) -> Option<PacingSummary> {
+        let (w0, t0) = self.origin?;
+        let h = &self.held;
+        let (t1, w1) = h.last?;
+        let (worst, worst_at) = h.worst?;
+        let paced_s = t1.saturating_sub(t0).as_secs_f64();
+        let wall_s = w1.saturating_duration_since(w0).as_secs_f64();
+        if h.steps < 2 || wall_s <= 0.0 {
+            return None;
+        }
+        let achieved_pace = paced_s / wall_s;
+        let worst_lag_ms = worst.as_secs_f64() * 1e3;
+        Some(PacingSummary {
+            pace: self.pace,
+            achieved_pace,
+            worst_lag_ms,
+            worst_lag_at_s: worst_at.as_secs_f64(),
+            mean_lag_ms: h.lag_sum.as_secs_f64() * 1e3 / h.steps as f64,
+            steps_late: h.late,
+            steps: h.steps,
+            paced_s,
+            wall_s,
+            kept_up: achieved_pace >= MIN_PACE_SHARE * self.pace && worst_lag_ms <= MAX_LAG_MS,
+        })
     }
 }
 
@@ -290,6 +480,39 @@ mod tests {
             "replay:a/crtp.jsonl".parse::<CrtpSpec>().unwrap(),
             CrtpSpec::Replay("a/crtp.jsonl".into())
         );
+    }
+
+    #[test]
+    fn the_pacing_figures_are_those_of_the_steps() {
+        // Pace 2: steps 1 s of simulated time apart are due 0.5 s apart;
+        // released 0, 50 and 150 ms late.
+        let mut p = Pacer::new(2.0);
+        let lags = [0, 50, 150].map(Duration::from_millis);
+        for (i, lag) in lags.iter().enumerate() {
+            let now = Picos::from_ms(1000 * (i as u64 + 3));
+            let d = p.deadline(now).unwrap();
+            p.ran(now, d, d + *lag).unwrap();
+        }
+        let s = p.summary().unwrap();
+        assert_eq!(s.steps, 3);
+        assert!((s.paced_s - 2.0).abs() < 1e-9);
+        assert!((s.wall_s - 1.15).abs() < 1e-6, "{s:?}");
+        assert!((s.achieved_pace - 2.0 / 1.15).abs() < 1e-5);
+        assert!((s.worst_lag_ms - 150.0).abs() < 1e-6);
+        assert!((s.worst_lag_at_s - 5.0).abs() < 1e-9);
+        assert!((s.mean_lag_ms - 200.0 / 3.0).abs() < 1e-6);
+        // 87 % of the pace and a lag past MAX_LAG_MS: not kept up.
+        assert!(!s.kept_up);
+        assert_eq!(s.steps_late, 1);
+        let w = s.warning().unwrap();
+        assert!(
+            w.contains("1 of 3 steps ran more than 100 ms late, the worst 150 ms at 5.0 s"),
+            "{w}"
+        );
+        // Unpaced: no deadlines, no figures.
+        let mut u = Pacer::new(0.0);
+        assert_eq!(u.deadline(Picos::from_ms(5)), None);
+        assert_eq!(u.summary(), None);
     }
 
     #[test]

@@ -46,6 +46,7 @@ use self::commander::{Commander, Setpoint, Watched};
 use self::console::ConsoleTap;
 use self::high_level::HighLevel;
 pub use self::link::CrtpSpec;
+pub use self::link::PacingSummary;
 use self::link::{Pacer, Recorder, Source};
 use self::packet::*;
 use self::param::{Decks, Known, Params};
@@ -103,6 +104,8 @@ pub struct CrtpConfig {
     pub idle: Picos,
     /// Where the arrivals are recorded (`crtp.jsonl` in the output directory).
     pub record: Option<PathBuf>,
+    /// Where a paced live link writes its steps' timing (`pacing.csv`).
+    pub pacing_log: Option<PathBuf>,
     /// The platform has the AI deck (a camera or the GAP8 cluster).
     pub ai_deck: bool,
     /// The platform has the GAP8 cluster (`gap8.*` log variables).
@@ -185,6 +188,10 @@ impl CrtpServer {
             _ => None,
         };
         let pace = if source.is_live() { cfg.pace } else { 0.0 };
+        let pacer = match &cfg.pacing_log {
+            Some(p) => Pacer::with_log(pace, p)?,
+            None => Pacer::new(pace),
+        };
         Ok(CrtpServer {
             log: log::Log::new(LogGroups {
                 cluster: cfg.cluster,
@@ -194,7 +201,7 @@ impl CrtpServer {
             cfg,
             source,
             recorder,
-            pacer: Pacer::new(pace),
+            pacer,
             params: None,
             mems: None,
             commander: Commander::default(),
@@ -280,6 +287,10 @@ impl CrtpServer {
         loop {
             let got = self.source.receive(now, deadline)?;
             if got.is_empty() {
+                // The wait is over: the step runs now.
+                if let Some(d) = deadline {
+                    self.pacer.ran(now, d, std::time::Instant::now())?;
+                }
                 return Ok(());
             }
             for bytes in got {
@@ -551,10 +562,16 @@ impl CrtpServer {
     }
 
     pub fn flush(&mut self) -> io::Result<()> {
+        self.pacer.flush()?;
         match &mut self.recorder {
             Some(r) => r.flush(),
             None => Ok(()),
         }
+    }
+
+    /// How the pacing held (`None`: unpaced, a replay, or no paced steps).
+    pub fn pacing(&self) -> Option<PacingSummary> {
+        self.pacer.summary()
     }
 
     /// `kalman.resetEstimation` writes (counted; see docs/CFLIB.md).
@@ -591,6 +608,15 @@ impl Stm32 {
 
     pub fn crtp(&self) -> Option<&CrtpServer> {
         self.crtp.as_deref()
+    }
+
+    /// Writes out what the link still buffers (the arrivals, the pacing's
+    /// rows): a run that ends at `max_time_s` never closed its link.
+    pub fn flush_crtp(&mut self) -> io::Result<()> {
+        match self.crtp.as_mut() {
+            Some(c) => c.flush(),
+            None => Ok(()),
+        }
     }
 
     /// The power network's sample, for the `pm`, `power` and `gap8` logs.
