@@ -7,6 +7,7 @@ upright at the end."""
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -21,6 +22,7 @@ import pytest
 from crazyflie_cosim.cfclient_keys import (
     HOVER_FLOOR_M, HOVER_START_M, THRUST_MID, ZMQ_DEVICE, CfclientKeys, Speeds)
 from crazyflie_cosim.lab.keys import Hold, ScriptedKeys
+from crazyflie_cosim.outputs import read_series_bytes
 
 ROOT = Path(__file__).resolve().parents[2]
 # cfclient's own venv, as scripts/test-all.sh makes it.
@@ -142,8 +144,9 @@ def test_cfclient_flown_by_keys_takes_off_moves_and_lands_upright(binaries, tmp_
             if p.poll() is None:
                 p.kill()
                 p.wait()
-    with open(out / "trajectory.csv") as f:
-        rows = [{k: float(v) for k, v in r.items() if k != "drone"} for r in csv.DictReader(f)]
+    # Either form (trajectory.csv.zst by default).
+    text = read_series_bytes(out / "trajectory.csv").decode()
+    rows = [{k: float(v) for k, v in r.items() if k != "drone"} for r in csv.DictReader(io.StringIO(text))]
     start, end = rows[0], rows[-1]
     top = max(r["z"] for r in rows)
     dx = max(r["x"] for r in rows) - start["x"]

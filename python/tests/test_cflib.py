@@ -15,6 +15,7 @@ the high-level commander (whose durations are the drone's own time) run at
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -34,6 +35,7 @@ from cflib.crazyflie.syncCrazyflie import SyncCrazyflie  # noqa: E402
 from cflib.crazyflie.syncLogger import SyncLogger  # noqa: E402
 from crazyflie_cosim.lab.cosim import CosimError  # noqa: E402
 from crazyflie_cosim.lab.cosim import wait_for_link as probe  # noqa: E402
+from crazyflie_cosim.outputs import read_series_bytes  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 # Ports above cflib's scan range (19850-19859), one block per test, so a
@@ -104,8 +106,8 @@ def lab(binaries, tmp_path):
 
 
 def trajectory(out: Path, drone: str | None = None) -> list[dict[str, float]]:
-    with open(out / "trajectory.csv") as f:
-        rows = list(csv.DictReader(f))
+    # Either form (trajectory.csv.zst by default).
+    rows = list(csv.DictReader(io.StringIO(read_series_bytes(out / "trajectory.csv").decode())))
     if drone is not None:
         rows = [r for r in rows if r["drone"] == drone]
     return [{k: float(v) for k, v in r.items() if k != "drone"} for r in rows]
@@ -190,7 +192,7 @@ def test_logging_step_by_step_matches_the_world(lab):
     assert abs(data["stateEstimate.z"] - at(rows, ts)["z"]) < 1e-4
     assert abs(data["stabilizer.yaw"] - math.degrees(at(rows, ts)["yaw"])) < 0.5
     assert 3.9 < data["pm.vbat"] <= 4.25 and data["pm.batteryLevel"] >= 98
-    power = list(csv.DictReader(open(out / "power.csv")))
+    power = list(csv.DictReader(io.StringIO(read_series_bytes(out / "power.csv").decode())))
     assert power, "power.csv is written"
 
 
@@ -297,7 +299,7 @@ def test_replay_of_a_cflib_session_is_byte_identical(lab, binaries, tmp_path):
     rows = trajectory(out)
     assert max(r["x"] for r in rows) > 0.7  # the go-to flew
     for name in ("trajectory.csv", "power.csv"):
-        assert (out / name).read_bytes() == (again / name).read_bytes(), name
+        assert read_series_bytes(out / name) == read_series_bytes(again / name), name
 
 
 def test_console_lines_reach_cflib(lab):

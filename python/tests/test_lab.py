@@ -8,6 +8,7 @@ scored against the world file's plan)."""
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -24,6 +25,7 @@ from crazyflie_cosim.lab import (  # noqa: E402
     TruePlan,
 )
 from crazyflie_cosim.lab.grid import FREE, OCCUPIED, UNKNOWN  # noqa: E402
+from crazyflie_cosim.outputs import read_series_bytes  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples" / "lab"
@@ -51,8 +53,9 @@ def run_example(name: str, out: Path, port: int, timeout: float = 240.0, pace: s
 
 
 def trajectory(path: Path) -> list[dict]:
-    with open(path) as f:
-        return [{k: (v if k == "drone" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
+    # Either form (trajectory.csv.zst by default).
+    text = read_series_bytes(path).decode()
+    return [{k: (v if k == "drone" else float(v)) for k, v in r.items()} for r in csv.DictReader(io.StringIO(text))]
 
 
 def at(rows: list[dict], t_ms: float) -> dict:
