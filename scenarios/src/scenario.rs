@@ -10,8 +10,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use protocol::{TimestepError, TimestepMs};
 use serde::{Deserialize, Serialize};
-use sim_core::config::{RunConfig, RUN_KEYS};
+use sim_core::config::{run_key, run_key_names, RunConfig};
 
 use crate::swarm::platforms::resolve_platforms;
 pub use crate::swarm::platforms::{PlatformSpec, PlatformTable, RADIO_ID_KEY};
@@ -167,7 +168,7 @@ pub struct Scenario {
     pub description: String,
     pub world: PathBuf,
     pub firmware: PathBuf,
-    pub timestep_ms: u64,
+    pub timestep_ms: TimestepMs,
     pub substeps: u32,
     pub max_time_s: Option<f64>,
     /// Overrides the world file's `[radio] seed` (one channel draw per
@@ -213,8 +214,7 @@ pub(crate) fn value_text(v: &toml::Value) -> Result<String, String> {
 }
 
 pub(crate) fn is_run_key(key: &str) -> bool {
-    RUN_KEYS.iter().any(|(k, _)| *k == key)
-        || key.starts_with(sim_core::config::FIRMWARE_KEY_PREFIX)
+    run_key(key).is_some() || key.starts_with(sim_core::config::FIRMWARE_KEY_PREFIX)
 }
 
 /// Applies a `run` table of the file (`what` names it in errors); a
@@ -306,7 +306,7 @@ impl Scenario {
             description: file.description,
             world: base.join(&file.world),
             firmware,
-            timestep_ms: file.timestep_ms,
+            timestep_ms: TimestepMs::new(default_timestep()).expect("the default is in range"),
             substeps: file.substeps,
             max_time_s: file.max_time_s,
             radio_seed: None,
@@ -449,10 +449,9 @@ impl Scenario {
             "world" => self.world = PathBuf::from(value),
             "firmware" => self.firmware = PathBuf::from(value),
             "timestep_ms" => {
-                self.timestep_ms = match value.parse::<u64>() {
-                    Ok(ts) if (1..=1000).contains(&ts) => ts,
-                    _ => return Err(bad("expected a whole number of ms in 1..=1000")),
-                }
+                self.timestep_ms = value
+                    .parse()
+                    .map_err(|e: TimestepError| bad(&e.to_string()))?
             }
             "substeps" => {
                 self.substeps = match value.parse::<u32>() {
@@ -537,10 +536,13 @@ impl Scenario {
         Ok(path)
     }
 
-    /// Checks that every file the run needs exists.
-    /// With `[[platform]]` tables: every platform's firmware and platform
-    /// file, and the world's drones (each claimed by exactly one platform).
+    /// Checks, before any process starts, the rules that tie keys together
+    /// (each platform's sync mode against the timestep, DESIGN.md §19) and
+    /// that every file the run needs exists. With `[[platform]]` tables:
+    /// every platform's firmware and platform file, and the world's drones
+    /// (each claimed by exactly one platform).
     pub fn check_files(&self) -> Result<(), ScenarioError> {
+        self.check_timestep()?;
         let mut files = vec![("world file", &self.world)];
         if self.platforms.is_empty() {
             files.push(("firmware", &self.firmware));
@@ -578,11 +580,31 @@ impl Scenario {
     }
 }
 
+impl Scenario {
+    /// The timestep under every platform's sync mode (the same check
+    /// sim-core makes when the world reports its timestep).
+    pub fn check_timestep(&self) -> Result<(), ScenarioError> {
+        let modes = std::iter::once(&self.run)
+            .filter(|_| self.platforms.is_empty())
+            .chain(self.platforms.iter().map(|p| &p.run))
+            .map(|r| r.sync);
+        for mode in modes {
+            sim_core::sync::check_timestep(self.timestep_ms.get(), mode).map_err(|e| {
+                ScenarioError::Invalid {
+                    path: self.path.clone(),
+                    message: e.to_string(),
+                }
+            })?;
+        }
+        Ok(())
+    }
+}
+
 pub(crate) fn unknown_key(key: &str) -> ScenarioError {
     ScenarioError::UnknownKey {
         key: key.to_string(),
         scenario: SCENARIO_KEYS.map(|(k, _)| k).join(", "),
-        run: RUN_KEYS.map(|(k, _)| k).join(", "),
+        run: run_key_names(),
     }
 }
 

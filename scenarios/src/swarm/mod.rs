@@ -217,7 +217,7 @@ pub fn run_swarm(
         .collect();
     let sum = report::swarm_summary(
         &scenario.name,
-        scenario.timestep_ms,
+        scenario.timestep_ms.get(),
         &figures,
         st.world,
         st.error.clone(),

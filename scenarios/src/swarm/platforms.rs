@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use sim_core::config::{RunConfig, RUN_KEYS};
+use sim_core::config::{run_key_names, RunConfig};
 
 use crate::scenario::{apply_run_table, is_run_key, Scenario, ScenarioError, ScenarioFile};
 
@@ -130,7 +130,7 @@ impl Scenario {
                 value: value.to_string(),
                 reason: format!(
                     "a platform takes `firmware` and the run keys ({})",
-                    RUN_KEYS.map(|(k, _)| k).join(", ")
+                    run_key_names()
                 ),
             });
         }
