@@ -158,6 +158,85 @@ pub const SCENARIO_KEYS: [(&str, &str); 12] = [
     ),
 ];
 
+/// `scenario.toml` in a run's output directory: the scenario as it ran,
+/// paths absolute, in the scenario file's own keys, written and read with
+/// serde (strings escaped as TOML escapes them).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResolvedScenario {
+    pub description: String,
+    pub world: String,
+    /// A single drone's firmware (a swarm's are its platforms').
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub firmware: Option<String>,
+    pub timestep_ms: u64,
+    pub substeps: u32,
+    pub image_encoding: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_time_s: Option<f64>,
+    /// A single drone's targets (a swarm's are its platforms').
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub targets: Option<Vec<[f64; 3]>>,
+    /// A swarm's platforms, in `[[platform]]` order; each one's run keys
+    /// are in `DRONE/run.toml`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub platform: Vec<ResolvedPlatform>,
+}
+
+/// One platform of [`ResolvedScenario`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResolvedPlatform {
+    pub drone: String,
+    pub firmware: String,
+    pub targets: Vec<[f64; 3]>,
+}
+
+impl Scenario {
+    /// The scenario as it runs, paths absolute (`scenario.toml`).
+    pub fn resolved(&self) -> ResolvedScenario {
+        let abs = crate::launch::abs;
+        let swarm = !self.platforms.is_empty();
+        ResolvedScenario {
+            description: self.description.clone(),
+            world: abs(&self.world),
+            firmware: (!swarm).then(|| abs(&self.firmware)),
+            timestep_ms: self.timestep_ms.get(),
+            substeps: self.substeps,
+            image_encoding: self.image_encoding.as_str().to_string(),
+            max_time_s: self.max_time_s,
+            targets: (!swarm).then(|| self.targets.clone()),
+            platform: self
+                .platforms
+                .iter()
+                .map(|p| ResolvedPlatform {
+                    drone: p.drone.clone(),
+                    firmware: abs(&p.firmware),
+                    targets: p.targets.clone(),
+                })
+                .collect(),
+        }
+    }
+
+    /// `scenario.toml`'s text: a comment naming the scenario and its
+    /// overrides, then [`Scenario::resolved`].
+    pub fn resolved_toml(&self) -> String {
+        let resolved = self.resolved();
+        let body = toml::to_string(&resolved).expect("strings, numbers and arrays serialize");
+        let comment = format!(
+            "# Resolved from {} {}\n",
+            self.path.display(),
+            self.overrides_label()
+        );
+        // A comment is one line: an override's value may hold a line break.
+        let mut text = comment.trim_end().replace(['\n', '\r'], " ") + "\n";
+        if !resolved.platform.is_empty() {
+            text += "# Each platform's run keys: DRONE/run.toml\n";
+        }
+        text + &body
+    }
+}
+
 /// A scenario ready to run: paths resolved, every value checked.
 #[derive(Debug, Clone)]
 pub struct Scenario {
@@ -661,7 +740,7 @@ mod tests {
         assert_eq!(s.name, "s");
         assert_eq!(s.world, Path::new("/x/scenarios/worlds/empty.toml"));
         assert_eq!(s.firmware, Path::new("/x/scenarios/fw.elf"));
-        assert_eq!(s.timestep_ms, 32);
+        assert_eq!(s.timestep_ms.get(), 32);
         assert_eq!(s.run.get("battery").unwrap(), "ufx250");
         assert_eq!(s.run.get("power_model").unwrap(), "empirical");
         assert_eq!(
@@ -694,7 +773,7 @@ mod tests {
         s.set("timestep_ms=16").unwrap();
         s.set("run.power_model=stolaroff").unwrap();
         s.set("battery = lipol350").unwrap();
-        assert_eq!(s.timestep_ms, 16);
+        assert_eq!(s.timestep_ms.get(), 16);
         assert_eq!(s.run.get("power_model").unwrap(), "stolaroff");
         assert_eq!(s.run.get("battery").unwrap(), "lipol350");
         assert_eq!(
@@ -711,6 +790,55 @@ mod tests {
         ] {
             assert!(s.set(bad).is_err(), "{bad} accepted");
         }
+    }
+
+    #[test]
+    fn the_timestep_is_checked_against_the_sync_mode_with_sim_cores_message() {
+        let mut s = parse(MIN).unwrap();
+        // In range: accepted as a key, refused with the thesis's sync.
+        s.set("timestep_ms=2").unwrap();
+        let e = s.check_files().unwrap_err().to_string();
+        let sim_core = sim_core::sync::check_timestep(2, sim_core::sync::SyncMode::Thesis)
+            .unwrap_err()
+            .to_string();
+        assert!(e.ends_with(&sim_core), "{e}");
+        assert_eq!(e.lines().count(), 1, "{e}");
+        s.set("sync=bounded").unwrap();
+        s.check_timestep().unwrap();
+        // Out of range: the message world-server gives for --timestep.
+        for bad in ["0", "1001", "abc"] {
+            let e = s
+                .set(&format!("timestep_ms={bad}"))
+                .unwrap_err()
+                .to_string();
+            let range = TimestepError::Range(bad.into()).to_string();
+            assert!(e.ends_with(&range), "{e}");
+        }
+        assert_eq!(s.timestep_ms.get(), 2, "a refused value changes nothing");
+    }
+
+    #[test]
+    fn scenario_toml_reads_back_as_the_same_scenario() {
+        let mut s = parse(MIN).unwrap();
+        // Quotes, a backslash, a line break and a control character (which
+        // Rust's Debug would escape as `\u{1b}`, not TOML).
+        s.description = "a \"race\" \\ two\nlines \u{1b} §".into();
+        s.set("max_time_s=12.5").unwrap();
+        s.set("timestep_ms=16").unwrap();
+        s.set("image_encoding=base64").unwrap();
+        let text = s.resolved_toml();
+        assert!(text.starts_with("# Resolved from /x/scenarios/s.toml max_time_s=12.5 "));
+        let back: ResolvedScenario = toml::from_str(&text).unwrap();
+        assert_eq!(back, s.resolved());
+        // It is a scenario file: it runs again as it ran.
+        let again = Scenario::parse(&text, Path::new("/elsewhere/scenario.toml")).unwrap();
+        assert_eq!(again.description, s.description);
+        assert_eq!((&again.world, &again.firmware), (&s.world, &s.firmware));
+        assert_eq!(again.timestep_ms, s.timestep_ms);
+        assert_eq!(again.substeps, s.substeps);
+        assert_eq!(again.max_time_s, Some(12.5));
+        assert_eq!(again.image_encoding, s.image_encoding);
+        assert_eq!(again.targets, s.targets);
     }
 
     #[test]

@@ -281,6 +281,29 @@ mod tests {
     }
 
     #[test]
+    fn every_platforms_sync_is_checked_against_the_timestep() {
+        let mut s = parse(SWARM).unwrap();
+        s.set("sync=bounded").unwrap();
+        s.set("timestep_ms=2").unwrap();
+        s.check_timestep().unwrap();
+        // One platform back to the thesis's bookkeeping: refused.
+        s.set("B.sync=thesis").unwrap();
+        let e = s.check_timestep().unwrap_err().to_string();
+        assert!(e.contains("too small for the thesis"), "{e}");
+    }
+
+    #[test]
+    fn a_swarms_scenario_toml_reads_back() {
+        let s = parse(SWARM).unwrap();
+        let text = s.resolved_toml();
+        let back: crate::scenario::ResolvedScenario = toml::from_str(&text).unwrap();
+        assert_eq!(back, s.resolved());
+        assert_eq!(back.platform.len(), 2);
+        assert_eq!(back.platform[0].targets, [[0.0, 1.0, 1.0]]);
+        assert!(back.firmware.is_none() && back.targets.is_none());
+    }
+
+    #[test]
     fn bad_platform_tables_are_refused() {
         let e = parse(&SWARM.replace("drone = \"B\"", "drone = \"A\""))
             .unwrap_err()

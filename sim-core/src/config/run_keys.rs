@@ -467,3 +467,87 @@ pub static RUN_KEYS: [RunKey; RUN_KEY_COUNT] = [
         get: |c| (c.series == SeriesFormat::Zstd).to_string(),
     },
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cluster::{CoreCountError, MAX_CORES};
+
+    #[test]
+    fn names_are_unique_and_found() {
+        for (i, key) in RUN_KEYS.iter().enumerate() {
+            assert!(!key.doc.is_empty(), "{}", key.name);
+            assert_eq!(run_key(key.name).map(|k| k.name), Some(key.name));
+            assert!(
+                RUN_KEYS[i + 1..].iter().all(|k| k.name != key.name),
+                "{} twice",
+                key.name
+            );
+        }
+        assert!(run_key("gravity").is_none());
+        assert_eq!(run_key_names().split(", ").count(), RUN_KEY_COUNT);
+    }
+
+    #[test]
+    fn every_default_is_accepted_by_its_own_check() {
+        let d = RunConfig::default();
+        for key in &RUN_KEYS {
+            // The embedded platform has no file to name.
+            if key.name == "platform" {
+                continue;
+            }
+            let mut c = RunConfig::default();
+            key.set(&mut c, &key.get(&d))
+                .unwrap_or_else(|e| panic!("{}: {e}", key.name));
+            assert_eq!(c, d, "{}", key.name);
+        }
+    }
+
+    #[test]
+    fn the_writer_names_the_thesis_keys_and_leaves_out_the_rest_at_defaults() {
+        let text = RunConfig::default().to_toml();
+        let table: toml::Table = toml::from_str(&text).unwrap();
+        for key in &RUN_KEYS {
+            assert_eq!(
+                table.contains_key(key.name),
+                key.written == Written::Always,
+                "{}:\n{text}",
+                key.name
+            );
+        }
+        assert_eq!(
+            RunConfig::from_toml_str(&text, "t").unwrap(),
+            RunConfig::default()
+        );
+    }
+
+    #[test]
+    fn the_core_count_has_one_range_and_one_message() {
+        let key = run_key("cluster.cores").unwrap();
+        assert!(key.doc.contains(&format!("1-{MAX_CORES}")), "{}", key.doc);
+        let mut c = RunConfig::default();
+        for n in 1..=MAX_CORES {
+            key.set(&mut c, &n.to_string()).unwrap();
+            assert_eq!(key.get(&c), n.to_string());
+        }
+        for bad in ["0", "9", "many"] {
+            let e = c.set("cluster.cores", bad).unwrap_err().to_string();
+            assert!(
+                e.contains(&CoreCountError(bad.into()).to_string()),
+                "{bad}: {e}"
+            );
+        }
+        // The platform file and the cluster itself: the same message.
+        let aideck = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("platforms/crazyflie-aideck.json");
+        let mut p = crate::config::PlatformConfig::from_path(&aideck).unwrap();
+        let cluster = p.cluster.as_mut().unwrap();
+        cluster.cores = MAX_CORES + 1;
+        let cfg = cluster.cluster_config(false, crate::iss::Backend::DEFAULT);
+        let nine = CoreCountError((MAX_CORES + 1).to_string()).to_string();
+        assert_eq!(p.validate().unwrap_err(), nine);
+        let mut mem = crate::iss::Memory::new();
+        let e = crate::cluster::Cluster::new(cfg, &mut mem).unwrap_err();
+        assert_eq!(e.to_string(), nine);
+    }
+}
