@@ -145,10 +145,10 @@ impl Scenario {
     /// platform names a drone of the world file: otherwise the world would
     /// wait for a claim that never comes (docs/SWARM.md §2).
     pub(crate) fn check_drones(&self) -> Result<(), ScenarioError> {
-        let world = crate::swarm::world::WorldDrones::load(&self.world).map_err(|message| {
+        let world = crate::swarm::world::WorldDrones::load(&self.world).map_err(|e| {
             ScenarioError::Invalid {
                 path: self.world.clone(),
-                message,
+                message: e.to_string(),
             }
         })?;
         let names = world.names();
