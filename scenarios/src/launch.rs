@@ -403,7 +403,11 @@ pub fn world_command(
         Endpoint::Tcp(addr) => cmd.arg("--tcp").arg(addr),
     };
     cmd.arg("--world")
-        .arg(scenario.world_file_for_run(out).map_err(LaunchError::Io)?)
+        .arg(
+            scenario
+                .world_file_for_run(out)
+                .map_err(|e| LaunchError::Io(e.to_string()))?,
+        )
         .arg("--timestep")
         .arg(scenario.timestep_ms.to_string())
         .arg("--substeps")

@@ -279,17 +279,64 @@ pub struct Scenario {
     pub positioning: Option<PositioningSpec>,
 }
 
-pub(crate) fn value_text(v: &toml::Value) -> Result<String, String> {
+/// A value of a `[run]` or `[sweep]` table that has no text form.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("expected a string or a number, got a {0}")]
+pub struct NotAScalar(pub &'static str);
+
+pub(crate) fn value_text(v: &toml::Value) -> Result<String, NotAScalar> {
     match v {
         toml::Value::String(s) => Ok(s.clone()),
         toml::Value::Integer(i) => Ok(i.to_string()),
         toml::Value::Float(f) => Ok(f.to_string()),
         toml::Value::Boolean(b) => Ok(b.to_string()),
-        other => Err(format!(
-            "expected a string or a number, got a {}",
-            other.type_str()
-        )),
+        other => Err(NotAScalar(other.type_str())),
     }
+}
+
+/// A key of a `run` table of the file that cannot be applied (`what.key:
+/// reason`).
+#[derive(Debug, thiserror::Error)]
+#[error("{what}.{key}: {reason}")]
+pub struct RunTableError {
+    pub what: String,
+    pub key: String,
+    pub reason: RunTableReason,
+}
+
+/// Why a `run` table's key cannot be applied.
+#[derive(Debug, thiserror::Error)]
+pub enum RunTableReason {
+    #[error(transparent)]
+    NotAScalar(#[from] NotAScalar),
+    #[error(transparent)]
+    Config(#[from] sim_core::config::ConfigError),
+}
+
+/// Why `radio_seed`'s copy of the world file cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WorldCopyError {
+    #[error("cannot read {}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    Toml {
+        path: PathBuf,
+        source: toml::de::Error,
+    },
+    #[error("radio_seed {0}: too large")]
+    SeedTooLarge(u64),
+    #[error("{}: radio is not a table", path.display())]
+    RadioNotATable { path: PathBuf },
+    #[error(transparent)]
+    Serialize(#[from] toml::ser::Error),
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 }
 
 pub(crate) fn is_run_key(key: &str) -> bool {
@@ -303,17 +350,21 @@ pub(crate) fn apply_run_table(
     table: &BTreeMap<String, toml::Value>,
     base: &Path,
     what: &str,
-) -> Result<(), String> {
+) -> Result<(), RunTableError> {
     let table: toml::Table = table.clone().into_iter().collect();
     for (key, value) in &sim_core::config::flatten_run_table(&table) {
-        let text = value_text(value).map_err(|m| format!("{what}.{key}: {m}"))?;
+        let err = |reason: RunTableReason| RunTableError {
+            what: what.to_string(),
+            key: key.clone(),
+            reason,
+        };
+        let text = value_text(value).map_err(|e| err(e.into()))?;
         let text = if key == "platform" {
             base.join(&text).display().to_string()
         } else {
             text
         };
-        run.set(key, &text)
-            .map_err(|e| format!("{what}.{key}: {e}"))?;
+        run.set(key, &text).map_err(|e| err(e.into()))?;
     }
     Ok(())
 }
@@ -338,7 +389,7 @@ impl Scenario {
             .map_err(|e| invalid(e.to_string().trim_end().replace('\n', " ")))?;
         let base = path.parent().unwrap_or(Path::new("."));
         let mut run = RunConfig::default();
-        apply_run_table(&mut run, &file.run, base, "run").map_err(invalid)?;
+        apply_run_table(&mut run, &file.run, base, "run").map_err(|e| invalid(e.to_string()))?;
         let tables = match &file.platform {
             None => Vec::new(),
             Some(toml::Value::String(p)) => {
@@ -360,7 +411,8 @@ impl Scenario {
             )))
             }
         };
-        let platforms = resolve_platforms(&tables, &run, &file, base).map_err(invalid)?;
+        let platforms =
+            resolve_platforms(&tables, &run, &file, base).map_err(|e| invalid(e.to_string()))?;
         let firmware = match (&file.firmware, platforms.first()) {
             (Some(f), _) => base.join(f),
             // Unused with [[platform]]: every platform has its own.
@@ -373,7 +425,7 @@ impl Scenario {
                 .iter()
                 .map(value_text)
                 .collect::<Result<Vec<_>, _>>()
-                .map_err(|m| invalid(format!("sweep.{key}: {m}")))?;
+                .map_err(|e| invalid(format!("sweep.{key}: {e}")))?;
             sweep.push((key.clone(), texts));
         }
         let mut s = Scenario {
@@ -586,24 +638,30 @@ impl Scenario {
     /// The world file the world-server of a run in `out` reads: the
     /// scenario's, or with `radio_seed` set a copy of it in `out`
     /// (`world.toml`) whose `[radio] seed` is that value.
-    pub fn world_file_for_run(&self, out: &Path) -> Result<PathBuf, String> {
+    pub fn world_file_for_run(&self, out: &Path) -> Result<PathBuf, WorldCopyError> {
         let Some(seed) = self.radio_seed else {
             return Ok(self.world.clone());
         };
-        let text = std::fs::read_to_string(&self.world)
-            .map_err(|e| format!("cannot read {}: {e}", self.world.display()))?;
+        let world = || self.world.clone();
+        let text = std::fs::read_to_string(&self.world).map_err(|source| WorldCopyError::Read {
+            path: world(),
+            source,
+        })?;
         let mut doc: toml::Table =
-            toml::from_str(&text).map_err(|e| format!("{}: {e}", self.world.display()))?;
-        let seed = i64::try_from(seed).map_err(|_| format!("radio_seed {seed}: too large"))?;
+            toml::from_str(&text).map_err(|source| WorldCopyError::Toml {
+                path: world(),
+                source,
+            })?;
+        let seed = i64::try_from(seed).map_err(|_| WorldCopyError::SeedTooLarge(seed))?;
         let radio = doc
             .entry("radio")
             .or_insert_with(|| toml::Value::Table(toml::Table::new()));
         let toml::Value::Table(radio) = radio else {
-            return Err(format!("{}: radio is not a table", self.world.display()));
+            return Err(WorldCopyError::RadioNotATable { path: world() });
         };
         radio.insert("seed".into(), toml::Value::Integer(seed));
         let path = out.join("world.toml");
-        let body = toml::to_string(&doc).map_err(|e| e.to_string())?;
+        let body = toml::to_string(&doc)?;
         std::fs::write(
             &path,
             format!(
@@ -611,7 +669,10 @@ impl Scenario {
                 self.world.display()
             ),
         )
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        .map_err(|source| WorldCopyError::Write {
+            path: path.clone(),
+            source,
+        })?;
         Ok(path)
     }
 

@@ -135,7 +135,11 @@ fn world_command(
     c.arg("--socket")
         .arg(socket)
         .arg("--world")
-        .arg(scenario.world_file_for_run(out).map_err(LaunchError::Io)?)
+        .arg(
+            scenario
+                .world_file_for_run(out)
+                .map_err(|e| LaunchError::Io(e.to_string()))?,
+        )
         .arg("--timestep")
         .arg(scenario.timestep_ms.to_string())
         .arg("--substeps")

@@ -45,6 +45,32 @@ pub struct PlatformSpec {
 /// The run key the radios' identifier comes from (docs/SWARM.md §4.3: EUI).
 pub const RADIO_ID_KEY: &str = "radio_id";
 
+/// Why the `[[platform]]` tables cannot be resolved (`what` names the
+/// table: `platform[2] (drone "B")`).
+#[derive(Debug, thiserror::Error)]
+pub enum PlatformTableError {
+    #[error(
+        "run.{RADIO_ID_KEY}: the radios' identifiers are per platform \
+         (set them in [platform.run], or leave them to cosim: 1, 2, 3, ...)"
+    )]
+    SharedRadioId,
+    #[error("platform[{0}]: drone must not be empty")]
+    EmptyDrone(usize),
+    #[error("{what}: a drone name cannot contain '.', '=', '/', '\\' or surrounding spaces")]
+    BadDroneName { what: String },
+    #[error("{what}: a second platform for the same drone")]
+    SecondPlatform { what: String },
+    #[error("{what}: no firmware (give `firmware` in the table or in the scenario)")]
+    NoFirmware { what: String },
+    #[error(transparent)]
+    Run(#[from] crate::scenario::RunTableError),
+    #[error("{what}: {RADIO_ID_KEY}: {source}")]
+    RadioId {
+        what: String,
+        source: sim_core::config::ConfigError,
+    },
+}
+
 /// The `[[platform]]` tables resolved: each platform's run configuration is
 /// the scenario's `run` with the platform's own `run` table over it; the
 /// radios' identifiers are 1, 2, 3, … in table order unless a platform sets
@@ -54,42 +80,38 @@ pub(crate) fn resolve_platforms(
     run: &RunConfig,
     file: &ScenarioFile,
     base: &Path,
-) -> Result<Vec<PlatformSpec>, String> {
+) -> Result<Vec<PlatformSpec>, PlatformTableError> {
     if !tables.is_empty() && file.run.contains_key(RADIO_ID_KEY) {
-        return Err(format!(
-            "run.{RADIO_ID_KEY}: the radios' identifiers are per platform \
-             (set them in [platform.run], or leave them to cosim: 1, 2, 3, ...)"
-        ));
+        return Err(PlatformTableError::SharedRadioId);
     }
     let mut out: Vec<PlatformSpec> = Vec::new();
     for (i, t) in tables.iter().enumerate() {
         let what = format!("platform[{}] (drone {:?})", i + 1, t.drone);
         if t.drone.trim().is_empty() {
-            return Err(format!("platform[{}]: drone must not be empty", i + 1));
+            return Err(PlatformTableError::EmptyDrone(i + 1));
         }
         // `A.KEY=VALUE` names a platform by its drone (`--set`, sweeps).
         // Its outputs go to a directory named after it.
         if t.drone.contains(['.', '=', '/', '\\']) || t.drone.trim() != t.drone {
-            return Err(format!(
-                "{what}: a drone name cannot contain '.', '=', '/', '\\' or surrounding spaces"
-            ));
+            return Err(PlatformTableError::BadDroneName { what });
         }
         if out.iter().any(|p| p.drone == t.drone) {
-            return Err(format!("{what}: a second platform for the same drone"));
+            return Err(PlatformTableError::SecondPlatform { what });
         }
         let firmware = match (&t.firmware, &file.firmware) {
             (Some(f), _) | (None, Some(f)) => base.join(f),
             (None, None) => {
-                return Err(format!(
-                    "{what}: no firmware (give `firmware` in the table or in the scenario)"
-                ))
+                return Err(PlatformTableError::NoFirmware { what });
             }
         };
         let mut prun = run.clone();
         apply_run_table(&mut prun, &t.run, base, &format!("{what} run"))?;
         if is_run_key(RADIO_ID_KEY) && !t.run.contains_key(RADIO_ID_KEY) {
             prun.set(RADIO_ID_KEY, &(i + 1).to_string())
-                .map_err(|e| format!("{what}: {RADIO_ID_KEY}: {e}"))?;
+                .map_err(|source| PlatformTableError::RadioId {
+                    what: what.clone(),
+                    source,
+                })?;
         }
         out.push(PlatformSpec {
             drone: t.drone.clone(),
