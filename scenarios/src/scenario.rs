@@ -466,7 +466,7 @@ impl Scenario {
                 .map_err(|e| invalid(e.to_string()))?;
         }
         if let Some(p) = &s.positioning {
-            p.validate().map_err(invalid)?;
+            p.validate().map_err(|e| invalid(e.to_string()))?;
         }
         for (key, _) in &s.sweep {
             let key = s.platform_key(key).map_or(key.as_str(), |(_, k)| k);

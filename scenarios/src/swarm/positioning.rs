@@ -67,13 +67,16 @@ pub struct PositioningSpec {
     pub settle_s: Option<f64>,
 }
 
+/// A `[positioning]` table serde accepts but the report cannot use.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("positioning.settle_s = {0}: expected a finite number of seconds >= 0")]
+pub struct BadSettle(pub f64);
+
 impl PositioningSpec {
     /// Checks what serde cannot: `settle_s` finite and ≥ 0.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), BadSettle> {
         match self.settle_s {
-            Some(v) if !(v.is_finite() && v >= 0.0) => Err(format!(
-                "positioning.settle_s = {v}: expected a finite number of seconds >= 0"
-            )),
+            Some(v) if !(v.is_finite() && v >= 0.0) => Err(BadSettle(v)),
             _ => Ok(()),
         }
     }
