@@ -16,7 +16,7 @@ pub use crate::sync::SyncMode;
 
 pub use super::debug_level::DebugLevel;
 
-use super::run_keys::{run_key, run_key_names, Written, RUN_KEYS};
+use super::run_keys::{run_key, run_key_names, RUN_KEYS};
 use super::ConfigError;
 use crate::cluster::CoreCount;
 use crate::peripherals::stm32::crtp::CrtpSpec;
@@ -247,10 +247,9 @@ impl RunConfig {
         let mut table = toml::Table::new();
         let default = RunConfig::default();
         for key in &RUN_KEYS {
-            if key.written == Written::UnlessDefault && key.get(self) == key.get(&default) {
-                continue;
+            if key.is_written(self, &default) {
+                table.insert(key.name.to_string(), key.toml_value(self));
             }
-            table.insert(key.name.to_string(), key.toml_value(self));
         }
         if !self.firmware_params.is_empty() {
             let params = self

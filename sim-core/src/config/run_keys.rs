@@ -31,7 +31,7 @@ pub enum ValueKind {
 }
 
 /// When [`RunConfig::to_toml`] writes a key.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy)]
 pub enum Written {
     /// Always (the thesis's keys: a run's `run.toml` names each).
     Always,
@@ -40,6 +40,9 @@ pub enum Written {
     /// choice that changes no result (ISS back end, series form), so a file
     /// written without it stays as it was before the key existed.
     UnlessDefault,
+    /// Unless the test holds (the embedded platform, which has no file to
+    /// name even if a file's path reads like its text form).
+    Unless(fn(&RunConfig) -> bool),
 }
 
 /// One run key.
@@ -78,6 +81,16 @@ impl RunKey {
     /// The key's text form in `cfg`.
     pub fn get(&self, cfg: &RunConfig) -> String {
         (self.get)(cfg)
+    }
+
+    /// Whether [`RunConfig::to_toml`] writes the key of `cfg` (`default`:
+    /// [`RunConfig::default`]).
+    pub fn is_written(&self, cfg: &RunConfig, default: &RunConfig) -> bool {
+        match self.written {
+            Written::Always => true,
+            Written::UnlessDefault => self.get(cfg) != self.get(default),
+            Written::Unless(omit) => !omit(cfg),
+        }
     }
 
     /// The key's value in `cfg` as TOML.
@@ -323,7 +336,7 @@ pub static RUN_KEYS: [RunKey; RUN_KEY_COUNT] = [
         kind: ValueKind::Text,
         // The embedded platform has no file to name: left out, so that
         // reading the file back gives the same config.
-        written: Written::UnlessDefault,
+        written: Written::Unless(|c| c.platform.is_none()),
         set: |c, v| {
             if v.trim().is_empty() {
                 return Err("expected a file path".into());
@@ -510,11 +523,16 @@ mod tests {
         for key in &RUN_KEYS {
             assert_eq!(
                 table.contains_key(key.name),
-                key.written == Written::Always,
+                matches!(key.written, Written::Always),
                 "{}:\n{text}",
                 key.name
             );
         }
+        // A platform file whose path reads like the embedded one's text.
+        let mut c = RunConfig::default();
+        c.set("platform", "embedded").unwrap();
+        let back = RunConfig::from_toml_str(&c.to_toml(), "t").unwrap();
+        assert_eq!(back.platform, Some(PathBuf::from("embedded")));
         assert_eq!(
             RunConfig::from_toml_str(&text, "t").unwrap(),
             RunConfig::default()
