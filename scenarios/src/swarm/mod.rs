@@ -202,7 +202,7 @@ pub fn run_swarm(
     let positioning = match positioning::analyse(scenario, out, &tracks, draw) {
         Ok(p) => p,
         Err(e) => {
-            note(e);
+            note(e.to_string());
             None
         }
     };
