@@ -22,6 +22,8 @@
 //! - [`series`]: a run's series files (CSV, plain or zstd-compressed),
 //!   writer and reader.
 //! - [`Endpoint`]: `unix:PATH` (default) or `tcp:HOST:PORT`.
+//! - [`TimestepMs`]: the basicTimeStep and its rules, checked alike by
+//!   all three processes.
 //!
 //! The calls the two binaries make:
 //!
@@ -52,6 +54,7 @@ mod message;
 pub mod radio;
 pub mod series;
 pub mod shm;
+mod timestep;
 pub mod tokio_transport;
 pub mod trace;
 
@@ -64,4 +67,5 @@ pub use message::{
     State,
 };
 pub use radio::{Radio, RadioPacket, TxDone};
+pub use timestep::{TimestepError, TimestepMs};
 pub use trace::{Direction, FrameEvent, Observer};

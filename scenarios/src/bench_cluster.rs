@@ -154,23 +154,45 @@ pub fn parse_stats(stats: &str) -> Option<RunStats> {
     Some(r)
 }
 
+/// Why the ELF's `bench` line cannot be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BenchLineError {
+    #[error("no `bench` line in the program's output: {0:?}")]
+    NoLine(String),
+    #[error("no {key} in {line:?}")]
+    Missing { key: &'static str, line: String },
+    #[error("{key} in {line:?}: {source}")]
+    NotANumber {
+        key: &'static str,
+        line: String,
+        source: std::num::ParseIntError,
+    },
+}
+
 /// Reads the ELF's line `bench cores N reps R cycles C checksum X`.
-pub fn parse_bench_line(stdout: &str) -> Result<(u32, u64, u64, String), String> {
+pub fn parse_bench_line(stdout: &str) -> Result<(u32, u64, u64, String), BenchLineError> {
     let line = stdout
         .lines()
         .find(|l| l.starts_with("bench "))
-        .ok_or_else(|| format!("no `bench` line in the program's output: {stdout:?}"))?;
+        .ok_or_else(|| BenchLineError::NoLine(stdout.to_string()))?;
     let f: Vec<&str> = line.split_whitespace().collect();
-    let get = |key: &str| -> Result<&str, String> {
+    let get = |key: &'static str| -> Result<&str, BenchLineError> {
         f.iter()
             .position(|w| *w == key)
             .and_then(|i| f.get(i + 1).copied())
-            .ok_or_else(|| format!("no {key} in {line:?}"))
+            .ok_or_else(|| BenchLineError::Missing {
+                key,
+                line: line.to_string(),
+            })
     };
-    let num = |key: &str| -> Result<u64, String> {
+    let num = |key: &'static str| -> Result<u64, BenchLineError> {
         get(key)?
             .parse()
-            .map_err(|e| format!("{key} in {line:?}: {e}"))
+            .map_err(|source| BenchLineError::NotANumber {
+                key,
+                line: line.to_string(),
+                source,
+            })
     };
     Ok((
         num("cores")? as u32,
@@ -217,7 +239,8 @@ fn run_once(sim_core: &Path, elf: &Path, cores: u32) -> Result<ClusterRow, Bench
             stderr.trim()
         )));
     }
-    let (got, reps, cycles, checksum) = parse_bench_line(&stdout).map_err(err)?;
+    let (got, reps, cycles, checksum) =
+        parse_bench_line(&stdout).map_err(|e| err(e.to_string()))?;
     if got != cores || reps != REPS || cycles == 0 {
         return Err(err(format!(
             "the program ran {reps} matmuls on {got} cores in {cycles} cycles"
@@ -326,13 +349,19 @@ mod tests {
             parse_bench_line(out).unwrap(),
             (8, 16, 300_000, "1234abcd".to_string())
         );
-        assert!(parse_bench_line("nothing\n")
-            .unwrap_err()
-            .contains("no `bench`"));
+        assert!(matches!(
+            parse_bench_line("nothing\n"),
+            Err(BenchLineError::NoLine(_))
+        ));
+        let e = parse_bench_line("bench cores x reps 1 cycles 2 checksum 0\n").unwrap_err();
         assert!(
-            parse_bench_line("bench cores x reps 1 cycles 2 checksum 0\n")
-                .unwrap_err()
-                .contains("cores")
+            matches!(e, BenchLineError::NotANumber { key: "cores", .. }),
+            "{e}"
+        );
+        let e = parse_bench_line("bench cores 1 reps 1 cycles 2\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "no checksum in \"bench cores 1 reps 1 cycles 2\""
         );
     }
 

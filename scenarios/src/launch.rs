@@ -403,7 +403,11 @@ pub fn world_command(
         Endpoint::Tcp(addr) => cmd.arg("--tcp").arg(addr),
     };
     cmd.arg("--world")
-        .arg(scenario.world_file_for_run(out).map_err(LaunchError::Io)?)
+        .arg(
+            scenario
+                .world_file_for_run(out)
+                .map_err(|e| LaunchError::Io(e.to_string()))?,
+        )
         .arg("--timestep")
         .arg(scenario.timestep_ms.to_string())
         .arg("--substeps")
@@ -493,23 +497,7 @@ fn write_inputs(scenario: &Scenario, out: &Path) -> Result<(), LaunchError> {
         std::fs::write(out.join(name), text).map_err(|e| io_err(format!("cannot write {name}"), e))
     };
     write(files::RUN_CONFIG, run_toml(&scenario.run))?;
-    let resolved = format!(
-        "# Resolved from {} {}\ndescription = {:?}\nworld = {:?}\nfirmware = {:?}\ntimestep_ms = {}\nsubsteps = {}\nimage_encoding = {:?}\n{}targets = {:?}\n",
-        scenario.path.display(),
-        scenario.overrides_label(),
-        scenario.description,
-        abs(&scenario.world),
-        abs(&scenario.firmware),
-        scenario.timestep_ms,
-        scenario.substeps,
-        scenario.image_encoding.as_str(),
-        scenario
-            .max_time_s
-            .map(|t| format!("max_time_s = {t:?}\n"))
-            .unwrap_or_default(),
-        scenario.targets,
-    );
-    write(files::SCENARIO, resolved)
+    write(files::SCENARIO, scenario.resolved_toml())
 }
 
 /// The run configuration as sim-core reads it, with the platform file (when

@@ -10,8 +10,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use protocol::{TimestepError, TimestepMs};
 use serde::{Deserialize, Serialize};
-use sim_core::config::{RunConfig, RUN_KEYS};
+use sim_core::config::{run_key, run_key_names, RunConfig};
 
 use crate::swarm::platforms::resolve_platforms;
 pub use crate::swarm::platforms::{PlatformSpec, PlatformTable, RADIO_ID_KEY};
@@ -157,6 +158,85 @@ pub const SCENARIO_KEYS: [(&str, &str); 12] = [
     ),
 ];
 
+/// `scenario.toml` in a run's output directory: the scenario as it ran,
+/// paths absolute, in the scenario file's own keys, written and read with
+/// serde (strings escaped as TOML escapes them).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResolvedScenario {
+    pub description: String,
+    pub world: String,
+    /// A single drone's firmware (a swarm's are its platforms').
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub firmware: Option<String>,
+    pub timestep_ms: u64,
+    pub substeps: u32,
+    pub image_encoding: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_time_s: Option<f64>,
+    /// A single drone's targets (a swarm's are its platforms').
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub targets: Option<Vec<[f64; 3]>>,
+    /// A swarm's platforms, in `[[platform]]` order; each one's run keys
+    /// are in `DRONE/run.toml`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub platform: Vec<ResolvedPlatform>,
+}
+
+/// One platform of [`ResolvedScenario`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResolvedPlatform {
+    pub drone: String,
+    pub firmware: String,
+    pub targets: Vec<[f64; 3]>,
+}
+
+impl Scenario {
+    /// The scenario as it runs, paths absolute (`scenario.toml`).
+    pub fn resolved(&self) -> ResolvedScenario {
+        let abs = crate::launch::abs;
+        let swarm = !self.platforms.is_empty();
+        ResolvedScenario {
+            description: self.description.clone(),
+            world: abs(&self.world),
+            firmware: (!swarm).then(|| abs(&self.firmware)),
+            timestep_ms: self.timestep_ms.get(),
+            substeps: self.substeps,
+            image_encoding: self.image_encoding.as_str().to_string(),
+            max_time_s: self.max_time_s,
+            targets: (!swarm).then(|| self.targets.clone()),
+            platform: self
+                .platforms
+                .iter()
+                .map(|p| ResolvedPlatform {
+                    drone: p.drone.clone(),
+                    firmware: abs(&p.firmware),
+                    targets: p.targets.clone(),
+                })
+                .collect(),
+        }
+    }
+
+    /// `scenario.toml`'s text: a comment naming the scenario and its
+    /// overrides, then [`Scenario::resolved`].
+    pub fn resolved_toml(&self) -> String {
+        let resolved = self.resolved();
+        let body = toml::to_string(&resolved).expect("strings, numbers and arrays serialize");
+        let comment = format!(
+            "# Resolved from {} {}\n",
+            self.path.display(),
+            self.overrides_label()
+        );
+        // A comment is one line: an override's value may hold a line break.
+        let mut text = comment.trim_end().replace(['\n', '\r'], " ") + "\n";
+        if !resolved.platform.is_empty() {
+            text += "# Each platform's run keys: DRONE/run.toml\n";
+        }
+        text + &body
+    }
+}
+
 /// A scenario ready to run: paths resolved, every value checked.
 #[derive(Debug, Clone)]
 pub struct Scenario {
@@ -167,7 +247,7 @@ pub struct Scenario {
     pub description: String,
     pub world: PathBuf,
     pub firmware: PathBuf,
-    pub timestep_ms: u64,
+    pub timestep_ms: TimestepMs,
     pub substeps: u32,
     pub max_time_s: Option<f64>,
     /// Overrides the world file's `[radio] seed` (one channel draw per
@@ -199,22 +279,68 @@ pub struct Scenario {
     pub positioning: Option<PositioningSpec>,
 }
 
-pub(crate) fn value_text(v: &toml::Value) -> Result<String, String> {
+/// A value of a `[run]` or `[sweep]` table that has no text form.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("expected a string or a number, got a {0}")]
+pub struct NotAScalar(pub &'static str);
+
+pub(crate) fn value_text(v: &toml::Value) -> Result<String, NotAScalar> {
     match v {
         toml::Value::String(s) => Ok(s.clone()),
         toml::Value::Integer(i) => Ok(i.to_string()),
         toml::Value::Float(f) => Ok(f.to_string()),
         toml::Value::Boolean(b) => Ok(b.to_string()),
-        other => Err(format!(
-            "expected a string or a number, got a {}",
-            other.type_str()
-        )),
+        other => Err(NotAScalar(other.type_str())),
     }
 }
 
+/// A key of a `run` table of the file that cannot be applied (`what.key:
+/// reason`).
+#[derive(Debug, thiserror::Error)]
+#[error("{what}.{key}: {reason}")]
+pub struct RunTableError {
+    pub what: String,
+    pub key: String,
+    pub reason: RunTableReason,
+}
+
+/// Why a `run` table's key cannot be applied.
+#[derive(Debug, thiserror::Error)]
+pub enum RunTableReason {
+    #[error(transparent)]
+    NotAScalar(#[from] NotAScalar),
+    #[error(transparent)]
+    Config(#[from] sim_core::config::ConfigError),
+}
+
+/// Why `radio_seed`'s copy of the world file cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WorldCopyError {
+    #[error("cannot read {}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    Toml {
+        path: PathBuf,
+        source: toml::de::Error,
+    },
+    #[error("radio_seed {0}: too large")]
+    SeedTooLarge(u64),
+    #[error("{}: radio is not a table", path.display())]
+    RadioNotATable { path: PathBuf },
+    #[error(transparent)]
+    Serialize(#[from] toml::ser::Error),
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
 pub(crate) fn is_run_key(key: &str) -> bool {
-    RUN_KEYS.iter().any(|(k, _)| *k == key)
-        || key.starts_with(sim_core::config::FIRMWARE_KEY_PREFIX)
+    run_key(key).is_some() || key.starts_with(sim_core::config::FIRMWARE_KEY_PREFIX)
 }
 
 /// Applies a `run` table of the file (`what` names it in errors); a
@@ -224,17 +350,21 @@ pub(crate) fn apply_run_table(
     table: &BTreeMap<String, toml::Value>,
     base: &Path,
     what: &str,
-) -> Result<(), String> {
+) -> Result<(), RunTableError> {
     let table: toml::Table = table.clone().into_iter().collect();
     for (key, value) in &sim_core::config::flatten_run_table(&table) {
-        let text = value_text(value).map_err(|m| format!("{what}.{key}: {m}"))?;
+        let err = |reason: RunTableReason| RunTableError {
+            what: what.to_string(),
+            key: key.clone(),
+            reason,
+        };
+        let text = value_text(value).map_err(|e| err(e.into()))?;
         let text = if key == "platform" {
             base.join(&text).display().to_string()
         } else {
             text
         };
-        run.set(key, &text)
-            .map_err(|e| format!("{what}.{key}: {e}"))?;
+        run.set(key, &text).map_err(|e| err(e.into()))?;
     }
     Ok(())
 }
@@ -259,7 +389,7 @@ impl Scenario {
             .map_err(|e| invalid(e.to_string().trim_end().replace('\n', " ")))?;
         let base = path.parent().unwrap_or(Path::new("."));
         let mut run = RunConfig::default();
-        apply_run_table(&mut run, &file.run, base, "run").map_err(invalid)?;
+        apply_run_table(&mut run, &file.run, base, "run").map_err(|e| invalid(e.to_string()))?;
         let tables = match &file.platform {
             None => Vec::new(),
             Some(toml::Value::String(p)) => {
@@ -281,7 +411,8 @@ impl Scenario {
             )))
             }
         };
-        let platforms = resolve_platforms(&tables, &run, &file, base).map_err(invalid)?;
+        let platforms =
+            resolve_platforms(&tables, &run, &file, base).map_err(|e| invalid(e.to_string()))?;
         let firmware = match (&file.firmware, platforms.first()) {
             (Some(f), _) => base.join(f),
             // Unused with [[platform]]: every platform has its own.
@@ -294,7 +425,7 @@ impl Scenario {
                 .iter()
                 .map(value_text)
                 .collect::<Result<Vec<_>, _>>()
-                .map_err(|m| invalid(format!("sweep.{key}: {m}")))?;
+                .map_err(|e| invalid(format!("sweep.{key}: {e}")))?;
             sweep.push((key.clone(), texts));
         }
         let mut s = Scenario {
@@ -306,7 +437,7 @@ impl Scenario {
             description: file.description,
             world: base.join(&file.world),
             firmware,
-            timestep_ms: file.timestep_ms,
+            timestep_ms: TimestepMs::new(default_timestep()).expect("the default is in range"),
             substeps: file.substeps,
             max_time_s: file.max_time_s,
             radio_seed: None,
@@ -335,7 +466,7 @@ impl Scenario {
                 .map_err(|e| invalid(e.to_string()))?;
         }
         if let Some(p) = &s.positioning {
-            p.validate().map_err(invalid)?;
+            p.validate().map_err(|e| invalid(e.to_string()))?;
         }
         for (key, _) in &s.sweep {
             let key = s.platform_key(key).map_or(key.as_str(), |(_, k)| k);
@@ -449,10 +580,9 @@ impl Scenario {
             "world" => self.world = PathBuf::from(value),
             "firmware" => self.firmware = PathBuf::from(value),
             "timestep_ms" => {
-                self.timestep_ms = match value.parse::<u64>() {
-                    Ok(ts) if (1..=1000).contains(&ts) => ts,
-                    _ => return Err(bad("expected a whole number of ms in 1..=1000")),
-                }
+                self.timestep_ms = value
+                    .parse()
+                    .map_err(|e: TimestepError| bad(&e.to_string()))?
             }
             "substeps" => {
                 self.substeps = match value.parse::<u32>() {
@@ -508,24 +638,30 @@ impl Scenario {
     /// The world file the world-server of a run in `out` reads: the
     /// scenario's, or with `radio_seed` set a copy of it in `out`
     /// (`world.toml`) whose `[radio] seed` is that value.
-    pub fn world_file_for_run(&self, out: &Path) -> Result<PathBuf, String> {
+    pub fn world_file_for_run(&self, out: &Path) -> Result<PathBuf, WorldCopyError> {
         let Some(seed) = self.radio_seed else {
             return Ok(self.world.clone());
         };
-        let text = std::fs::read_to_string(&self.world)
-            .map_err(|e| format!("cannot read {}: {e}", self.world.display()))?;
+        let world = || self.world.clone();
+        let text = std::fs::read_to_string(&self.world).map_err(|source| WorldCopyError::Read {
+            path: world(),
+            source,
+        })?;
         let mut doc: toml::Table =
-            toml::from_str(&text).map_err(|e| format!("{}: {e}", self.world.display()))?;
-        let seed = i64::try_from(seed).map_err(|_| format!("radio_seed {seed}: too large"))?;
+            toml::from_str(&text).map_err(|source| WorldCopyError::Toml {
+                path: world(),
+                source,
+            })?;
+        let seed = i64::try_from(seed).map_err(|_| WorldCopyError::SeedTooLarge(seed))?;
         let radio = doc
             .entry("radio")
             .or_insert_with(|| toml::Value::Table(toml::Table::new()));
         let toml::Value::Table(radio) = radio else {
-            return Err(format!("{}: radio is not a table", self.world.display()));
+            return Err(WorldCopyError::RadioNotATable { path: world() });
         };
         radio.insert("seed".into(), toml::Value::Integer(seed));
         let path = out.join("world.toml");
-        let body = toml::to_string(&doc).map_err(|e| e.to_string())?;
+        let body = toml::to_string(&doc)?;
         std::fs::write(
             &path,
             format!(
@@ -533,14 +669,20 @@ impl Scenario {
                 self.world.display()
             ),
         )
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        .map_err(|source| WorldCopyError::Write {
+            path: path.clone(),
+            source,
+        })?;
         Ok(path)
     }
 
-    /// Checks that every file the run needs exists.
-    /// With `[[platform]]` tables: every platform's firmware and platform
-    /// file, and the world's drones (each claimed by exactly one platform).
+    /// Checks, before any process starts, the rules that tie keys together
+    /// (each platform's sync mode against the timestep, DESIGN.md §19) and
+    /// that every file the run needs exists. With `[[platform]]` tables:
+    /// every platform's firmware and platform file, and the world's drones
+    /// (each claimed by exactly one platform).
     pub fn check_files(&self) -> Result<(), ScenarioError> {
+        self.check_timestep()?;
         let mut files = vec![("world file", &self.world)];
         if self.platforms.is_empty() {
             files.push(("firmware", &self.firmware));
@@ -578,11 +720,31 @@ impl Scenario {
     }
 }
 
+impl Scenario {
+    /// The timestep under every platform's sync mode (the same check
+    /// sim-core makes when the world reports its timestep).
+    pub fn check_timestep(&self) -> Result<(), ScenarioError> {
+        let modes = std::iter::once(&self.run)
+            .filter(|_| self.platforms.is_empty())
+            .chain(self.platforms.iter().map(|p| &p.run))
+            .map(|r| r.sync);
+        for mode in modes {
+            sim_core::sync::check_timestep(self.timestep_ms.get(), mode).map_err(|e| {
+                ScenarioError::Invalid {
+                    path: self.path.clone(),
+                    message: e.to_string(),
+                }
+            })?;
+        }
+        Ok(())
+    }
+}
+
 pub(crate) fn unknown_key(key: &str) -> ScenarioError {
     ScenarioError::UnknownKey {
         key: key.to_string(),
         scenario: SCENARIO_KEYS.map(|(k, _)| k).join(", "),
-        run: RUN_KEYS.map(|(k, _)| k).join(", "),
+        run: run_key_names(),
     }
 }
 
@@ -639,7 +801,7 @@ mod tests {
         assert_eq!(s.name, "s");
         assert_eq!(s.world, Path::new("/x/scenarios/worlds/empty.toml"));
         assert_eq!(s.firmware, Path::new("/x/scenarios/fw.elf"));
-        assert_eq!(s.timestep_ms, 32);
+        assert_eq!(s.timestep_ms.get(), 32);
         assert_eq!(s.run.get("battery").unwrap(), "ufx250");
         assert_eq!(s.run.get("power_model").unwrap(), "empirical");
         assert_eq!(
@@ -672,7 +834,7 @@ mod tests {
         s.set("timestep_ms=16").unwrap();
         s.set("run.power_model=stolaroff").unwrap();
         s.set("battery = lipol350").unwrap();
-        assert_eq!(s.timestep_ms, 16);
+        assert_eq!(s.timestep_ms.get(), 16);
         assert_eq!(s.run.get("power_model").unwrap(), "stolaroff");
         assert_eq!(s.run.get("battery").unwrap(), "lipol350");
         assert_eq!(
@@ -689,6 +851,55 @@ mod tests {
         ] {
             assert!(s.set(bad).is_err(), "{bad} accepted");
         }
+    }
+
+    #[test]
+    fn the_timestep_is_checked_against_the_sync_mode_with_sim_cores_message() {
+        let mut s = parse(MIN).unwrap();
+        // In range: accepted as a key, refused with the thesis's sync.
+        s.set("timestep_ms=2").unwrap();
+        let e = s.check_files().unwrap_err().to_string();
+        let sim_core = sim_core::sync::check_timestep(2, sim_core::sync::SyncMode::Thesis)
+            .unwrap_err()
+            .to_string();
+        assert!(e.ends_with(&sim_core), "{e}");
+        assert_eq!(e.lines().count(), 1, "{e}");
+        s.set("sync=bounded").unwrap();
+        s.check_timestep().unwrap();
+        // Out of range: the message world-server gives for --timestep.
+        for bad in ["0", "1001", "abc"] {
+            let e = s
+                .set(&format!("timestep_ms={bad}"))
+                .unwrap_err()
+                .to_string();
+            let range = TimestepError::Range(bad.into()).to_string();
+            assert!(e.ends_with(&range), "{e}");
+        }
+        assert_eq!(s.timestep_ms.get(), 2, "a refused value changes nothing");
+    }
+
+    #[test]
+    fn scenario_toml_reads_back_as_the_same_scenario() {
+        let mut s = parse(MIN).unwrap();
+        // Quotes, a backslash, a line break and a control character (which
+        // Rust's Debug would escape as `\u{1b}`, not TOML).
+        s.description = "a \"race\" \\ two\nlines \u{1b} §".into();
+        s.set("max_time_s=12.5").unwrap();
+        s.set("timestep_ms=16").unwrap();
+        s.set("image_encoding=base64").unwrap();
+        let text = s.resolved_toml();
+        assert!(text.starts_with("# Resolved from /x/scenarios/s.toml max_time_s=12.5 "));
+        let back: ResolvedScenario = toml::from_str(&text).unwrap();
+        assert_eq!(back, s.resolved());
+        // It is a scenario file: it runs again as it ran.
+        let again = Scenario::parse(&text, Path::new("/elsewhere/scenario.toml")).unwrap();
+        assert_eq!(again.description, s.description);
+        assert_eq!((&again.world, &again.firmware), (&s.world, &s.firmware));
+        assert_eq!(again.timestep_ms, s.timestep_ms);
+        assert_eq!(again.substeps, s.substeps);
+        assert_eq!(again.max_time_s, Some(12.5));
+        assert_eq!(again.image_encoding, s.image_encoding);
+        assert_eq!(again.targets, s.targets);
     }
 
     #[test]

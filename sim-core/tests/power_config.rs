@@ -4,7 +4,8 @@
 use std::io::Write;
 
 use sim_core::config::{
-    ConfigError, DebugLevel, PlatformConfig, RunConfig, SyncMode, DEFAULT_CRAZYFLIE_JSON, RUN_KEYS,
+    ConfigError, DebugLevel, PlatformConfig, RunConfig, SyncMode, ValueKind,
+    DEFAULT_CRAZYFLIE_JSON, RUN_KEYS,
 };
 use sim_core::peripherals::stm32::PositionSource;
 use sim_core::power::battery::{BatteryModel, CurveAxis};
@@ -206,7 +207,7 @@ fn non_default(key: &str) -> &'static str {
 #[test]
 fn every_key_can_be_set_and_read_back() {
     let mut c = RunConfig::default();
-    for (key, _) in RUN_KEYS {
+    for key in RUN_KEYS.iter().map(|k| k.name) {
         let before = c.get(key).unwrap();
         let value = non_default(key);
         assert_ne!(before, value, "{key} default equals the test value");
@@ -233,6 +234,28 @@ fn every_key_can_be_set_and_read_back() {
     // And the whole thing survives TOML.
     let back = RunConfig::from_toml_str(&c.to_toml(), "round trip").unwrap();
     assert_eq!(back, c);
+}
+
+#[test]
+fn each_key_alone_round_trips_through_the_toml_writer() {
+    for key in &RUN_KEYS {
+        let mut c = RunConfig::default();
+        c.set(key.name, non_default(key.name)).unwrap();
+        let text = c.to_toml();
+        // Changed from its default: every key is written, in its form.
+        let table: toml::Table = toml::from_str(&text).unwrap();
+        let written = &table[key.name];
+        let kind_ok = match key.kind {
+            ValueKind::Text => written.is_str(),
+            ValueKind::Float => written.is_float(),
+            // Beyond i64 an integer stays text.
+            ValueKind::Integer => written.is_integer() || written.is_str(),
+            ValueKind::Bool => written.is_bool(),
+        };
+        assert!(kind_ok, "{}: {written:?} is not {:?}", key.name, key.kind);
+        let back = RunConfig::from_toml_str(&text, key.name).unwrap();
+        assert_eq!(back, c, "{}:\n{text}", key.name);
+    }
 }
 
 #[test]

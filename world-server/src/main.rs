@@ -146,8 +146,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         println!("world-server: {line}");
         return Ok(());
     }
-    if cli.timestep == 0 {
-        bail!("--timestep must be at least 1 ms");
+    // The range only: the platforms' sync mode is theirs to check.
+    if let Err(e) = protocol::TimestepMs::new(cli.timestep) {
+        bail!("--timestep: {e}");
     }
     if cli.substeps == 0 {
         bail!("--substeps must be at least 1");

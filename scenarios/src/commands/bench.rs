@@ -72,8 +72,10 @@ pub(crate) fn cmd_bench_cluster(
     if repeat == 0 {
         bail!("--repeat: expected at least 1 run per measurement");
     }
-    if let Some(bad) = cores.iter().find(|&&n| !(1..=8).contains(&n)) {
-        bail!("--cores: {bad} is not a cluster size (1-8)");
+    for &n in &cores {
+        if let Err(e) = sim_core::cluster::CoreCount::new(n as usize) {
+            bail!("--cores: {e}");
+        }
     }
     let elf = elf.unwrap_or_else(scenarios::bench_cluster::default_elf);
     let out = out.unwrap_or_else(scenarios::bench_cluster::default_out);

@@ -1,7 +1,7 @@
 //! `cosim keys`: the reference of every key `--set` accepts, generated from
-//! the tables that declare them (`sim_core::config::RUN_KEYS` with
-//! `RunConfig::default` for the defaults, `SCENARIO_KEYS`), so it cannot
-//! drift from what the checks accept.
+//! the tables that declare them (`sim_core::config::RUN_KEYS`, each key's
+//! one declaration, with `RunConfig::default` for the defaults,
+//! `SCENARIO_KEYS`), so it cannot drift from what the checks accept.
 
 use scenarios::scenario::SCENARIO_KEYS;
 use sim_core::config::{RunConfig, FIRMWARE_KEY_PREFIX, RUN_KEYS};
@@ -18,11 +18,9 @@ pub(crate) fn reference() -> String {
         "Run keys: `cosim run|sweep --set KEY=VALUE`, a scenario's [run] table, \
          `sim-core --set KEY=VALUE` or `--config FILE` (TOML; `a.b` is key b of table a)."
     );
-    for (key, doc) in RUN_KEYS {
-        let default = defaults
-            .get(key)
-            .map_or_else(|e| format!("({e})"), |d| format!("default {d}"));
-        let _ = writeln!(out, "  {key}  [{default}]\n      {doc}");
+    for key in &RUN_KEYS {
+        let (name, doc, default) = (key.name, key.doc, key.get(&defaults));
+        let _ = writeln!(out, "  {name}  [default {default}]\n      {doc}");
     }
     let _ = writeln!(
         out,

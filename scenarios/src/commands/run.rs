@@ -105,7 +105,7 @@ pub(crate) fn cmd_run(
     // platform learns the world's timestep in GET_INIT_DATA, so a mismatch
     // shows in the summary.
     if let (Some(ep), Some(sum)) = (&world_endpoint, &o.summary) {
-        if sum.timestep_ms != s.timestep_ms {
+        if sum.timestep_ms != s.timestep_ms.get() {
             eprintln!(
                 "cosim: the world at {ep} ran at {} ms, the scenario says {} ms: start it with `cosim world {} --listen ...` and the same --set",
                 sum.timestep_ms, s.timestep_ms, s.name
@@ -194,9 +194,6 @@ pub(crate) fn cmd_list() -> anyhow::Result<ExitCode> {
         }
     }
     println!("\n--set keys: {}", SCENARIO_KEYS.map(|(k, _)| k).join(", "));
-    println!(
-        "run keys:   {}",
-        sim_core::config::RUN_KEYS.map(|(k, _)| k).join(", ")
-    );
+    println!("run keys:   {}", sim_core::config::run_key_names());
     Ok(ExitCode::SUCCESS)
 }

@@ -214,8 +214,8 @@ pub fn evaluate(
     args: &EvalArgs,
     mut progress: impl FnMut(usize, usize),
 ) -> anyhow::Result<(EvalReport, Vec<HeadRecord>)> {
-    if !(1..=8).contains(&args.cores) {
-        bail!("--cores {} is not 1-8 (the GAP8 cluster)", args.cores);
+    if let Err(e) = sim_core::cluster::CoreCount::new(args.cores) {
+        bail!("--cores: {e}");
     }
     if args.mhz == 0 {
         bail!("--mhz must be positive");

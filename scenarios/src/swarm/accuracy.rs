@@ -236,6 +236,14 @@ mod tests {
             settle_s: Some(-1.0),
             ..PositioningSpec::default()
         };
-        assert!(bad.validate().unwrap_err().contains("settle_s = -1"));
+        assert_eq!(
+            bad.validate(),
+            Err(super::super::positioning::BadSettle(-1.0))
+        );
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("settle_s = -1"));
     }
 }

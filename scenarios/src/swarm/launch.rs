@@ -19,8 +19,8 @@ use std::time::{Duration, Instant};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::launch::{
-    abs, describe, files, io_err, run_toml, wait_for_socket, Binaries, Echo, LaunchError,
-    LaunchOptions, LogSink, Supervised,
+    describe, files, io_err, run_toml, wait_for_socket, Binaries, Echo, LaunchError, LaunchOptions,
+    LogSink, Supervised,
 };
 use crate::scenario::Scenario;
 use crate::signals::Role;
@@ -136,7 +136,11 @@ fn world_command(
     c.arg("--socket")
         .arg(socket)
         .arg("--world")
-        .arg(scenario.world_file_for_run(out).map_err(LaunchError::Io)?)
+        .arg(
+            scenario
+                .world_file_for_run(out)
+                .map_err(|e| LaunchError::Io(e.to_string()))?,
+        )
         .arg("--timestep")
         .arg(scenario.timestep_ms.to_string())
         .arg("--substeps")
@@ -173,35 +177,13 @@ fn write_inputs(scenario: &Scenario, out: &Path) -> Result<(), LaunchError> {
         std::fs::write(path, text)
             .map_err(|e| io_err(format!("cannot write {}", path.display()), e))
     };
-    let mut text = format!(
-        "# Resolved from {} {}\ndescription = {:?}\nworld = {:?}\ntimestep_ms = {}\nsubsteps = {}\nimage_encoding = {:?}\n{}",
-        scenario.path.display(),
-        scenario.overrides_label(),
-        scenario.description,
-        abs(&scenario.world),
-        scenario.timestep_ms,
-        scenario.substeps,
-        scenario.image_encoding.as_str(),
-        scenario
-            .max_time_s
-            .map(|t| format!("max_time_s = {t:?}\n"))
-            .unwrap_or_default(),
-    );
     for p in &scenario.platforms {
         let dir = drone_dir(out, &p.drone);
         std::fs::create_dir_all(&dir)
             .map_err(|e| io_err(format!("cannot create {}", dir.display()), e))?;
         write(&dir.join(files::RUN_CONFIG), run_toml(&p.run))?;
-        text += &format!(
-            "\n[[platform]]\ndrone = {:?}\nfirmware = {:?}\ntargets = {:?}\n# run keys: {}/{}\n",
-            p.drone,
-            abs(&p.firmware),
-            p.targets,
-            p.drone,
-            files::RUN_CONFIG
-        );
     }
-    write(&out.join(files::SCENARIO), text)
+    write(&out.join(files::SCENARIO), scenario.resolved_toml())
 }
 
 /// A platform that exited with an error but whose drone was stopped (its

@@ -202,7 +202,7 @@ pub fn run_swarm(
     let positioning = match positioning::analyse(scenario, out, &tracks, draw) {
         Ok(p) => p,
         Err(e) => {
-            note(e);
+            note(e.to_string());
             None
         }
     };
@@ -217,7 +217,7 @@ pub fn run_swarm(
         .collect();
     let sum = report::swarm_summary(
         &scenario.name,
-        scenario.timestep_ms,
+        scenario.timestep_ms.get(),
         &figures,
         st.world,
         st.error.clone(),

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use sim_core::config::{RunConfig, RUN_KEYS};
+use sim_core::config::{run_key_names, RunConfig};
 
 use crate::scenario::{apply_run_table, is_run_key, Scenario, ScenarioError, ScenarioFile};
 
@@ -45,6 +45,32 @@ pub struct PlatformSpec {
 /// The run key the radios' identifier comes from (docs/SWARM.md §4.3: EUI).
 pub const RADIO_ID_KEY: &str = "radio_id";
 
+/// Why the `[[platform]]` tables cannot be resolved (`what` names the
+/// table: `platform[2] (drone "B")`).
+#[derive(Debug, thiserror::Error)]
+pub enum PlatformTableError {
+    #[error(
+        "run.{RADIO_ID_KEY}: the radios' identifiers are per platform \
+         (set them in [platform.run], or leave them to cosim: 1, 2, 3, ...)"
+    )]
+    SharedRadioId,
+    #[error("platform[{0}]: drone must not be empty")]
+    EmptyDrone(usize),
+    #[error("{what}: a drone name cannot contain '.', '=', '/', '\\' or surrounding spaces")]
+    BadDroneName { what: String },
+    #[error("{what}: a second platform for the same drone")]
+    SecondPlatform { what: String },
+    #[error("{what}: no firmware (give `firmware` in the table or in the scenario)")]
+    NoFirmware { what: String },
+    #[error(transparent)]
+    Run(#[from] crate::scenario::RunTableError),
+    #[error("{what}: {RADIO_ID_KEY}: {source}")]
+    RadioId {
+        what: String,
+        source: sim_core::config::ConfigError,
+    },
+}
+
 /// The `[[platform]]` tables resolved: each platform's run configuration is
 /// the scenario's `run` with the platform's own `run` table over it; the
 /// radios' identifiers are 1, 2, 3, … in table order unless a platform sets
@@ -54,42 +80,38 @@ pub(crate) fn resolve_platforms(
     run: &RunConfig,
     file: &ScenarioFile,
     base: &Path,
-) -> Result<Vec<PlatformSpec>, String> {
+) -> Result<Vec<PlatformSpec>, PlatformTableError> {
     if !tables.is_empty() && file.run.contains_key(RADIO_ID_KEY) {
-        return Err(format!(
-            "run.{RADIO_ID_KEY}: the radios' identifiers are per platform \
-             (set them in [platform.run], or leave them to cosim: 1, 2, 3, ...)"
-        ));
+        return Err(PlatformTableError::SharedRadioId);
     }
     let mut out: Vec<PlatformSpec> = Vec::new();
     for (i, t) in tables.iter().enumerate() {
         let what = format!("platform[{}] (drone {:?})", i + 1, t.drone);
         if t.drone.trim().is_empty() {
-            return Err(format!("platform[{}]: drone must not be empty", i + 1));
+            return Err(PlatformTableError::EmptyDrone(i + 1));
         }
         // `A.KEY=VALUE` names a platform by its drone (`--set`, sweeps).
         // Its outputs go to a directory named after it.
         if t.drone.contains(['.', '=', '/', '\\']) || t.drone.trim() != t.drone {
-            return Err(format!(
-                "{what}: a drone name cannot contain '.', '=', '/', '\\' or surrounding spaces"
-            ));
+            return Err(PlatformTableError::BadDroneName { what });
         }
         if out.iter().any(|p| p.drone == t.drone) {
-            return Err(format!("{what}: a second platform for the same drone"));
+            return Err(PlatformTableError::SecondPlatform { what });
         }
         let firmware = match (&t.firmware, &file.firmware) {
             (Some(f), _) | (None, Some(f)) => base.join(f),
             (None, None) => {
-                return Err(format!(
-                    "{what}: no firmware (give `firmware` in the table or in the scenario)"
-                ))
+                return Err(PlatformTableError::NoFirmware { what });
             }
         };
         let mut prun = run.clone();
         apply_run_table(&mut prun, &t.run, base, &format!("{what} run"))?;
         if is_run_key(RADIO_ID_KEY) && !t.run.contains_key(RADIO_ID_KEY) {
             prun.set(RADIO_ID_KEY, &(i + 1).to_string())
-                .map_err(|e| format!("{what}: {RADIO_ID_KEY}: {e}"))?;
+                .map_err(|source| PlatformTableError::RadioId {
+                    what: what.clone(),
+                    source,
+                })?;
         }
         out.push(PlatformSpec {
             drone: t.drone.clone(),
@@ -130,7 +152,7 @@ impl Scenario {
                 value: value.to_string(),
                 reason: format!(
                     "a platform takes `firmware` and the run keys ({})",
-                    RUN_KEYS.map(|(k, _)| k).join(", ")
+                    run_key_names()
                 ),
             });
         }
@@ -145,10 +167,10 @@ impl Scenario {
     /// platform names a drone of the world file: otherwise the world would
     /// wait for a claim that never comes (docs/SWARM.md §2).
     pub(crate) fn check_drones(&self) -> Result<(), ScenarioError> {
-        let world = crate::swarm::world::WorldDrones::load(&self.world).map_err(|message| {
+        let world = crate::swarm::world::WorldDrones::load(&self.world).map_err(|e| {
             ScenarioError::Invalid {
                 path: self.world.clone(),
-                message,
+                message: e.to_string(),
             }
         })?;
         let names = world.names();
@@ -278,6 +300,29 @@ mod tests {
             assert!(s.set(bad).is_err(), "{bad} accepted");
         }
         assert!(s.overrides_label().contains("B.battery=cyclone300"));
+    }
+
+    #[test]
+    fn every_platforms_sync_is_checked_against_the_timestep() {
+        let mut s = parse(SWARM).unwrap();
+        s.set("sync=bounded").unwrap();
+        s.set("timestep_ms=2").unwrap();
+        s.check_timestep().unwrap();
+        // One platform back to the thesis's bookkeeping: refused.
+        s.set("B.sync=thesis").unwrap();
+        let e = s.check_timestep().unwrap_err().to_string();
+        assert!(e.contains("too small for the thesis"), "{e}");
+    }
+
+    #[test]
+    fn a_swarms_scenario_toml_reads_back() {
+        let s = parse(SWARM).unwrap();
+        let text = s.resolved_toml();
+        let back: crate::scenario::ResolvedScenario = toml::from_str(&text).unwrap();
+        assert_eq!(back, s.resolved());
+        assert_eq!(back.platform.len(), 2);
+        assert_eq!(back.platform[0].targets, [[0.0, 1.0, 1.0]]);
+        assert!(back.firmware.is_none() && back.targets.is_none());
     }
 
     #[test]

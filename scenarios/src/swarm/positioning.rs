@@ -67,13 +67,16 @@ pub struct PositioningSpec {
     pub settle_s: Option<f64>,
 }
 
+/// A `[positioning]` table serde accepts but the report cannot use.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("positioning.settle_s = {0}: expected a finite number of seconds >= 0")]
+pub struct BadSettle(pub f64);
+
 impl PositioningSpec {
     /// Checks what serde cannot: `settle_s` finite and ≥ 0.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), BadSettle> {
         match self.settle_s {
-            Some(v) if !(v.is_finite() && v >= 0.0) => Err(format!(
-                "positioning.settle_s = {v}: expected a finite number of seconds >= 0"
-            )),
+            Some(v) if !(v.is_finite() && v >= 0.0) => Err(BadSettle(v)),
             _ => Ok(()),
         }
     }
@@ -364,6 +367,20 @@ pub struct Positioning {
     pub text: String,
 }
 
+/// Why the positioning outputs cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum PositioningError {
+    #[error("{}: {source}", path.display())]
+    Csv { path: PathBuf, source: csv::Error },
+    #[error("{}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
+
 /// Reads every drone's console; if any holds estimates, writes
 /// `positions.csv`, the tables (`positioning.md`) and the plots. `None`
 /// when no firmware printed estimates (not a positioning run).
@@ -372,7 +389,7 @@ pub fn analyse(
     out: &Path,
     tracks: &BTreeMap<String, DroneTrack>,
     draw: bool,
-) -> Result<Option<Positioning>, String> {
+) -> Result<Option<Positioning>, PositioningError> {
     let consoles: BTreeMap<String, SwarmConsole> = scenario
         .platforms
         .iter()
@@ -387,14 +404,15 @@ pub fn analyse(
     }
     let rows = position_rows(scenario, &consoles, tracks);
     let csv_path = out.join(POSITIONS_CSV);
-    let mut w =
-        csv::Writer::from_path(&csv_path).map_err(|e| format!("{}: {e}", csv_path.display()))?;
+    let csv_err = |source| PositioningError::Csv {
+        path: csv_path.clone(),
+        source,
+    };
+    let mut w = csv::Writer::from_path(&csv_path).map_err(csv_err)?;
     for r in &rows {
-        w.serialize(r)
-            .map_err(|e| format!("{}: {e}", csv_path.display()))?;
+        w.serialize(r).map_err(csv_err)?;
     }
-    w.flush()
-        .map_err(|e| format!("{}: {e}", csv_path.display()))?;
+    w.flush().map_err(|e| csv_err(e.into()))?;
     let spec = scenario.positioning.clone().unwrap_or_default();
     let tables = tables(scenario, &spec, &rows);
     let mut text = format!(
@@ -426,7 +444,10 @@ pub fn analyse(
             )
         };
         let p = out.join(POSITIONING_MD);
-        std::fs::write(&p, &md).map_err(|e| format!("{}: {e}", p.display()))?;
+        std::fs::write(&p, &md).map_err(|source| PositioningError::Write {
+            path: p.clone(),
+            source,
+        })?;
         text.push_str(&format!("   tables         {}\n\n{md}", p.display()));
     }
     if let Some(obs) = observer(scenario, Some(&spec)) {
@@ -445,7 +466,10 @@ pub fn analyse(
             let ram = fw.as_deref().and_then(super::load::ram);
             let md = super::load::load_markdown(&obs, &rows, ram);
             let p = out.join(super::load::LOAD_MD);
-            std::fs::write(&p, &md).map_err(|e| format!("{}: {e}", p.display()))?;
+            std::fs::write(&p, &md).map_err(|source| PositioningError::Write {
+                path: p.clone(),
+                source,
+            })?;
             text.push_str(&format!("   load           {}\n\n{md}\n", p.display()));
         }
     }
@@ -460,17 +484,14 @@ pub fn analyse(
                     format!("position_error_{obs}.png"),
                 )
             };
-            plots.extend(
-                draw_plots(
-                    out,
-                    scenario,
-                    obs,
-                    &rows,
-                    (&names.0, &names.1),
-                    spec.settle_s,
-                )
-                .map_err(|e| e.to_string())?,
-            );
+            plots.extend(draw_plots(
+                out,
+                scenario,
+                obs,
+                &rows,
+                (&names.0, &names.1),
+                spec.settle_s,
+            )?);
         }
     }
     Ok(Some(Positioning { plots, text }))

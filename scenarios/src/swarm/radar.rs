@@ -67,11 +67,28 @@ fn radar_id(console: &str) -> Option<u64> {
 /// A received p2p frame of radio.csv: (end_ps, from, to, distance_m, rssi).
 type Frame = (u64, String, String, f64, f64);
 
-fn received_frames(path: &Path) -> Result<Vec<Frame>, String> {
-    let mut r = csv::Reader::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
+/// Why a radar run cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum RadarError {
+    #[error("{}: {source}", path.display())]
+    Csv { path: PathBuf, source: csv::Error },
+    #[error("{}: a malformed row", path.display())]
+    MalformedRow { path: PathBuf },
+    #[error("{drone} detected radio id {id}, which no drone has")]
+    UnknownId { drone: String, id: u64 },
+    #[error("{drone}'s detection of {from} is not in radio.csv")]
+    NotInRadioLog { drone: String, from: String },
+}
+
+fn received_frames(path: &Path) -> Result<Vec<Frame>, RadarError> {
+    let csv = |source| RadarError::Csv {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut r = csv::Reader::from_path(path).map_err(csv)?;
     let mut out = Vec::new();
     for rec in r.records() {
-        let rec = rec.map_err(|e| format!("{}: {e}", path.display()))?;
+        let rec = rec.map_err(csv)?;
         if rec.get(2) != Some("p2p") || rec.get(7) != Some("received") {
             continue;
         }
@@ -79,7 +96,9 @@ fn received_frames(path: &Path) -> Result<Vec<Frame>, String> {
         let (Some(end), Some(d), Some(rssi)) =
             (rec.get(1).and_then(|v| v.parse().ok()), num(5), num(6))
         else {
-            return Err(format!("{}: a malformed row", path.display()));
+            return Err(RadarError::MalformedRow {
+                path: path.to_path_buf(),
+            });
         };
         out.push((end, rec[3].to_string(), rec[4].to_string(), d, rssi));
     }
@@ -104,7 +123,7 @@ pub fn read_run(
     drones: &[String],
     tracks: &BTreeMap<String, DroneTrack>,
     collisions: Option<u64>,
-) -> Result<Option<RadarRun>, String> {
+) -> Result<Option<RadarRun>, RadarError> {
     let mut ids = BTreeMap::new();
     let mut consoles = BTreeMap::new();
     for d in drones {
@@ -129,11 +148,17 @@ pub fn read_run(
         let from = ids
             .get(&from_id)
             .cloned()
-            .ok_or_else(|| format!("{d} detected radio id {from_id}, which no drone has"))?;
+            .ok_or_else(|| RadarError::UnknownId {
+                drone: d.clone(),
+                id: from_id,
+            })?;
         let f = frames
             .iter()
             .find(|f| &f.2 == d && f.1 == from && (f.4 * 100.0).round() as i64 == cdbm)
-            .ok_or_else(|| format!("{d}'s detection of {from} is not in radio.csv"))?;
+            .ok_or_else(|| RadarError::NotInRadioLog {
+                drone: d.clone(),
+                from: from.clone(),
+            })?;
         if best.as_ref().is_none_or(|b| f.0 < b.2 .0) {
             best = Some((d.clone(), from, f.clone()));
         }

@@ -21,6 +21,7 @@
 
 use std::collections::VecDeque;
 
+use super::MAX_CORES;
 use crate::units::Picos;
 
 /// Commands queued or running at once (docs/CLUSTER.md, DESIGN.md §12).
@@ -122,8 +123,8 @@ pub enum DmaRefusal {
 #[derive(Debug, Clone)]
 pub struct Dma {
     period: Picos,
-    staging: [Staging; 8],
-    last_id: [u32; 8],
+    staging: [Staging; MAX_CORES],
+    last_id: [u32; MAX_CORES],
     queue: VecDeque<Command>,
     busy_until: Picos,
     /// Bytes copied so far (the power model).
@@ -144,8 +145,8 @@ impl Dma {
     pub fn new(period: Picos, l1: (u32, u32), l2: (u32, u32)) -> Dma {
         Dma {
             period,
-            staging: [Staging::default(); 8],
-            last_id: [0; 8],
+            staging: [Staging::default(); MAX_CORES],
+            last_id: [0; MAX_CORES],
             queue: VecDeque::new(),
             busy_until: Picos::ZERO,
             bytes: 0,

@@ -14,6 +14,7 @@
 
 use std::collections::VecDeque;
 
+use super::MAX_CORES;
 use crate::units::Picos;
 
 /// Cycles from the event that releases a sleeping core to the core's next
@@ -76,11 +77,11 @@ pub struct EventUnit {
     n: usize,
     all: u32,
     latency: Picos,
-    mask: [u32; 8],
-    buffer: [u32; 8],
-    sleep: [Option<Sleep>; 8],
+    mask: [u32; MAX_CORES],
+    buffer: [u32; MAX_CORES],
+    sleep: [Option<Sleep>; MAX_CORES],
     /// Released sleepers: the time their retry may happen.
-    wake_at: [Option<Picos>; 8],
+    wake_at: [Option<Picos>; MAX_CORES],
     barrier_team: u32,
     barrier_arrived: u32,
     /// Arrived cores already released by the barrier (their retry returns).
@@ -90,7 +91,7 @@ pub struct EventUnit {
     /// The mutex was handed to this core while it slept.
     mutex_granted: u32,
     team: u32,
-    fifo: [VecDeque<u32>; 8],
+    fifo: [VecDeque<u32>; MAX_CORES],
 }
 
 impl EventUnit {
@@ -101,10 +102,10 @@ impl EventUnit {
             n,
             all,
             latency: Picos(period.0 * WAKE_LATENCY_CYCLES),
-            mask: [0; 8],
-            buffer: [0; 8],
-            sleep: [None; 8],
-            wake_at: [None; 8],
+            mask: [0; MAX_CORES],
+            buffer: [0; MAX_CORES],
+            sleep: [None; MAX_CORES],
+            wake_at: [None; MAX_CORES],
             barrier_team: all,
             barrier_arrived: 0,
             barrier_released: 0,

@@ -44,11 +44,14 @@
 //! (the write is a synchronisation point, made once the FC is later), and
 //! the FC wakes there, whatever the quantum.
 
+mod cores;
 pub mod ctrl;
 pub mod dma;
 pub mod event_unit;
 pub mod power;
 pub mod tcdm;
+
+pub use cores::{CoreCount, CoreCountError, MAX_CORES};
 
 use std::io::Write;
 
@@ -135,15 +138,15 @@ pub enum CoreState {
 pub struct Shared {
     pub n: usize,
     quantum: Picos,
-    pub state: [CoreState; 8],
+    pub state: [CoreState; MAX_CORES],
     /// Each core's time when it is not running (its wake-up or start
     /// time for a core about to run).
-    pub time: [Picos; 8],
+    pub time: [Picos; MAX_CORES],
     /// A core's pending FETCH_EN: restart at this pc.
-    pub start: [Option<u32>; 8],
+    pub start: [Option<u32>; MAX_CORES],
     /// An agent stopped before a synchronising access at this time
-    /// (index 8: the FC).
-    blocked_at: [Option<Picos>; 9],
+    /// (index MAX_CORES: the FC).
+    blocked_at: [Option<Picos>; MAX_CORES + 1],
     pub fc_time: Picos,
     pub ctrl: Ctrl,
     pub eu: EventUnit,
@@ -159,7 +162,7 @@ pub struct Shared {
     platform_stop: bool,
 }
 
-const FC: usize = 8;
+const FC: usize = MAX_CORES;
 
 impl Shared {
     /// The tie rank of an agent at time `t`: the FC first, then the cores
@@ -444,8 +447,8 @@ impl std::fmt::Debug for Cluster {
 /// Errors building the cluster.
 #[derive(Debug, thiserror::Error)]
 pub enum ClusterError {
-    #[error("cluster.cores must be 1 to 8, got {0}")]
-    Cores(usize),
+    #[error(transparent)]
+    Cores(#[from] CoreCountError),
     #[error("cluster.mhz must be positive")]
     Clock,
     #[error("cluster memory map: {0}")]
@@ -457,9 +460,7 @@ impl Cluster {
     /// `mem` (which must hold L2 already). The FC gets its cluster-aware
     /// `mhartid` and view of L1 through [`Cluster::attach_fc`].
     pub fn new(cfg: ClusterConfig, mem: &mut Memory) -> Result<Cluster, ClusterError> {
-        if !(1..=8).contains(&cfg.cores) {
-            return Err(ClusterError::Cores(cfg.cores));
-        }
+        CoreCount::new(cfg.cores)?;
         if cfg.clock.0 == 0 {
             return Err(ClusterError::Clock);
         }
@@ -498,10 +499,10 @@ impl Cluster {
             sh: Shared {
                 n,
                 quantum: Picos(QUANTUM_CYCLES * period.0),
-                state: [CoreState::Off; 8],
-                time: [Picos::ZERO; 8],
-                start: [None; 8],
-                blocked_at: [None; 9],
+                state: [CoreState::Off; MAX_CORES],
+                time: [Picos::ZERO; MAX_CORES],
+                start: [None; MAX_CORES],
+                blocked_at: [None; MAX_CORES + 1],
                 fc_time: Picos::ZERO,
                 ctrl,
                 eu: EventUnit::new(n, period),

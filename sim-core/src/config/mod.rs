@@ -5,6 +5,7 @@
 mod debug_level;
 mod platform;
 mod run;
+mod run_keys;
 
 use std::path::PathBuf;
 
@@ -15,7 +16,8 @@ pub use platform::{
     PeripheralsConfig, PlatformConfig, SensorConfig, StateConfig, CORE_STATES,
     DEFAULT_CRAZYFLIE_JSON, RADIO_SENSORS, RADIO_STATES, SENSOR_STATES,
 };
-pub use run::{flatten_run_table, DebugLevel, RunConfig, SyncMode, FIRMWARE_KEY_PREFIX, RUN_KEYS};
+pub use run::{flatten_run_table, DebugLevel, RunConfig, SyncMode, FIRMWARE_KEY_PREFIX};
+pub use run_keys::{run_key, run_key_names, RunKey, ValueKind, Written, RUN_KEYS, RUN_KEY_COUNT};
 
 /// A configuration that cannot be used.
 #[derive(Debug, Error)]

@@ -493,9 +493,7 @@ impl PlatformConfig {
         }
         check_states(&self.core.states, &CORE_STATES, "core")?;
         if let Some(c) = &self.cluster {
-            if !(1..=8).contains(&c.cores) {
-                return Err(format!("cluster.cores must be 1 to 8, got {}", c.cores));
-            }
+            crate::cluster::CoreCount::new(c.cores).map_err(|e| e.to_string())?;
             if c.mhz == 0 {
                 return Err("cluster.mhz must be a positive number of MHz".into());
             }

@@ -8,7 +8,6 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 
 use crate::power::battery::{BatteryModel, CurveAxis};
 use crate::power::models::{ModelParams, PowerModelKind};
@@ -17,7 +16,9 @@ pub use crate::sync::SyncMode;
 
 pub use super::debug_level::DebugLevel;
 
+use super::run_keys::{run_key, run_key_names, RUN_KEYS};
 use super::ConfigError;
+use crate::cluster::CoreCount;
 use crate::peripherals::stm32::crtp::CrtpSpec;
 use crate::peripherals::stm32::estimator::DEFAULT_FLOW_STD;
 use crate::peripherals::stm32::PositionSource;
@@ -38,105 +39,6 @@ pub fn flatten_run_table(table: &toml::Table) -> Vec<(String, toml::Value)> {
     }
     out
 }
-
-/// Every key with a one-line description (for `--help` texts and errors).
-pub const RUN_KEYS: [(&str, &str); 26] = [
-    (
-        "power_model",
-        "motor model that drains the battery: empirical | dandrea | stolaroff",
-    ),
-    (
-        "battery",
-        "lipol250 | ufx250 | cyclone300 | lipol350 | platform (the platform file's)",
-    ),
-    (
-        "battery_curve",
-        "variable of the v_oc/r_s polynomials: soc (thesis) | discharged (1 - SOC)",
-    ),
-    (
-        "battery_load",
-        "thesis (the thesis's curves, motors up to 600 rad/s) | sag (internal resistance, end-of-discharge knee, motor speed capped by the voltage; DESIGN.md §16)",
-    ),
-    (
-        "battery_empty",
-        "at soc_end: error (MESSY: the run fails) | end (the flight ends there, as a firmware exit ends it)",
-    ),
-    (
-        "soc_low",
-        "BATTERY_LOW threshold in % SOC (default: the platform file's, 10)",
-    ),
-    (
-        "debug_level",
-        "NONE | LOW | MED | HIGH (tracing warn | info | debug | trace)",
-    ),
-    ("tolerance", "PID target tolerance in m (0.1)"),
-    (
-        "target_cycles",
-        "PID iterations inside the tolerance to reach a target (100)",
-    ),
-    (
-        "unlock_cycles",
-        "PID iterations before an unreached target is bypassed (5000)",
-    ),
-    ("sync", "time bookkeeping: thesis | bounded"),
-    (
-        "dandrea_efficiency",
-        "D'Andrea power transfer efficiency (0.8; Table 4.4 says 0.9)",
-    ),
-    ("stolaroff_efficiency", "Stolaroff efficiency (0.8)"),
-    (
-        "stolaroff_factor",
-        "Stolaroff correction factor (5, section 5.1)",
-    ),
-    (
-        "platform",
-        "platform JSON file (default: the embedded Crazyflie)",
-    ),
-    (
-        "radio_id",
-        "the radios' EUI, an unsigned 64-bit integer (0; cosim gives 1, 2, 3, ...)",
-    ),
-    (
-        "stm32.position_source",
-        "the STM32's position estimate: gps (thesis) | flow (dead reckoning on FLOW_VX/VY through the flow filter)",
-    ),
-    (
-        "stm32.range_max_m",
-        "range sensors' max range in m (2); a reading at or beyond it is 'nothing in range'",
-    ),
-    (
-        "crtp",
-        "serve cflib's CRTP link: off | udp:HOST:PORT | replay:FILE (a crtp.jsonl); the firmware starts it with EXT_CRTP (crtp_host.elf), docs/CFLIB.md",
-    ),
-    (
-        "pace",
-        "with a live CRTP link, simulated seconds per wall second (1.0; 0 = unpaced)",
-    ),
-    (
-        "crtp_idle_s",
-        "the CRTP link is closed after this many simulated seconds without a packet (10)",
-    ),
-    (
-        "stm32.flow_std_m_s",
-        "flow mode: the flow noise the STM32's filter assumes, m/s per sample (0.069, the Flow deck's at 0.3 m; 0 = the raw flow)",
-    ),
-    (
-        "iss",
-        "ISS back end: jit (block translator, default on x86-64) | interp (interpreter); identical results",
-    ),
-    (
-        "cluster.cores",
-        "the GAP8 cluster's cores, 1-8, in place of the platform file's (platform: the file's); the platform must have a cluster",
-    ),
-    (
-        "cluster.mhz",
-        "the GAP8 cluster's clock in MHz, in place of the platform file's (platform: the file's)",
-    ),
-    (
-        "output.compress",
-        "store the series (power.csv, motor_*.csv, trajectory.csv, time_map.csv) and the traces (world.trace, platform.trace) zstd-compressed as NAME.zst (true, default) or plain (false); same bytes once decompressed",
-    ),
-];
 
 /// The run configuration. [`RunConfig::default`] is the thesis's setting of
 /// §5.1: empirical model, LiPol 250 mAh, debug NONE, tolerance 0.1 m,
@@ -192,7 +94,7 @@ pub struct RunConfig {
     pub iss: crate::iss::Backend,
     /// The cluster's cores and clock (MHz) in place of the platform
     /// file's (`None`: the file's), so that a sweep varies them.
-    pub cluster_cores: Option<usize>,
+    pub cluster_cores: Option<CoreCount>,
     pub cluster_mhz: Option<u64>,
     /// How the series files are stored (a host-side choice: no simulated
     /// result depends on it).
@@ -243,50 +145,10 @@ impl Default for RunConfig {
     }
 }
 
-fn parse<T: FromStr<Err = String>>(value: &str) -> Result<T, String> {
-    value.parse()
-}
-
-fn parse_number(value: &str) -> Result<f64, String> {
-    value
-        .trim()
-        .parse::<f64>()
-        .ok()
-        .filter(|v| v.is_finite())
-        .ok_or_else(|| "expected a number".to_string())
-}
-
-fn parse_fraction(value: &str) -> Result<f64, String> {
-    let v = parse_number(value)?;
-    if v > 0.0 && v <= 1.0 {
-        Ok(v)
-    } else {
-        Err("expected an efficiency in (0, 1]".into())
-    }
-}
-
-fn parse_positive(value: &str) -> Result<f64, String> {
-    let v = parse_number(value)?;
-    if v > 0.0 {
-        Ok(v)
-    } else {
-        Err("expected a positive number".into())
-    }
-}
-
-fn parse_non_negative(value: &str) -> Result<f64, String> {
-    let v = parse_number(value)?;
-    if v >= 0.0 && v.is_finite() {
-        Ok(v)
-    } else {
-        Err("expected a number >= 0".into())
-    }
-}
-
-fn parse_count(value: &str) -> Result<u32, String> {
-    match value.trim().parse::<u32>() {
-        Ok(0) | Err(_) => Err("expected a whole number of iterations, at least 1".into()),
-        Ok(v) => Ok(v),
+fn unknown_key(key: &str) -> ConfigError {
+    ConfigError::UnknownKey {
+        key: key.to_string(),
+        known: run_key_names(),
     }
 }
 
@@ -311,97 +173,8 @@ impl RunConfig {
             self.firmware_params.insert(name.to_string(), v);
             return Ok(());
         }
-        match key {
-            "power_model" => self.power_model = parse(value).map_err(bad)?,
-            "battery" => {
-                self.battery = if value.trim().eq_ignore_ascii_case("platform") {
-                    None
-                } else {
-                    Some(parse(value).map_err(bad)?)
-                }
-            }
-            "battery_curve" => self.battery_curve = parse(value).map_err(bad)?,
-            "battery_load" => self.battery_load = parse(value).map_err(bad)?,
-            "battery_empty" => self.battery_empty = parse(value).map_err(bad)?,
-            "soc_low" if value.trim().eq_ignore_ascii_case("platform") => self.soc_low = None,
-            "soc_low" => {
-                let v = parse_non_negative(value).map_err(bad)?;
-                if v > 100.0 {
-                    return Err(bad("a percentage in [0, 100]".into()));
-                }
-                self.soc_low = Some(v)
-            }
-            "debug_level" => self.debug_level = parse(value).map_err(bad)?,
-            "tolerance" => self.tolerance = parse_positive(value).map_err(bad)?,
-            "target_cycles" => self.target_cycles = parse_count(value).map_err(bad)?,
-            "unlock_cycles" => self.unlock_cycles = parse_count(value).map_err(bad)?,
-            "sync" => self.sync = parse(value).map_err(bad)?,
-            "iss" => self.iss = parse(value).map_err(bad)?,
-            "dandrea_efficiency" => {
-                self.models.dandrea_efficiency = parse_fraction(value).map_err(bad)?
-            }
-            "stolaroff_efficiency" => {
-                self.models.stolaroff_efficiency = parse_fraction(value).map_err(bad)?
-            }
-            "stolaroff_factor" => {
-                self.models.stolaroff_factor = parse_positive(value).map_err(bad)?
-            }
-            "platform" => {
-                if value.trim().is_empty() {
-                    return Err(bad("expected a file path".into()));
-                }
-                self.platform = Some(PathBuf::from(value))
-            }
-            "radio_id" => {
-                self.radio_id = value
-                    .trim()
-                    .parse::<u64>()
-                    .map_err(|_| bad("expected an unsigned 64-bit integer".into()))?
-            }
-            "crtp" => {
-                self.crtp = match value.trim() {
-                    "" | "off" => None,
-                    v => Some(v.parse().map_err(bad)?),
-                }
-            }
-            "pace" => self.pace = parse_non_negative(value).map_err(bad)?,
-            "crtp_idle_s" => self.crtp_idle_s = parse_positive(value).map_err(bad)?,
-            "stm32.position_source" => self.position_source = value.parse().map_err(bad)?,
-            "stm32.range_max_m" => self.range_max_m = parse_positive(value).map_err(bad)?,
-            "stm32.flow_std_m_s" => self.flow_std_m_s = parse_non_negative(value).map_err(bad)?,
-            "cluster.cores" => {
-                self.cluster_cores = match value.trim() {
-                    "platform" => None,
-                    v => match v.parse::<usize>() {
-                        Ok(n) if (1..=8).contains(&n) => Some(n),
-                        _ => return Err(bad("expected 1 to 8 cores, or platform".into())),
-                    },
-                }
-            }
-            "cluster.mhz" => {
-                self.cluster_mhz = match value.trim() {
-                    "platform" => None,
-                    v => match v.parse::<u64>() {
-                        Ok(f) if (1..=10_000).contains(&f) => Some(f),
-                        _ => return Err(bad("expected a whole number of MHz, or platform".into())),
-                    },
-                }
-            }
-            "output.compress" => {
-                self.series = match value.trim() {
-                    "true" => protocol::series::SeriesFormat::Zstd,
-                    "false" => protocol::series::SeriesFormat::Plain,
-                    _ => return Err(bad("expected true or false".into())),
-                }
-            }
-            _ => {
-                return Err(ConfigError::UnknownKey {
-                    key: key.to_string(),
-                    known: RUN_KEYS.map(|(k, _)| k).join(", "),
-                })
-            }
-        }
-        Ok(())
+        let spec = run_key(key).ok_or_else(|| unknown_key(key))?;
+        spec.set(self, value).map_err(bad)
     }
 
     /// The text form of one key, as `set` accepts it.
@@ -412,58 +185,7 @@ impl RunConfig {
         {
             return Ok(v.to_string());
         }
-        Ok(match key {
-            "power_model" => self.power_model.to_string(),
-            "battery" => self
-                .battery
-                .map_or_else(|| "platform".to_string(), |b| b.to_string()),
-            "battery_curve" => self.battery_curve.to_string(),
-            "battery_load" => self.battery_load.to_string(),
-            "battery_empty" => self.battery_empty.to_string(),
-            "soc_low" => self
-                .soc_low
-                .map_or_else(|| "platform".to_string(), |v| v.to_string()),
-            "debug_level" => self.debug_level.to_string(),
-            "tolerance" => self.tolerance.to_string(),
-            "target_cycles" => self.target_cycles.to_string(),
-            "unlock_cycles" => self.unlock_cycles.to_string(),
-            "sync" => match self.sync {
-                SyncMode::Thesis => "thesis",
-                SyncMode::Bounded => "bounded",
-            }
-            .to_string(),
-            "dandrea_efficiency" => self.models.dandrea_efficiency.to_string(),
-            "stolaroff_efficiency" => self.models.stolaroff_efficiency.to_string(),
-            "stolaroff_factor" => self.models.stolaroff_factor.to_string(),
-            "platform" => self
-                .platform
-                .as_ref()
-                .map_or_else(|| "embedded".to_string(), |p| p.display().to_string()),
-            "radio_id" => self.radio_id.to_string(),
-            "crtp" => self
-                .crtp
-                .as_ref()
-                .map_or("off".to_string(), |c| c.to_string()),
-            "pace" => self.pace.to_string(),
-            "crtp_idle_s" => self.crtp_idle_s.to_string(),
-            "iss" => self.iss.to_string(),
-            "stm32.position_source" => self.position_source.to_string(),
-            "stm32.range_max_m" => self.range_max_m.to_string(),
-            "stm32.flow_std_m_s" => self.flow_std_m_s.to_string(),
-            "cluster.cores" => self
-                .cluster_cores
-                .map_or_else(|| "platform".to_string(), |v| v.to_string()),
-            "cluster.mhz" => self
-                .cluster_mhz
-                .map_or_else(|| "platform".to_string(), |v| v.to_string()),
-            "output.compress" => (self.series == protocol::series::SeriesFormat::Zstd).to_string(),
-            _ => {
-                return Err(ConfigError::UnknownKey {
-                    key: key.to_string(),
-                    known: RUN_KEYS.map(|(k, _)| k).join(", "),
-                })
-            }
-        })
+        Ok(run_key(key).ok_or_else(|| unknown_key(key))?.get(self))
     }
 
     /// Applies `key=value` overrides in order (the command line's `--set`).
@@ -524,63 +246,10 @@ impl RunConfig {
     pub fn to_toml(&self) -> String {
         let mut table = toml::Table::new();
         let default = RunConfig::default();
-        for (key, _) in RUN_KEYS {
-            // The embedded default platform has no file to name: leave the
-            // key out, so that reading the file back gives the same config.
-            if key == "platform" && self.platform.is_none() {
-                continue;
+        for key in &RUN_KEYS {
+            if key.is_written(self, &default) {
+                table.insert(key.name.to_string(), key.toml_value(self));
             }
-            // Only a swarm member has a radio identifier: a single drone's
-            // file stays as it was before the radios existed.
-            if key == "radio_id" && self.radio_id == 0 {
-                continue;
-            }
-            // The back end changes no result: files and outputs name it
-            // only when it is not the host's default.
-            if key == "iss" && self.iss == crate::iss::Backend::DEFAULT {
-                continue;
-            }
-            // Like the back end, the series' form changes no result: named
-            // only when it is not the default.
-            if key == "output.compress" && self.series == default.series {
-                continue;
-            }
-            // The cluster keys only when they override the platform file.
-            if (key == "cluster.cores" && self.cluster_cores.is_none())
-                || (key == "cluster.mhz" && self.cluster_mhz.is_none())
-            {
-                continue;
-            }
-            let text = self.get(key).expect("RUN_KEYS are known keys");
-            // Likewise the STM32 extension's settings at their defaults (a
-            // value's text is its shortest round-trip form, so equal texts
-            // are equal values).
-            let crtp_key = matches!(key, "crtp" | "pace" | "crtp_idle_s");
-            if (key.starts_with("stm32.") || crtp_key) && default.get(key).is_ok_and(|d| d == text)
-            {
-                continue;
-            }
-            let value = match key {
-                "tolerance"
-                | "dandrea_efficiency"
-                | "stolaroff_efficiency"
-                | "stolaroff_factor"
-                | "stm32.range_max_m"
-                | "stm32.flow_std_m_s"
-                | "pace"
-                | "crtp_idle_s" => toml::Value::Float(text.parse().expect("a number")),
-                "target_cycles" | "unlock_cycles" | "cluster.cores" | "cluster.mhz" => {
-                    toml::Value::Integer(text.parse().expect("an integer"))
-                }
-                // TOML integers are i64: larger identifiers stay text.
-                "radio_id" => match i64::try_from(self.radio_id) {
-                    Ok(i) => toml::Value::Integer(i),
-                    Err(_) => toml::Value::String(text),
-                },
-                "output.compress" => toml::Value::Boolean(text == "true"),
-                _ => toml::Value::String(text),
-            };
-            table.insert(key.to_string(), value);
         }
         if !self.firmware_params.is_empty() {
             let params = self
@@ -596,7 +265,6 @@ impl RunConfig {
         toml::to_string(&table).expect("a flat table serializes")
     }
 
-    /// The platform file this run uses.
     /// The platform file this run uses, with `cluster.cores` and
     /// `cluster.mhz` applied.
     pub fn load_platform(&self) -> Result<super::PlatformConfig, ConfigError> {
@@ -617,7 +285,7 @@ impl RunConfig {
             }
         }
         if let Some(c) = p.cluster.as_mut() {
-            c.cores = self.cluster_cores.unwrap_or(c.cores);
+            c.cores = self.cluster_cores.map_or(c.cores, CoreCount::get);
             c.mhz = self.cluster_mhz.unwrap_or(c.mhz);
         }
         Ok(p)

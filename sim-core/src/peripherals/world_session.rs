@@ -166,10 +166,9 @@ impl WorldSession {
             }
             .into());
         };
-        if timestep_ms == 0 {
-            return Err(SessionError::Invalid(
-                "the world reported a basicTimeStep of 0 ms".into(),
-            ));
+        // The range only: the sync mode's rule is the STM32's, at INIT_PID.
+        if let Err(e) = protocol::TimestepMs::new(timestep_ms) {
+            return Err(SessionError::Invalid(format!("the world reported {e}")));
         }
         if !(time_s.is_finite() && time_s >= 0.0) {
             return Err(SessionError::Invalid(format!(

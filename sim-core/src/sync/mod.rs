@@ -48,6 +48,17 @@ impl std::str::FromStr for SyncMode {
     }
 }
 
+/// Every rule of the world's basicTimeStep under `mode` (DESIGN.md §19):
+/// cosim checks a scenario with it before it starts any process, and the
+/// STM32 the timestep the world reports at INIT_PID (a world cosim did not
+/// start), with the same message.
+pub fn check_timestep(
+    ms: u64,
+    mode: SyncMode,
+) -> Result<protocol::TimestepMs, protocol::TimestepError> {
+    protocol::TimestepMs::check(ms, mode == SyncMode::Thesis)
+}
+
 /// The thesis's rounding of a delay `d` to whole timesteps (Listing 4.4):
 /// `q = d / ts`, `r = d % ts`, and if `r > ts/2` (integer division, strictly
 /// greater) then `q += 1, r −= ts`. Returns `(q, r)` with `d = q·ts + r`.

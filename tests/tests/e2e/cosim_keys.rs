@@ -24,7 +24,7 @@ fn keys_lists_every_key_and_its_defaults_are_accepted() {
         assert!(!doc.is_empty(), "{key} has no description:\n{listing}");
         (i, lines[i])
     };
-    for (key, _) in RUN_KEYS {
+    for key in RUN_KEYS.iter().map(|k| k.name) {
         let (_, line) = entry(key);
         let default = line
             .split_once("[default ")

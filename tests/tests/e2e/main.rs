@@ -44,6 +44,7 @@ mod stm32_motion;
 mod swarm_flight;
 mod swarm_table;
 mod sweep_shards;
+mod timestep_rules;
 mod vision_detector;
 mod vision_race;
 mod world_any_client;

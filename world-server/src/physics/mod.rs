@@ -47,8 +47,9 @@ impl Default for StepConfig {
 /// Errors of the physics world.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum WorldError {
-    #[error("timestep must be at least 1 ms")]
-    ZeroTimestep,
+    /// Out of the timestep's one range (`protocol::TimestepMs`).
+    #[error(transparent)]
+    Timestep(#[from] protocol::TimestepError),
     #[error("substeps must be at least 1")]
     ZeroSubsteps,
     #[error(transparent)]
@@ -75,9 +76,7 @@ impl World {
     /// Builds the world of `desc` with every drone at its start pose, at
     /// rest, time 0.
     pub fn new(desc: &WorldDesc, cfg: StepConfig) -> Result<World, WorldError> {
-        if cfg.timestep.0 == 0 {
-            return Err(WorldError::ZeroTimestep);
-        }
+        protocol::TimestepMs::new(cfg.timestep.0)?;
         if cfg.substeps == 0 {
             return Err(WorldError::ZeroSubsteps);
         }

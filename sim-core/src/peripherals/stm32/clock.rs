@@ -25,12 +25,8 @@ impl Stm32 {
             .open(now, ctx.world, ctx.time)
             .map_err(session_err)?;
         let timestep_ms = init.timestep.0;
-        if ctx.time.mode() == crate::sync::SyncMode::Thesis && timestep_ms < 3 {
-            return Err(invalid(format!(
-                "basicTimeStep {timestep_ms} ms is too small for the thesis's iteration scheme \
-                 (one timestep minus 1 ms rounds to no step); use sync = \"bounded\""
-            )));
-        }
+        crate::sync::check_timestep(timestep_ms, ctx.time.mode())
+            .map_err(|e| invalid(e.to_string()))?;
         ctx.session.hand_clock_to_stm32();
         self.timestep = init.timestep;
         let f = &mut self.flight;
