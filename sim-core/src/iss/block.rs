@@ -90,17 +90,20 @@ impl Inst {
         }
     }
 
-    /// A branch or `jal` to itself that starts its block: once taken it is
-    /// taken forever, since nothing but the core could change its operands
-    /// (registers are private) and it changes none; only an interrupt can
-    /// end it. The block builder sends it to the general path
+    /// A branch or `jal` to itself: once taken it is taken forever, since
+    /// nothing but the core could change its operands (registers are
+    /// private) and it changes none; only an interrupt can end it. The
+    /// block builder sends it to the general path
     /// ([`exec::general_handler`]), which decides whether the core can
-    /// still progress, and the translator leaves it alone; a loop with
+    /// still progress, and the translator stops before it; a loop with
     /// anything else in it (a load of a device or of memory another agent
-    /// writes) is not one.
+    /// writes) is not one. Wherever it sits in its block: one that only
+    /// starting a block were caught would run once more when reached
+    /// inside a block than when single-stepped (the two must agree to the
+    /// cycle).
     #[inline]
     pub fn is_self_loop(&self) -> bool {
-        self.idx == 0 && self.imm == self.pc && is_direct_transfer(self.op)
+        self.imm == self.pc && is_direct_transfer(self.op)
     }
 
     /// The decoded instruction (for the general path, which only ever

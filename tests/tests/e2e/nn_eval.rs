@@ -203,7 +203,7 @@ fn bad_input_is_one_line_and_exit_2() {
         (&["nn", "eval", "/nonexistent/dir"], "labels.csv"),
         (
             &["nn", "eval", golden.to_str().unwrap(), "--cores", "9"],
-            "--cores 9",
+            "--cores: cluster.cores must be 1 to 8, got 9",
         ),
         (&["nn", "eval", bad_pgm.to_str().unwrap()], "320x320"),
     ];
