@@ -25,13 +25,13 @@
 #     compiled a second time). Both kinds of tests take them from
 #     $COSIM_BIN_DIR.
 #   - The Python tests mostly wait on the wall clock (cflib and the lab
-#     guides fly paced to it; about 1.5 minutes of CPU in 8 of wall time),
-#     so they run three test files at a time, in the background while the
-#     Rust tests are built (at a lower CPU priority, nice). Not while the
-#     Rust tests run: a paced client starved of CPU by them loses its link
-#     or its timing (guide 2 at pace 6, the external-positions drift), and a
-#     Rust test waits on the wall clock too (a CRTP client's replies within
-#     300 ms).
+#     guides fly paced to it; about 1.5 minutes of CPU in 5 of wall time),
+#     so they run three test files at a time, but alone: a paced client
+#     starved of CPU by a build or by the Rust tests loses its link or its
+#     timing (guide 3's radar rule is a race against the Python process's
+#     reaction time: beside the Rust tests' build, two of its drones met in
+#     the airway), and a Rust test waits on the wall clock too (a CRTP
+#     client's replies within 300 ms).
 #
 # Usage: scripts/test-all.sh [extra `cargo test` arguments]
 # Logs: target/test-all/. The last lines are a summary: the tests passed,
@@ -112,25 +112,15 @@ if ! wait "$venvs"; then
 fi
 export CFCLIENT="$PWD/$cfvenv/bin/cfclient"
 
-python_tests() {
-  COSIM_WORLD_SERVER="$COSIM_BIN_DIR/world-server" COSIM="$COSIM_BIN_DIR/cosim" \
-    "$venv/bin/python" -m pytest -q -rs -n 3 --dist loadfile python/tests
-}
-if [ -d python/tests ]; then
-  step "python -m pytest python/tests (in the background: $logs/python-tests.log)"
-  python_tests > "$logs/python-tests.log" 2>&1 &
-  pytests=$!
-  background+=("$pytests")
-fi
-
-step "build (debug, nice): every test"
-nice -n 10 cargo build --workspace --tests
+step "build (debug): every test"
+cargo build --workspace --tests
 
 python_status=0
-if [ -n "${pytests:-}" ]; then
-  step "wait for python/tests"
-  wait "$pytests" || python_status=$?
-  cat "$logs/python-tests.log"
+if [ -d python/tests ]; then
+  step "python -m pytest python/tests"
+  COSIM_WORLD_SERVER="$COSIM_BIN_DIR/world-server" COSIM="$COSIM_BIN_DIR/cosim" \
+    "$venv/bin/python" -m pytest -q -rs -n 3 --dist loadfile python/tests 2>&1 |
+    tee "$logs/python-tests.log" || python_status=$?
 fi
 
 step "cargo test --workspace"
