@@ -518,16 +518,28 @@ pub struct TraceReader<R> {
     buf: Vec<u8>,
     line: usize,
     truncated: Option<TruncatedLine>,
+    /// What [`TraceReader::open`] already dropped from a file whose writer
+    /// died (a compressed trace's unfinished frame), reported at the end.
+    dropped: Option<TruncatedLine>,
     done: bool,
 }
 
 impl TraceReader<Box<dyn BufRead>> {
     /// Opens the trace a path names, in either form (`world.trace` finds
-    /// `world.trace.zst`: [`crate::series::open`]).
+    /// `world.trace.zst`: [`crate::series::read`]). Of a file whose writer
+    /// died, the whole lines that reached the disk: a compressed trace's
+    /// unfinished frame ends the records as a plain file's partial last line
+    /// does ([`TraceReader::truncated`]).
     pub fn open(path: &Path) -> io::Result<Self> {
-        let r = crate::series::open(path)
+        let text = crate::series::read(path)
             .map_err(|e| io::Error::new(e.source.kind(), format!("cannot open trace: {e}")))?;
-        Ok(Self::new(r))
+        let dropped = text.torn.as_ref().map(|t| TruncatedLine {
+            line: t.lines_kept + 1,
+            bytes: t.partial_line_bytes,
+        });
+        let mut r = Self::new(Box::new(io::Cursor::new(text.bytes)) as Box<dyn BufRead>);
+        r.dropped = dropped;
+        Ok(r)
     }
 }
 
@@ -538,6 +550,7 @@ impl<R: BufRead> TraceReader<R> {
             buf: Vec::new(),
             line: 0,
             truncated: None,
+            dropped: None,
             done: false,
         }
     }
@@ -566,6 +579,13 @@ impl<R: BufRead> Iterator for TraceReader<R> {
             };
             if n == 0 {
                 self.done = true;
+                if let Some(t) = self.dropped.take() {
+                    tracing::warn!(
+                        line = t.line,
+                        "trace ends mid-write (writer interrupted?); the rest is lost"
+                    );
+                    self.truncated = Some(t);
+                }
                 return None;
             }
             self.line += 1;

@@ -200,3 +200,52 @@ fn a_queue_hashes_an_image_a_slice_at_a_time() {
     assert!(text.contains(&sha256_hex(&img.data)), "{text}");
     assert!(text.contains(&format!("\"len\":{}", body.len())), "{text}");
 }
+
+#[test]
+fn a_compressed_trace_reads_as_the_plain_one_and_keeps_its_prefix_when_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let (plain, zst) = (dir.path().join("a.trace"), dir.path().join("b.trace.zst"));
+    // Enough records for several of the writer's 64 KiB blocks.
+    let write = |path: &std::path::Path| {
+        let mut w = TraceWriter::create(path, TraceClock::WorldMs, false).unwrap();
+        for k in 0..4000u64 {
+            let body = format!(r#"{{"command":"GET_SENSORS","k":{k}}}"#);
+            w.record(
+                &ev(Direction::ToWorld, body.as_bytes(), None),
+                2000 + 32 * k,
+            )
+            .unwrap();
+        }
+        w.finish().unwrap();
+    };
+    write(&plain);
+    write(&zst);
+    let text = std::fs::read(&plain).unwrap();
+    let packed = std::fs::read(&zst).unwrap();
+    assert!(
+        packed.len() * 4 < text.len(),
+        "{} vs {}",
+        packed.len(),
+        text.len()
+    );
+    assert_eq!(zstd::decode_all(&packed[..]).unwrap(), text);
+
+    // Read by its plain name, the compressed file gives the same records.
+    let all = |r: TraceReader<_>| r.collect::<Result<Vec<_>, _>>().unwrap();
+    let a = all(TraceReader::open(&plain).unwrap());
+    let b = all(TraceReader::open(&dir.path().join("b.trace")).unwrap());
+    assert_eq!(a.len(), 4000);
+    assert_eq!(
+        serde_json::to_string(&a).unwrap(),
+        serde_json::to_string(&b).unwrap()
+    );
+
+    // A writer killed mid-run: the frame has no end. The blocks that reached
+    // the disk are read, and the reader says the rest is lost.
+    std::fs::write(&zst, &packed[..packed.len() * 2 / 3]).unwrap();
+    let mut r = TraceReader::open(&zst).unwrap();
+    let kept = r.by_ref().collect::<Result<Vec<_>, _>>().unwrap();
+    assert!(kept.len() > 1000 && kept.len() < 4000, "{}", kept.len());
+    assert_eq!(kept[kept.len() - 1].msg["k"], (kept.len() - 1) as u64);
+    assert_eq!(r.truncated().map(|t| t.line), Some(kept.len() + 1));
+}

@@ -70,11 +70,15 @@ pub fn load_trace(path: &Path) -> Result<Vec<Exchange>, ReplayError> {
         path: path.to_path_buf(),
         message,
     };
-    // Either form (`world.trace` or `world.trace.zst`).
-    let file = protocol::series::open(path).map_err(|e| bad(e.to_string()))?;
+    // Either form (`world.trace` or `world.trace.zst`); of a trace whose
+    // writer died, the whole lines that reached the disk.
+    let text = protocol::series::read(path).map_err(|e| bad(e.to_string()))?;
+    if let Some(w) = text.warning() {
+        tracing::warn!("{w}");
+    }
     let mut out: Vec<Exchange> = Vec::new();
     let mut images = 0usize;
-    for (n, line) in file.lines().enumerate() {
+    for (n, line) in std::io::Cursor::new(text.bytes).lines().enumerate() {
         let line = line.map_err(|e| bad(e.to_string()))?;
         if line.trim().is_empty() {
             continue;
