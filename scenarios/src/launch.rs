@@ -16,21 +16,8 @@ pub(crate) use crate::supervise::{
     describe, wait_for_socket, Echo, LogSink, Supervised, CONSOLE_ECHO_LINES,
 };
 
+use crate::outputs::{abs, files};
 use crate::scenario::Scenario;
-
-/// Output file names of a run (DESIGN.md §6 plus the launcher's own).
-pub mod files {
-    pub const SUMMARY: &str = "summary.json";
-    pub const TRAJECTORY: &str = "trajectory.csv";
-    pub const CONSOLE: &str = "console.log";
-    pub const WORLD_TRACE: &str = "world.trace";
-    pub const PLATFORM_TRACE: &str = "platform.trace";
-    pub const RUN_CONFIG: &str = "run.toml";
-    pub const SCENARIO: &str = "scenario.toml";
-    pub const LOG: &str = "cosim.log";
-    pub const REPORT: &str = "report.txt";
-    pub const FRAMES: &str = "frames";
-}
 
 /// Why a run could not be carried out.
 #[derive(Debug, thiserror::Error)]
@@ -438,7 +425,7 @@ pub fn world_command(
 pub(crate) fn mcap_args(cmd: &mut Command, scenario: &Scenario, out: &Path) {
     if scenario.mcap {
         cmd.arg("--mcap")
-            .arg(out.join(crate::foxglove::WORLD_MCAP))
+            .arg(out.join(files::WORLD_MCAP))
             .arg("--mcap-image-every")
             .arg(scenario.mcap_image_every.to_string());
     }
@@ -508,11 +495,4 @@ pub(crate) fn run_toml(run: &sim_core::config::RunConfig) -> String {
         run.platform = Some(PathBuf::from(abs(p)));
     }
     run.to_toml()
-}
-
-pub(crate) fn abs(p: &Path) -> String {
-    p.canonicalize()
-        .unwrap_or_else(|_| p.to_path_buf())
-        .display()
-        .to_string()
 }

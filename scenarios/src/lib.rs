@@ -23,6 +23,7 @@ pub mod foxglove;
 pub mod launch;
 pub mod mapping;
 pub mod nn;
+pub mod outputs;
 pub mod perturb;
 pub mod plot;
 pub mod report;
@@ -215,7 +216,7 @@ pub fn run_scenario(
         }
     };
     if map.is_some() && draw {
-        plots.push(out.join(mapping::files::MAP_PNG));
+        plots.push(out.join(outputs::map_files::MAP_PNG));
     }
     if let Some(job) = mcap_job {
         match foxglove::join(job) {
@@ -258,12 +259,12 @@ pub fn run_scenario(
                 .or_else(|| report_error.clone())
                 .unwrap_or_default(),
             out.display(),
-            launch::files::LOG
+            outputs::files::LOG
         ),
     };
     // The report is a convenience copy of what is printed; failing to
     // write it must not hide the run's result.
-    let _ = std::fs::write(out.join(launch::files::REPORT), &text);
+    let _ = std::fs::write(out.join(outputs::files::REPORT), &text);
     Ok(RunOutcome {
         status,
         summary,

@@ -11,7 +11,8 @@ use sim_core::power::log::{model_csv_name, POWER_CSV};
 use sim_core::power::PowerModelKind;
 use world_server::WorldDesc;
 
-use crate::launch::{files, RunStatus};
+use crate::launch::RunStatus;
+use crate::outputs::files;
 use crate::plot::{self, Series};
 use crate::scenario::Scenario;
 

@@ -195,7 +195,7 @@ pub struct ResolvedPlatform {
 impl Scenario {
     /// The scenario as it runs, paths absolute (`scenario.toml`).
     pub fn resolved(&self) -> ResolvedScenario {
-        let abs = crate::launch::abs;
+        let abs = crate::outputs::abs;
         let swarm = !self.platforms.is_empty();
         ResolvedScenario {
             description: self.description.clone(),

@@ -20,15 +20,8 @@ use serde::{Deserialize, Serialize};
 use sim_core::map_image::{MapError, MapImage};
 use world_server::WorldDesc;
 
+use crate::outputs::map_files as files;
 use truth::{footprints, Quality, TruePlan, TruthError};
-
-/// File names of the mapping outputs.
-pub mod files {
-    pub const MAP_CFOG: &str = sim_core::kernel::MAP_FILE;
-    pub const MAP_CSV: &str = "map.csv";
-    pub const MAP_PNG: &str = "map.png";
-    pub const EXPLORATION_CSV: &str = "exploration.csv";
-}
 
 /// Why the mapping outputs could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -218,7 +211,7 @@ pub fn process(
     if !cfog.exists() {
         return Ok(None);
     }
-    let console_path = out.join(crate::launch::files::CONSOLE);
+    let console_path = out.join(crate::outputs::files::CONSOLE);
     let console = String::from_utf8_lossy(&read(&console_path)?).into_owned();
     let report = read_report(&console)?;
     if let Some(e) = &report.error {
@@ -304,13 +297,13 @@ pub fn process(
             &q,
         )?;
     }
-    add_to_summary(&out.join(crate::launch::files::SUMMARY), &summary)?;
+    add_to_summary(&out.join(crate::outputs::files::SUMMARY), &summary)?;
     Ok(Some(summary))
 }
 
 /// The `map` object of `dir/summary.json`, if it has one (merged sweeps).
 pub fn read_from_summary(dir: &Path) -> Option<MapSummary> {
-    let text = std::fs::read_to_string(dir.join(crate::launch::files::SUMMARY)).ok()?;
+    let text = std::fs::read_to_string(dir.join(crate::outputs::files::SUMMARY)).ok()?;
     let v: serde_json::Value = serde_json::from_str(&text).ok()?;
     serde_json::from_value(v.get("map")?.clone()).ok()
 }

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use super::accuracy::{error_summary, errors_markdown, tables, tables_markdown};
 use super::console::{self, SwarmConsole};
 use super::report::DroneTrack;
-use crate::launch::files;
+use crate::outputs::files;
 use crate::plot::{panels, PlotError, Series};
 use crate::scenario::{Scenario, RADIO_ID_KEY};
 

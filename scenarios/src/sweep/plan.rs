@@ -11,7 +11,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::{dir_name, product, Param, SweepError};
-use crate::launch::files;
+use crate::outputs::files;
 use crate::scenario::Scenario;
 use crate::RunOutcome;
 
