@@ -34,9 +34,10 @@ use serde::Deserialize;
 use serde_json::value::RawValue;
 
 use crate::launch::{world_command, Binaries, LaunchOptions};
+use crate::outcome::RunOutcome;
+use crate::run::run_scenario;
 use crate::scenario::{resolve_scenario, Scenario};
 pub use crate::swarm::bench::BenchError;
-use crate::{run_scenario, RunOutcome};
 
 /// The scenario the benchmark runs.
 pub const RACE: &str = "thesis-race";

@@ -12,38 +12,13 @@ use std::time::{Duration, Instant};
 use protocol::Endpoint;
 
 use crate::signals::Role;
+pub use crate::supervise::LaunchError;
 pub(crate) use crate::supervise::{
-    describe, wait_for_socket, Echo, LogSink, Supervised, CONSOLE_ECHO_LINES,
+    describe, io_err, wait_for_socket, Echo, LogSink, Supervised, CONSOLE_ECHO_LINES,
 };
 
 use crate::outputs::{abs, files};
 use crate::scenario::Scenario;
-
-/// Why a run could not be carried out.
-#[derive(Debug, thiserror::Error)]
-pub enum LaunchError {
-    #[error("{what} not found at {path} ({hint})")]
-    MissingBinary {
-        what: &'static str,
-        path: PathBuf,
-        hint: String,
-    },
-    #[error("cannot start {what} ({path}): {source}")]
-    Spawn {
-        what: &'static str,
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{0}")]
-    Io(String),
-    #[error("`cargo build` of sim-core and world-server failed ({0})")]
-    Build(String),
-}
-
-pub(crate) fn io_err(what: impl std::fmt::Display, e: std::io::Error) -> LaunchError {
-    LaunchError::Io(format!("{what}: {e}"))
-}
 
 /// Where the two binaries are.
 #[derive(Debug, Clone)]

@@ -27,10 +27,10 @@ use std::path::Path;
 use sim_core::power::log::POWER_CSV;
 
 use crate::launch::{Binaries, LaunchError, LaunchOptions, RunStatus};
+use crate::outcome::{DroneOutcome, RunOutcome};
 use crate::outputs::files;
 use crate::report::{self as run_report, plots, PowerRow};
 use crate::scenario::{Scenario, RADIO_ID_KEY};
-use crate::{DroneOutcome, RunOutcome};
 
 use self::launch::{drone_dir, launch_swarm};
 use self::plot::{DronePath, Link};

@@ -16,9 +16,9 @@ use std::time::Duration;
 use super::plan::{sha256_hex, RunRecord, SweepId, RECORD_FORMAT, RUN_RECORD};
 use super::{dir_name, product, write_outputs, Param, SweepError, SweepRow};
 use crate::launch::RunStatus;
+use crate::outcome::RunOutcome;
 use crate::outputs::files;
 use crate::report::{self, PowerRow};
-use crate::RunOutcome;
 use sim_core::kernel::Summary;
 
 /// A merged sweep.

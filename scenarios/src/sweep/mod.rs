@@ -18,10 +18,11 @@ use std::sync::Mutex;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::launch::{Binaries, LaunchOptions};
+use crate::outcome::RunOutcome;
 use crate::plot::{self, Series};
 use crate::report::{self, PowerRow, SummaryExt};
+use crate::run::run_scenario;
 use crate::scenario::{Scenario, ScenarioError};
-use crate::{run_scenario, RunOutcome};
 pub use merge::merge;
 pub use plan::{Plan, PlannedRun, RunRecord, Shard, SweepId, RUN_RECORD};
 
