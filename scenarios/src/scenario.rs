@@ -16,7 +16,7 @@ use sim_core::config::{run_key, run_key_names, RunConfig};
 
 use crate::swarm::platforms::resolve_platforms;
 pub use crate::swarm::platforms::{PlatformSpec, PlatformTable, RADIO_ID_KEY};
-pub use crate::swarm::positioning::PositioningSpec;
+pub use crate::swarm::positioning_spec::PositioningSpec;
 
 /// Why a scenario cannot be used.
 #[derive(Debug, thiserror::Error)]

@@ -17,6 +17,7 @@ pub mod load;
 pub mod platforms;
 pub mod plot;
 pub mod positioning;
+pub mod positioning_spec;
 pub mod radar;
 pub mod report;
 pub mod world;
