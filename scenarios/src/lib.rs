@@ -30,6 +30,7 @@ pub mod plot;
 pub mod report;
 pub mod rows;
 pub mod run;
+pub mod run_table;
 pub mod scenario;
 pub mod signals;
 mod supervise;
