@@ -21,6 +21,9 @@ use sim_core::map_image::{MapError, MapImage};
 use world_server::WorldDesc;
 
 use crate::outputs::map_files as files;
+// Defined with the figure that draws it: the map module and its plot
+// share it without importing each other.
+pub use plot::Goal;
 use truth::{footprints, Quality, TruePlan, TruthError};
 
 /// Why the mapping outputs could not be made.
@@ -82,15 +85,6 @@ impl Line {
             MappingError::Console(format!("EXPLORE {}: {key}={v} is not a number", self.what))
         })
     }
-}
-
-/// A frontier goal (exploration.csv row): simulated time (s) and position
-/// (m, world frame).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Goal {
-    pub time_s: f64,
-    pub x: f64,
-    pub y: f64,
 }
 
 /// The `map` object of `summary.json` (DESIGN.md §9) and a few more figures.

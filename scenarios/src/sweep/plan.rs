@@ -10,7 +10,7 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
-use super::{dir_name, product, Param, SweepError};
+use super::params::{dir_name, product, Param, SweepError};
 use crate::outcome::RunOutcome;
 use crate::outputs::files;
 use crate::scenario::Scenario;
