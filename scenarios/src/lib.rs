@@ -1,18 +1,29 @@
 //! Scenario files and the `cosim` launcher (DESIGN.md §1, §6).
 //!
-//! - [`scenario`]: `scenarios/*.toml`, `--set` overrides, checks.
+//! - [`scenario`]: `scenarios/*.toml`, `--set` overrides, checks
+//!   ([`run_table`]: their `run` tables applied).
 //! - [`launch`]: the two processes on a private socket, supervised.
-//! - [`report`]: outputs read back, plots, the printed summary.
+//! - [`run`]: one `cosim run`, launched then reported ([`outcome`]: what
+//!   it produced).
+//! - [`outputs`]: the names of the files a run writes; [`rows`]: the CSV
+//!   rows read back.
+//! - [`report`]: outputs read back, plots, the printed summary
+//!   ([`endurance`], [`deck_report`]: lines of it).
 //! - [`sweep`]: cartesian products of parameters run in parallel.
-//! - [`replay`]: a world server that answers from a recorded trace.
-//! - [`tracetool`]: `cosim trace show` and `cosim trace-check`.
+//! - [`tracetool`]: `cosim trace show` and `cosim trace-check` (the replay
+//!   itself, `cosim replay`, is world-server's `replay` module).
 //! - [`plot`]: the PNG figures.
 //! - [`swarm`]: scenarios with several drones (`[[platform]]` tables).
 //! - [`perturb`]: `cosim world perturb`, courses with displaced gates.
 //! - [`mapping`]: the map of an exploration run scored against the world.
-//! - [`bench_race`]: `cosim bench race`, what the thesis's race costs.
+//! - [`bench_race`], [`bench_cluster`], [`bench_iss`]: `cosim bench race`,
+//!   `cluster`, `iss`: what the thesis's race, the cluster and the ISS cost.
+//! - [`nn`]: the int8 network on the ISS over a dataset (`cosim nn eval`).
 //! - [`foxglove`]: `run.mcap`, the world's and the platforms' channels merged.
 //! - [`signals`]: SIGINT/SIGTERM reach every child; none outlives cosim.
+//!
+//! The modules import each other in layers, never in a circle
+//! (docs/ARCHITECTURE.md, "Workspace"; `tests/module_graph.rs` checks it).
 
 pub mod bench_cluster;
 pub mod bench_iss;
