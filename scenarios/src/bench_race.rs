@@ -34,9 +34,10 @@ use serde::Deserialize;
 use serde_json::value::RawValue;
 
 use crate::launch::{world_command, Binaries, LaunchOptions};
+use crate::outcome::RunOutcome;
+use crate::run::run_scenario;
 use crate::scenario::{resolve_scenario, Scenario};
 pub use crate::swarm::bench::BenchError;
-use crate::{run_scenario, RunOutcome};
 
 /// The scenario the benchmark runs.
 pub const RACE: &str = "thesis-race";
@@ -231,7 +232,10 @@ pub fn bench_race(
     let f = co_sim("fast (shm, no traces)", &fast, "fast", &no_traces)?;
 
     // The requests of run 1, fed to the world alone without and with traces.
-    let requests = load_requests(&out.join("defaults").join(crate::launch::files::WORLD_TRACE))?;
+    let requests = load_requests(
+        &out.join("defaults")
+            .join(crate::outputs::files::WORLD_TRACE),
+    )?;
     let alone = |sc: &Scenario, dir: &str, o: &LaunchOptions| -> Result<f64, BenchError> {
         let w_dir = out.join(dir);
         std::fs::create_dir_all(&w_dir).map_err(|e| io("create", &w_dir, e))?;

@@ -6,7 +6,7 @@
 //! target's height (0.8 m for hover-endurance's 1 m, the mark it is judged by),
 //! having reached 95 % of it first, with the battery's state then.
 
-use crate::report::{PowerRow, TrajectoryRow};
+use crate::rows::{PowerRow, TrajectoryRow};
 use sim_core::kernel::Summary;
 
 /// The mark: the height lost is 20 % of the target's.

@@ -17,6 +17,7 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::outputs::files::{RUN_MCAP, WORLD_MCAP};
 use base64::Engine as _;
 use serde_json::json;
 use sim_core::sync::time_map::{world_at, Knot, TIME_MAP_CSV};
@@ -24,10 +25,6 @@ use world_server::foxglove::{
     drone_topic, schemas, stamp, write_message, write_options, Channels, KnownChannels,
 };
 
-/// The merged file of a run.
-pub const RUN_MCAP: &str = "run.mcap";
-/// The world's half, written during the run and removed by the merge.
-pub const WORLD_MCAP: &str = "world.mcap";
 /// Default for the `mcap_power_every` key: every 10th 1 ms row of
 /// `power.csv` (100 Hz) goes into `run.mcap`. Every row made the race's
 /// file 103 MB, 70 MB of it these channels; 100 Hz still resolves the
@@ -115,7 +112,7 @@ pub fn write_run_mcap(
     let end = msgs.last().map_or(0, |m| m.log_time);
     for d in drones {
         if let Some(cell) = d.map_cell_m {
-            let path = d.dir.join(crate::mapping::files::MAP_CSV);
+            let path = d.dir.join(crate::outputs::map_files::MAP_CSV);
             let grid = read_map(&path, cell)?;
             let channel = channels.foxglove(&drone_topic(&d.name, "map"), schemas::GRID);
             let mut grid = grid;

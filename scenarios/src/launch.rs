@@ -12,51 +12,13 @@ use std::time::{Duration, Instant};
 use protocol::Endpoint;
 
 use crate::signals::Role;
+pub use crate::supervise::LaunchError;
 pub(crate) use crate::supervise::{
-    describe, wait_for_socket, Echo, LogSink, Supervised, CONSOLE_ECHO_LINES,
+    describe, io_err, wait_for_socket, Echo, LogSink, Supervised, CONSOLE_ECHO_LINES,
 };
 
+use crate::outputs::{abs, files};
 use crate::scenario::Scenario;
-
-/// Output file names of a run (DESIGN.md §6 plus the launcher's own).
-pub mod files {
-    pub const SUMMARY: &str = "summary.json";
-    pub const TRAJECTORY: &str = "trajectory.csv";
-    pub const CONSOLE: &str = "console.log";
-    pub const WORLD_TRACE: &str = "world.trace";
-    pub const PLATFORM_TRACE: &str = "platform.trace";
-    pub const RUN_CONFIG: &str = "run.toml";
-    pub const SCENARIO: &str = "scenario.toml";
-    pub const LOG: &str = "cosim.log";
-    pub const REPORT: &str = "report.txt";
-    pub const FRAMES: &str = "frames";
-}
-
-/// Why a run could not be carried out.
-#[derive(Debug, thiserror::Error)]
-pub enum LaunchError {
-    #[error("{what} not found at {path} ({hint})")]
-    MissingBinary {
-        what: &'static str,
-        path: PathBuf,
-        hint: String,
-    },
-    #[error("cannot start {what} ({path}): {source}")]
-    Spawn {
-        what: &'static str,
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{0}")]
-    Io(String),
-    #[error("`cargo build` of sim-core and world-server failed ({0})")]
-    Build(String),
-}
-
-pub(crate) fn io_err(what: impl std::fmt::Display, e: std::io::Error) -> LaunchError {
-    LaunchError::Io(format!("{what}: {e}"))
-}
 
 /// Where the two binaries are.
 #[derive(Debug, Clone)]
@@ -438,7 +400,7 @@ pub fn world_command(
 pub(crate) fn mcap_args(cmd: &mut Command, scenario: &Scenario, out: &Path) {
     if scenario.mcap {
         cmd.arg("--mcap")
-            .arg(out.join(crate::foxglove::WORLD_MCAP))
+            .arg(out.join(files::WORLD_MCAP))
             .arg("--mcap-image-every")
             .arg(scenario.mcap_image_every.to_string());
     }
@@ -508,11 +470,4 @@ pub(crate) fn run_toml(run: &sim_core::config::RunConfig) -> String {
         run.platform = Some(PathBuf::from(abs(p)));
     }
     run.to_toml()
-}
-
-pub(crate) fn abs(p: &Path) -> String {
-    p.canonicalize()
-        .unwrap_or_else(|_| p.to_path_buf())
-        .display()
-        .to_string()
 }

@@ -11,8 +11,10 @@ use sim_core::power::log::{model_csv_name, POWER_CSV};
 use sim_core::power::PowerModelKind;
 use world_server::WorldDesc;
 
-use crate::launch::{files, RunStatus};
+use crate::launch::RunStatus;
+use crate::outputs::files;
 use crate::plot::{self, Series};
+pub use crate::rows::{ModelRow, PowerRow, TrajectoryRow};
 use crate::scenario::Scenario;
 
 /// File names of the plots of one run.
@@ -96,32 +98,6 @@ pub fn torn_series(out: &Path) -> Vec<String> {
         .filter(|p| series::exists(p) && !series::is_whole(p).unwrap_or(true))
         .filter_map(|p| series::read(&p).ok()?.warning())
         .collect()
-}
-
-/// The columns of `power.csv` the report uses.
-#[derive(Debug, Clone, Deserialize)]
-pub struct PowerRow {
-    pub time_s: f64,
-    pub i_battery_a: f64,
-    pub v_battery_v: f64,
-    pub soc: f64,
-}
-
-/// The columns of a motor model's CSV the report uses.
-#[derive(Debug, Clone, Deserialize)]
-pub struct ModelRow {
-    pub time_s: f64,
-    pub mean_omega_rad_s: f64,
-    pub power_w: f64,
-}
-
-/// The columns of `trajectory.csv` the report uses.
-#[derive(Debug, Clone, Deserialize)]
-pub struct TrajectoryRow {
-    pub time_ms: u64,
-    pub x: f64,
-    pub y: f64,
-    pub z: f64,
 }
 
 /// Figures derived from a summary.

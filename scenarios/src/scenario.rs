@@ -12,11 +12,13 @@ use std::path::{Path, PathBuf};
 
 use protocol::{TimestepError, TimestepMs};
 use serde::{Deserialize, Serialize};
-use sim_core::config::{run_key, run_key_names, RunConfig};
+use sim_core::config::{run_key_names, RunConfig};
 
+pub(crate) use crate::run_table::{apply_run_table, is_run_key, value_text};
+pub use crate::run_table::{NotAScalar, RunTableError, RunTableReason};
 use crate::swarm::platforms::resolve_platforms;
 pub use crate::swarm::platforms::{PlatformSpec, PlatformTable, RADIO_ID_KEY};
-pub use crate::swarm::positioning::PositioningSpec;
+pub use crate::swarm::positioning_spec::PositioningSpec;
 
 /// Why a scenario cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -195,7 +197,7 @@ pub struct ResolvedPlatform {
 impl Scenario {
     /// The scenario as it runs, paths absolute (`scenario.toml`).
     pub fn resolved(&self) -> ResolvedScenario {
-        let abs = crate::launch::abs;
+        let abs = crate::outputs::abs;
         let swarm = !self.platforms.is_empty();
         ResolvedScenario {
             description: self.description.clone(),
@@ -279,40 +281,6 @@ pub struct Scenario {
     pub positioning: Option<PositioningSpec>,
 }
 
-/// A value of a `[run]` or `[sweep]` table that has no text form.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("expected a string or a number, got a {0}")]
-pub struct NotAScalar(pub &'static str);
-
-pub(crate) fn value_text(v: &toml::Value) -> Result<String, NotAScalar> {
-    match v {
-        toml::Value::String(s) => Ok(s.clone()),
-        toml::Value::Integer(i) => Ok(i.to_string()),
-        toml::Value::Float(f) => Ok(f.to_string()),
-        toml::Value::Boolean(b) => Ok(b.to_string()),
-        other => Err(NotAScalar(other.type_str())),
-    }
-}
-
-/// A key of a `run` table of the file that cannot be applied (`what.key:
-/// reason`).
-#[derive(Debug, thiserror::Error)]
-#[error("{what}.{key}: {reason}")]
-pub struct RunTableError {
-    pub what: String,
-    pub key: String,
-    pub reason: RunTableReason,
-}
-
-/// Why a `run` table's key cannot be applied.
-#[derive(Debug, thiserror::Error)]
-pub enum RunTableReason {
-    #[error(transparent)]
-    NotAScalar(#[from] NotAScalar),
-    #[error(transparent)]
-    Config(#[from] sim_core::config::ConfigError),
-}
-
 /// Why `radio_seed`'s copy of the world file cannot be written.
 #[derive(Debug, thiserror::Error)]
 pub enum WorldCopyError {
@@ -337,36 +305,6 @@ pub enum WorldCopyError {
         path: PathBuf,
         source: std::io::Error,
     },
-}
-
-pub(crate) fn is_run_key(key: &str) -> bool {
-    run_key(key).is_some() || key.starts_with(sim_core::config::FIRMWARE_KEY_PREFIX)
-}
-
-/// Applies a `run` table of the file (`what` names it in errors); a
-/// `platform` file is relative to the scenario file like the other paths.
-pub(crate) fn apply_run_table(
-    run: &mut RunConfig,
-    table: &BTreeMap<String, toml::Value>,
-    base: &Path,
-    what: &str,
-) -> Result<(), RunTableError> {
-    let table: toml::Table = table.clone().into_iter().collect();
-    for (key, value) in &sim_core::config::flatten_run_table(&table) {
-        let err = |reason: RunTableReason| RunTableError {
-            what: what.to_string(),
-            key: key.clone(),
-            reason,
-        };
-        let text = value_text(value).map_err(|e| err(e.into()))?;
-        let text = if key == "platform" {
-            base.join(&text).display().to_string()
-        } else {
-            text
-        };
-        run.set(key, &text).map_err(|e| err(e.into()))?;
-    }
-    Ok(())
 }
 
 impl Scenario {
@@ -411,8 +349,8 @@ impl Scenario {
             )))
             }
         };
-        let platforms =
-            resolve_platforms(&tables, &run, &file, base).map_err(|e| invalid(e.to_string()))?;
+        let platforms = resolve_platforms(&tables, &run, &file.run, file.firmware.as_deref(), base)
+            .map_err(|e| invalid(e.to_string()))?;
         let firmware = match (&file.firmware, platforms.first()) {
             (Some(f), _) => base.join(f),
             // Unused with [[platform]]: every platform has its own.
@@ -777,6 +715,96 @@ pub fn resolve_scenario(arg: Option<&str>) -> Result<PathBuf, ScenarioError> {
     Err(ScenarioError::UnknownScenario(p))
 }
 
+impl Scenario {
+    /// `DRONE.KEY` (or `DRONE.run.KEY`) of a scenario with platforms: the
+    /// platform's index and the key. None for any other key.
+    pub fn platform_key<'k>(&self, key: &'k str) -> Option<(usize, &'k str)> {
+        let key = key.strip_prefix("run.").unwrap_or(key);
+        let (drone, k) = key.split_once('.')?;
+        let k = k.strip_prefix("run.").unwrap_or(k);
+        let i = self.platforms.iter().position(|p| p.drone == drone)?;
+        Some((i, k))
+    }
+
+    pub(crate) fn set_platform_key(
+        &mut self,
+        i: usize,
+        key: &str,
+        value: &str,
+    ) -> Result<(), ScenarioError> {
+        let drone = self.platforms[i].drone.clone();
+        let p = &mut self.platforms[i];
+        if key == "firmware" {
+            p.firmware = PathBuf::from(value);
+            return Ok(());
+        }
+        if !is_run_key(key) {
+            return Err(ScenarioError::BadValue {
+                key: format!("{drone}.{key}"),
+                value: value.to_string(),
+                reason: format!(
+                    "a platform takes `firmware` and the run keys ({})",
+                    run_key_names()
+                ),
+            });
+        }
+        p.run.set(key, value).map_err(|e| ScenarioError::BadValue {
+            key: format!("{drone}.{key}"),
+            value: value.to_string(),
+            reason: e.to_string(),
+        })
+    }
+
+    /// Every drone of the world file has exactly one platform and every
+    /// platform names a drone of the world file: otherwise the world would
+    /// wait for a claim that never comes (docs/SWARM.md §2).
+    pub(crate) fn check_drones(&self) -> Result<(), ScenarioError> {
+        let world = crate::swarm::world::WorldDrones::load(&self.world).map_err(|e| {
+            ScenarioError::Invalid {
+                path: self.world.clone(),
+                message: e.to_string(),
+            }
+        })?;
+        let names = world.names();
+        let invalid = |message: String| ScenarioError::Invalid {
+            path: self.path.clone(),
+            message,
+        };
+        for p in &self.platforms {
+            if !names.contains(&p.drone.as_str()) {
+                return Err(invalid(format!(
+                    "platform for drone {:?}: the world {} has no such drone (its drones: {})",
+                    p.drone,
+                    self.world.display(),
+                    names.join(", ")
+                )));
+            }
+        }
+        let unclaimed: Vec<&str> = names
+            .iter()
+            .copied()
+            .filter(|n| self.platforms.iter().all(|p| p.drone != *n))
+            .collect();
+        if !unclaimed.is_empty() {
+            return Err(invalid(format!(
+                "the world {} has drones without a [[platform]]: {}",
+                self.world.display(),
+                unclaimed.join(", ")
+            )));
+        }
+        Ok(())
+    }
+
+    /// A short label of the overrides (`battery=ufx250 timestep_ms=16`).
+    pub fn overrides_label(&self) -> String {
+        self.overrides
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -907,5 +935,178 @@ mod tests {
         let s = parse(MIN).unwrap();
         let e = s.check_files().unwrap_err().to_string();
         assert!(e.contains("world file") && e.contains("empty.toml"), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod platform_tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Scenario, ScenarioError> {
+        Scenario::parse(text, Path::new("/x/scenarios/s.toml"))
+    }
+
+    const MIN: &str = r#"
+        world = "worlds/empty.toml"
+        firmware = "fw.elf"
+        [sweep]
+        timestep_ms = [16, 32]
+    "#;
+
+    const SWARM: &str = r#"
+        world = "worlds/two.toml"
+        firmware = "fw.elf"
+        timestep_ms = 4
+        [run]
+        battery = "ufx250"
+        [[platform]]
+        drone = "A"
+        targets = [[0.0, 1.0, 1.0]]
+        [platform.run]
+        power_model = "stolaroff"
+        [[platform]]
+        drone = "B"
+        firmware = "other.elf"
+    "#;
+
+    #[test]
+    fn platforms_merge_their_run_over_the_scenario() {
+        let s = parse(SWARM).unwrap();
+        assert_eq!(s.platforms.len(), 2);
+        let (a, b) = (&s.platforms[0], &s.platforms[1]);
+        assert_eq!((a.drone.as_str(), b.drone.as_str()), ("A", "B"));
+        assert_eq!(a.firmware, Path::new("/x/scenarios/fw.elf"));
+        assert_eq!(b.firmware, Path::new("/x/scenarios/other.elf"));
+        assert_eq!(a.run.get("power_model").unwrap(), "stolaroff");
+        assert_eq!(b.run.get("power_model").unwrap(), "empirical");
+        assert_eq!(a.run.get("battery").unwrap(), "ufx250");
+        assert_eq!(b.run.get("battery").unwrap(), "ufx250");
+        assert_eq!(a.targets, [[0.0, 1.0, 1.0]]);
+        if is_run_key(RADIO_ID_KEY) {
+            assert_eq!(a.run.get(RADIO_ID_KEY).unwrap(), "1");
+            assert_eq!(b.run.get(RADIO_ID_KEY).unwrap(), "2");
+        }
+        // A scenario without [[platform]] has none, and a platform file
+        // is still a string.
+        let one = parse(&format!("platform = \"p.json\"\n{MIN}")).unwrap();
+        assert!(one.platforms.is_empty());
+        assert_eq!(
+            one.run.platform.as_deref(),
+            Some(Path::new("/x/scenarios/p.json"))
+        );
+    }
+
+    #[test]
+    fn set_reaches_every_platform_or_one() {
+        let mut s = parse(SWARM).unwrap();
+        s.set("battery=lipol350").unwrap();
+        assert!(s
+            .platforms
+            .iter()
+            .all(|p| p.run.get("battery").unwrap() == "lipol350"));
+        s.set("B.battery=cyclone300").unwrap();
+        s.set("A.run.power_model=dandrea").unwrap();
+        s.set("A.firmware=/tmp/a.elf").unwrap();
+        assert_eq!(s.platforms[0].run.get("battery").unwrap(), "lipol350");
+        assert_eq!(s.platforms[1].run.get("battery").unwrap(), "cyclone300");
+        assert_eq!(s.platforms[0].run.get("power_model").unwrap(), "dandrea");
+        assert_eq!(s.platforms[0].firmware, Path::new("/tmp/a.elf"));
+        s.set("firmware=/tmp/all.elf").unwrap();
+        assert!(s
+            .platforms
+            .iter()
+            .all(|p| p.firmware == Path::new("/tmp/all.elf")));
+        for bad in [
+            "A.battery=nine",
+            "A.timestep_ms=8",
+            "C.battery=ufx250",
+            "A.zzz=1",
+        ] {
+            assert!(s.set(bad).is_err(), "{bad} accepted");
+        }
+        assert!(s.overrides_label().contains("B.battery=cyclone300"));
+    }
+
+    #[test]
+    fn every_platforms_sync_is_checked_against_the_timestep() {
+        let mut s = parse(SWARM).unwrap();
+        s.set("sync=bounded").unwrap();
+        s.set("timestep_ms=2").unwrap();
+        s.check_timestep().unwrap();
+        // One platform back to the thesis's bookkeeping: refused.
+        s.set("B.sync=thesis").unwrap();
+        let e = s.check_timestep().unwrap_err().to_string();
+        assert!(e.contains("too small for the thesis"), "{e}");
+    }
+
+    #[test]
+    fn a_swarms_scenario_toml_reads_back() {
+        let s = parse(SWARM).unwrap();
+        let text = s.resolved_toml();
+        let back: ResolvedScenario = toml::from_str(&text).unwrap();
+        assert_eq!(back, s.resolved());
+        assert_eq!(back.platform.len(), 2);
+        assert_eq!(back.platform[0].targets, [[0.0, 1.0, 1.0]]);
+        assert!(back.firmware.is_none() && back.targets.is_none());
+    }
+
+    #[test]
+    fn bad_platform_tables_are_refused() {
+        let e = parse(&SWARM.replace("drone = \"B\"", "drone = \"A\""))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("second platform"), "{e}");
+        let e = parse(&SWARM.replace("drone = \"B\"", "drone = \"B\"\nfoo = 1"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("foo"), "{e}");
+        let e = parse(&SWARM.replace("firmware = \"fw.elf\"\n", ""))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no firmware") && e.contains("\"A\""), "{e}");
+        let e = parse(&SWARM.replace("drone = \"B\"", "drone = \"B.1\""))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("cannot contain"), "{e}");
+        let e = parse(&SWARM.replace("power_model = \"stolaroff\"", "power_model = \"x\""))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("platform[1]") && e.contains("power_model"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn platforms_must_match_the_worlds_drones() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir_all(d.join("worlds")).unwrap();
+        for f in ["fw.elf", "other.elf"] {
+            std::fs::write(d.join(f), b"\x7fELF").unwrap();
+        }
+        let world = |names: &[&str]| {
+            let mut w = String::new();
+            for (i, n) in names.iter().enumerate() {
+                w += &format!("[[drone]]\nname = \"{n}\"\nposition = [{i}.0, 0.0, 0.015]\n");
+            }
+            std::fs::write(d.join("worlds/two.toml"), w).unwrap();
+        };
+        let s = Scenario::parse(SWARM, &d.join("s.toml")).unwrap();
+        world(&["A", "B"]);
+        s.check_files().unwrap();
+        world(&["A", "C"]);
+        let e = s.check_files().unwrap_err().to_string();
+        assert!(
+            e.contains("\"B\"") && e.contains("no such drone") && e.contains("A, C"),
+            "{e}"
+        );
+        world(&["A", "B", "C"]);
+        let e = s.check_files().unwrap_err().to_string();
+        assert!(e.contains("without a [[platform]]: C"), "{e}");
+        world(&["A", "B"]);
+        std::fs::remove_file(d.join("other.elf")).unwrap();
+        let e = s.check_files().unwrap_err().to_string();
+        assert!(e.contains("drone \"B\"") && e.contains("other.elf"), "{e}");
     }
 }

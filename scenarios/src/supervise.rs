@@ -11,8 +11,33 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::launch::LaunchError;
 use crate::signals::Role;
+
+/// Why a run could not be carried out.
+#[derive(Debug, thiserror::Error)]
+pub enum LaunchError {
+    #[error("{what} not found at {path} ({hint})")]
+    MissingBinary {
+        what: &'static str,
+        path: PathBuf,
+        hint: String,
+    },
+    #[error("cannot start {what} ({path}): {source}")]
+    Spawn {
+        what: &'static str,
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{0}")]
+    Io(String),
+    #[error("`cargo build` of sim-core and world-server failed ({0})")]
+    Build(String),
+}
+
+pub(crate) fn io_err(what: impl std::fmt::Display, e: std::io::Error) -> LaunchError {
+    LaunchError::Io(format!("{what}: {e}"))
+}
 
 /// Which of a stream's lines are echoed on the terminal (all of them go
 /// to `cosim.log`).

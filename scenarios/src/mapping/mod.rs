@@ -20,15 +20,11 @@ use serde::{Deserialize, Serialize};
 use sim_core::map_image::{MapError, MapImage};
 use world_server::WorldDesc;
 
+use crate::outputs::map_files as files;
+// Defined with the figure that draws it: the map module and its plot
+// share it without importing each other.
+pub use plot::Goal;
 use truth::{footprints, Quality, TruePlan, TruthError};
-
-/// File names of the mapping outputs.
-pub mod files {
-    pub const MAP_CFOG: &str = sim_core::kernel::MAP_FILE;
-    pub const MAP_CSV: &str = "map.csv";
-    pub const MAP_PNG: &str = "map.png";
-    pub const EXPLORATION_CSV: &str = "exploration.csv";
-}
 
 /// Why the mapping outputs could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -89,15 +85,6 @@ impl Line {
             MappingError::Console(format!("EXPLORE {}: {key}={v} is not a number", self.what))
         })
     }
-}
-
-/// A frontier goal (exploration.csv row): simulated time (s) and position
-/// (m, world frame).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Goal {
-    pub time_s: f64,
-    pub x: f64,
-    pub y: f64,
 }
 
 /// The `map` object of `summary.json` (DESIGN.md §9) and a few more figures.
@@ -218,7 +205,7 @@ pub fn process(
     if !cfog.exists() {
         return Ok(None);
     }
-    let console_path = out.join(crate::launch::files::CONSOLE);
+    let console_path = out.join(crate::outputs::files::CONSOLE);
     let console = String::from_utf8_lossy(&read(&console_path)?).into_owned();
     let report = read_report(&console)?;
     if let Some(e) = &report.error {
@@ -304,13 +291,13 @@ pub fn process(
             &q,
         )?;
     }
-    add_to_summary(&out.join(crate::launch::files::SUMMARY), &summary)?;
+    add_to_summary(&out.join(crate::outputs::files::SUMMARY), &summary)?;
     Ok(Some(summary))
 }
 
 /// The `map` object of `dir/summary.json`, if it has one (merged sweeps).
 pub fn read_from_summary(dir: &Path) -> Option<MapSummary> {
-    let text = std::fs::read_to_string(dir.join(crate::launch::files::SUMMARY)).ok()?;
+    let text = std::fs::read_to_string(dir.join(crate::outputs::files::SUMMARY)).ok()?;
     let v: serde_json::Value = serde_json::from_str(&text).ok()?;
     serde_json::from_value(v.get("map")?.clone()).ok()
 }

@@ -7,11 +7,20 @@
 use std::path::Path;
 
 use plotters::prelude::*;
+use serde::Serialize;
 
 use super::truth::{Quality, TruePlan, Truth};
-use super::Goal;
 use crate::plot::{err, fonts, PlotError, FONT};
 use sim_core::map_image::MapImage;
+
+/// A frontier goal (exploration.csv row): simulated time (s) and position
+/// (m, world frame).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Goal {
+    pub time_s: f64,
+    pub x: f64,
+    pub y: f64,
+}
 
 const UNKNOWN: RGBColor = RGBColor(190, 215, 235);
 

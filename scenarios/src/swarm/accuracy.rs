@@ -8,9 +8,15 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::positioning::{observer, PositionRow, PositioningSpec};
+use super::positioning_spec::{PositionRow, PositioningSpec};
 use super::report::mean_sd_population;
 use crate::scenario::Scenario;
+
+/// The observer whose estimates the tables and plots show.
+pub fn observer(scenario: &Scenario, spec: Option<&PositioningSpec>) -> Option<String> {
+    spec.and_then(|s| s.observer.clone())
+        .or_else(|| scenario.platforms.first().map(|p| p.drone.clone()))
+}
 
 /// One drone's line of a table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -238,7 +244,7 @@ mod tests {
         };
         assert_eq!(
             bad.validate(),
-            Err(super::super::positioning::BadSettle(-1.0))
+            Err(super::super::positioning_spec::BadSettle(-1.0))
         );
         assert!(bad
             .validate()

@@ -9,8 +9,9 @@
 use std::path::{Path, PathBuf};
 
 use crate::launch::{Binaries, LaunchOptions};
+use crate::outcome::RunOutcome;
+use crate::run::run_scenario;
 use crate::scenario::{resolve_scenario, Scenario};
-use crate::{run_scenario, RunOutcome};
 
 /// The swarm sizes of the benchmark (scenarios `swarm-hover-N`).
 pub const SIZES: [usize; 4] = [1, 2, 4, 8];

@@ -19,18 +19,12 @@ use std::time::{Duration, Instant};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::launch::{
-    describe, files, io_err, run_toml, wait_for_socket, Binaries, Echo, LaunchError, LaunchOptions,
+    describe, io_err, run_toml, wait_for_socket, Binaries, Echo, LaunchError, LaunchOptions,
     LogSink, Supervised,
 };
+use crate::outputs::{files, swarm_files};
 use crate::scenario::Scenario;
 use crate::signals::Role;
-
-/// The world's outputs of a run with several drones (besides DESIGN.md §6's
-/// `trajectory.csv` and `world.trace`).
-pub mod swarm_files {
-    /// One row per (frame, receiver) with its outcome (`world-server --radio-log`).
-    pub const RADIO_LOG: &str = "radio.csv";
-}
 
 /// How long the world waits for every drone to be claimed: the platforms
 /// start right after its socket exists, so this is only a safety net for a

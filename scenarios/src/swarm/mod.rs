@@ -17,6 +17,7 @@ pub mod load;
 pub mod platforms;
 pub mod plot;
 pub mod positioning;
+pub mod positioning_spec;
 pub mod radar;
 pub mod report;
 pub mod world;
@@ -26,14 +27,16 @@ use std::path::Path;
 
 use sim_core::power::log::POWER_CSV;
 
-use crate::launch::{files, Binaries, LaunchError, LaunchOptions, RunStatus};
+use crate::launch::{Binaries, LaunchError, LaunchOptions, RunStatus};
+use crate::outcome::{DroneOutcome, RunOutcome};
+use crate::outputs::files;
 use crate::report::{self as run_report, plots, PowerRow};
 use crate::scenario::{Scenario, RADIO_ID_KEY};
-use crate::{DroneOutcome, RunOutcome};
 
-use self::launch::{drone_dir, launch_swarm, swarm_files};
+use self::launch::{drone_dir, launch_swarm};
 use self::plot::{DronePath, Link};
 use self::report::{DroneFigures, Ranging};
+use crate::outputs::swarm_files;
 
 /// The scenario as one platform sees it (for its own report and plots).
 fn platform_view(scenario: &Scenario, i: usize) -> Scenario {

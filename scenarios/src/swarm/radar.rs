@@ -127,7 +127,7 @@ pub fn read_run(
     let mut ids = BTreeMap::new();
     let mut consoles = BTreeMap::new();
     for d in drones {
-        let p = super::launch::drone_dir(out, d).join(crate::launch::files::CONSOLE);
+        let p = super::launch::drone_dir(out, d).join(crate::outputs::files::CONSOLE);
         let text = std::fs::read_to_string(&p).unwrap_or_default();
         if let Some(id) = radar_id(&text) {
             ids.insert(id, d.clone());
@@ -137,7 +137,7 @@ pub fn read_run(
     if ids.is_empty() {
         return Ok(None);
     }
-    let frames = received_frames(&out.join(super::launch::swarm_files::RADIO_LOG))?;
+    let frames = received_frames(&out.join(crate::outputs::swarm_files::RADIO_LOG))?;
     // The first detection in world time: each detecting drone's packet is
     // the earliest received frame from that sender with its RSSI.
     let mut best: Option<(String, String, Frame)> = None;

@@ -10,7 +10,7 @@ use protocol::series::{self, SeriesFormat, SeriesWriter};
 use serde::{Deserialize, Serialize};
 use sim_core::kernel::Summary;
 
-use crate::launch::files;
+use crate::outputs::files;
 use crate::report::{ReportError, SummaryExt};
 
 fn read_err(path: &Path, e: impl std::fmt::Display) -> ReportError {
@@ -503,7 +503,7 @@ pub fn swarm_text(
             r.received,
             r.lost,
             r.rows,
-            crate::swarm::launch::swarm_files::RADIO_LOG
+            crate::outputs::swarm_files::RADIO_LOG
         );
     }
     for r in &sum.ranging {

@@ -13,11 +13,13 @@ use std::io;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use super::params::{dir_name, product, Param, SweepError, SweepRow};
 use super::plan::{sha256_hex, RunRecord, SweepId, RECORD_FORMAT, RUN_RECORD};
-use super::{dir_name, product, write_outputs, Param, SweepError, SweepRow};
-use crate::launch::{files, RunStatus};
+use super::write::write_outputs;
+use crate::launch::RunStatus;
+use crate::outcome::RunOutcome;
+use crate::outputs::files;
 use crate::report::{self, PowerRow};
-use crate::RunOutcome;
 use sim_core::kernel::Summary;
 
 /// A merged sweep.

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use super::SweepRow;
+use super::params::SweepRow;
 use crate::plot::{self, PlotError, Series};
 
 /// The plot's file name in the sweep directory.

@@ -10,10 +10,10 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
-use super::{dir_name, product, Param, SweepError};
-use crate::launch::files;
+use super::params::{dir_name, product, Param, SweepError};
+use crate::outcome::RunOutcome;
+use crate::outputs::files;
 use crate::scenario::Scenario;
-use crate::RunOutcome;
 
 /// The record's file name in each run directory.
 pub const RUN_RECORD: &str = "sweep-run.json";
