@@ -6,8 +6,8 @@
 # Fails, listing file:line of each finding, if a tracked text file holds
 #   - a diary entry: "session N", or an issue number used as an explanation
 #     ("issue N");
-#   - a path of the machine the project was developed on (/work/..., /home/...,
-#     /root/..., the training's /tmp scratch folders);
+#   - a path of the machine the project was developed on (the top-level
+#     work, home and root folders, the training's /tmp scratch folders);
 #   - a reference to a specification outside the repository (shared/DESIGN.md);
 #   - "DESIGN.md §N" where docs/DESIGN.md has no section N.
 # Prints "check-repo: ok" otherwise. Binary files are skipped.
