@@ -226,3 +226,66 @@ pub fn summary(dir: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
+
+/// A running process as `/proc` shows it (Linux): what the end-to-end tests
+/// look for when they pick a child of `cosim` to kill or check that none
+/// outlived it.
+#[derive(Debug, Clone)]
+pub struct Process {
+    pub pid: u32,
+    /// The parent's pid (`/proc/PID/stat`'s fourth field).
+    pub ppid: Option<u32>,
+    /// The command line, one element per argument.
+    pub args: Vec<String>,
+}
+
+impl Process {
+    /// The command line as one string (arguments joined by spaces).
+    pub fn cmdline(&self) -> String {
+        self.args.join(" ")
+    }
+
+    /// Whether the command line has `flag` immediately followed by `path`
+    /// (compared as paths: `a//b` is `a/b`).
+    pub fn has_path_arg(&self, flag: &str, path: &Path) -> bool {
+        self.args
+            .windows(2)
+            .any(|w| w[0] == flag && Path::new(&w[1]) == path)
+    }
+
+    /// Whether the command line has `flag` immediately followed by `value`.
+    pub fn has_arg(&self, flag: &str, value: &str) -> bool {
+        self.args.windows(2).any(|w| w[0] == flag && w[1] == value)
+    }
+}
+
+/// Every process this user can read in `/proc` (those that ended while it
+/// was read are left out).
+pub fn processes() -> Vec<Process> {
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    let mut found = Vec::new();
+    for entry in dir.flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(raw) = std::fs::read(entry.path().join("cmdline")) else {
+            continue;
+        };
+        let args = raw
+            .split(|b| *b == 0)
+            .filter(|a| !a.is_empty())
+            .map(|a| String::from_utf8_lossy(a).into_owned())
+            .collect();
+        // "PID (COMM) STATE PPID ...": COMM may hold spaces and parentheses.
+        let ppid = std::fs::read_to_string(entry.path().join("stat"))
+            .ok()
+            .and_then(|stat| {
+                let (_, rest) = stat.rsplit_once(") ")?;
+                rest.split_whitespace().nth(1)?.parse().ok()
+            });
+        found.push(Process { pid, ppid, args });
+    }
+    found
+}

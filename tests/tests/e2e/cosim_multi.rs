@@ -512,28 +512,10 @@ fn bad_platform_tables_are_one_line_errors_before_anything_starts() {
 
 /// The pid of the sim-core flying `drone` whose outputs go under `out`.
 fn platform_pid(out: &Path, drone: &str) -> Option<u32> {
-    let want_out = out.join(drone);
-    for e in std::fs::read_dir("/proc").ok()?.flatten() {
-        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
-            continue;
-        };
-        let args: Vec<String> = cmd
-            .split(|b| *b == 0)
-            .map(|a| String::from_utf8_lossy(a).into_owned())
-            .collect();
-        let has = |flag: &str, v: &str| args.windows(2).any(|w| w[0] == flag && w[1] == v);
-        if has("--drone", drone)
-            && args
-                .windows(2)
-                .any(|w| w[0] == "--out" && Path::new(&w[1]) == want_out)
-        {
-            return Some(pid);
-        }
-    }
-    None
+    e2e_tests::processes()
+        .into_iter()
+        .find(|p| p.has_arg("--drone", drone) && p.has_path_arg("--out", &out.join(drone)))
+        .map(|p| p.pid)
 }
 
 #[test]

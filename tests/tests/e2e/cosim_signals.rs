@@ -15,51 +15,20 @@ use e2e_tests::CosimBins as Bins;
 /// world-server's `--trajectory`): those a run into `dir` started.
 fn processes_naming(dir: &Path) -> Vec<(u32, String)> {
     let needle = dir.to_string_lossy().into_owned();
-    let mut found = Vec::new();
-    for entry in std::fs::read_dir("/proc").expect("read /proc").flatten() {
-        let Some(pid) = entry
-            .file_name()
-            .to_str()
-            .and_then(|n| n.parse::<u32>().ok())
-        else {
-            continue;
-        };
-        let Ok(raw) = std::fs::read(entry.path().join("cmdline")) else {
-            continue;
-        };
-        let cmdline = String::from_utf8_lossy(&raw).replace('\0', " ");
-        if cmdline.contains(&needle) {
-            found.push((pid, cmdline));
-        }
-    }
-    found
+    e2e_tests::processes()
+        .into_iter()
+        .map(|p| (p.pid, p.cmdline()))
+        .filter(|(_, cmdline)| cmdline.contains(&needle))
+        .collect()
 }
 
-/// The children of `parent` (their /proc/PID/stat's fourth field).
+/// The children of `parent`: their pids and programs.
 fn children_of(parent: u32) -> Vec<(u32, String)> {
-    let mut found = Vec::new();
-    for entry in std::fs::read_dir("/proc").expect("read /proc").flatten() {
-        let Some(pid) = entry
-            .file_name()
-            .to_str()
-            .and_then(|n| n.parse::<u32>().ok())
-        else {
-            continue;
-        };
-        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
-            continue;
-        };
-        // "PID (COMM) STATE PPID ...": COMM may hold spaces and parentheses.
-        let Some((comm, rest)) = stat.split_once(" (").and_then(|(_, r)| r.rsplit_once(") "))
-        else {
-            continue;
-        };
-        let ppid = rest.split_whitespace().nth(1).and_then(|p| p.parse().ok());
-        if ppid == Some(parent) {
-            found.push((pid, comm.to_string()));
-        }
-    }
-    found
+    e2e_tests::processes()
+        .into_iter()
+        .filter(|p| p.ppid == Some(parent))
+        .map(|p| (p.pid, p.args.first().cloned().unwrap_or_default()))
+        .collect()
 }
 
 fn wait_until(secs: u64, mut f: impl FnMut() -> bool) -> bool {

@@ -11,25 +11,10 @@ use e2e_tests::{output_text as text, CosimBins as Bins};
 
 /// The pid of the world-server writing its trajectory to `trajectory`.
 fn world_pid(trajectory: &Path) -> Option<u32> {
-    for e in std::fs::read_dir("/proc").ok()?.flatten() {
-        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
-            continue;
-        };
-        let args: Vec<String> = cmd
-            .split(|b| *b == 0)
-            .map(|a| String::from_utf8_lossy(a).into_owned())
-            .collect();
-        if args
-            .windows(2)
-            .any(|w| w[0] == "--trajectory" && Path::new(&w[1]) == trajectory)
-        {
-            return Some(pid);
-        }
-    }
-    None
+    e2e_tests::processes()
+        .into_iter()
+        .find(|p| p.has_path_arg("--trajectory", trajectory))
+        .map(|p| p.pid)
 }
 
 /// Runs hover-endurance into `out`, kills its world once `trajectory` (the
