@@ -41,6 +41,7 @@
 //! reply it sent (`Reply::InitData { image_encoding, .. }`); decoding detects
 //! the encoding by itself.
 
+pub mod airframe;
 pub mod blocking;
 pub mod busy_poll;
 mod decode;

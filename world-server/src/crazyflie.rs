@@ -4,7 +4,7 @@
 //! Body frame: x forward, y left, z up (ENU when the drone is level at yaw 0).
 
 /// Mass of the whole drone (PROTO `physics Physics { mass 0.05 }`).
-pub const MASS_KG: f64 = 0.05;
+pub use protocol::airframe::MASS_KG;
 /// The PROTO's bounding object is `Cylinder { height 0.03 radius 0.05 }`
 /// centred on the body origin; Webots derives the inertia from it.
 pub const BODY_RADIUS_M: f64 = 0.05;
@@ -34,7 +34,7 @@ pub const SPIN_SIGNS: [f64; 4] = [-1.0, 1.0, -1.0, 1.0];
 /// that thrust = k·ω|ω|·s is positive (lifting) for the controller's spin signs.
 pub const THRUST_SIGNS: [f64; 4] = [-1.0, 1.0, -1.0, 1.0];
 /// `thrustConstants 4e-05 0`: thrust = 4e-5·ω|ω| N.
-pub const THRUST_CONSTANT: f64 = 4e-5;
+pub use protocol::airframe::THRUST_CONSTANT;
 /// `torqueConstants 2.4e-06 0`: reaction torque 2.4e-6·ω|ω| N·m, applied by
 /// Webots as −Q along the shaft axis (+z).
 pub const TORQUE_CONSTANT: f64 = 2.4e-6;
@@ -43,6 +43,30 @@ pub const MAX_MOTOR_SPEED: f64 = 600.0;
 /// `maxTorque 30` with no `acceleration` set: Webots's kinematic velocity
 /// control uses it as the acceleration limit, 30 rad/s per second (DESIGN.md §5).
 pub const MOTOR_ACCELERATION: f64 = 30.0;
+
+/// How the motors follow their speed targets (world file `[physics]
+/// motors`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MotorResponse {
+    /// The PROTO's velocity control: the speed moves toward the target by
+    /// at most [`MOTOR_ACCELERATION`]·dt (the thesis's figures use it).
+    #[default]
+    Webots,
+    /// A real Crazyflie's brushed motors: a first-order lag toward the
+    /// target, [`TIME_CONSTANT_UP_S`] when speeding up and
+    /// [`TIME_CONSTANT_DOWN_S`] when slowing down. The firmware's flight
+    /// stack (500 Hz attitude loops, DESIGN.md §20) is tuned for motors
+    /// this fast; the 30 rad/s² limit takes 1.85 s to reach hover.
+    Crazyflie,
+}
+
+/// The Crazyflie 2's motor time constants (s) as CrazyS models them
+/// (Silano et al., "CrazyS: a software-in-the-loop platform for the
+/// Crazyflie 2.0 nano-quadcopter", 2018; `crazyflie2.xacro`,
+/// `time_constant_up` 0.0125 s, `time_constant_down` 0.025 s).
+pub const TIME_CONSTANT_UP_S: f64 = 0.0125;
+pub const TIME_CONSTANT_DOWN_S: f64 = 0.025;
 
 /// Standard gravity used by the Webots world (`WorldInfo { gravity 9.81 }`).
 pub const GRAVITY: f64 = 9.81;
@@ -110,6 +134,7 @@ impl MotorCommands {
 pub struct Motors {
     target: [f64; 4],
     speed: [f64; 4],
+    response: MotorResponse,
 }
 
 impl Default for Motors {
@@ -120,9 +145,14 @@ impl Default for Motors {
 
 impl Motors {
     pub fn new() -> Self {
+        Self::with_response(MotorResponse::Webots)
+    }
+
+    pub fn with_response(response: MotorResponse) -> Self {
         Motors {
             target: [0.0; 4],
             speed: [0.0; 4],
+            response,
         }
     }
 
@@ -147,8 +177,25 @@ impl Motors {
         self.target = speed;
     }
 
-    /// Advances the speeds by `dt_s` seconds under the acceleration limit.
+    /// Advances the speeds by `dt_s` seconds under the acceleration limit
+    /// or the first-order lag.
     pub fn advance(&mut self, dt_s: f64) {
+        if self.response == MotorResponse::Crazyflie {
+            for i in 0..4 {
+                let (t, w) = (self.target[i], self.speed[i]);
+                let tau = if t.abs() >= w.abs() {
+                    TIME_CONSTANT_UP_S
+                } else {
+                    TIME_CONSTANT_DOWN_S
+                };
+                // The lag's exact solution over the step; a target of 0 is
+                // reached once the speed is below 0.01 rad/s (STOP waits
+                // for every propeller to stand still).
+                let next = t + (w - t) * (-dt_s / tau).exp();
+                self.speed[i] = if (next - t).abs() < 0.01 { t } else { next };
+            }
+            return;
+        }
         let max_step = MOTOR_ACCELERATION * dt_s;
         for i in 0..4 {
             let diff = self.target[i] - self.speed[i];

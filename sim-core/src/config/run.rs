@@ -21,7 +21,7 @@ use super::ConfigError;
 use crate::cluster::CoreCount;
 use crate::peripherals::stm32::crtp::CrtpSpec;
 use crate::peripherals::stm32::estimator::DEFAULT_FLOW_STD;
-use crate::peripherals::stm32::PositionSource;
+use crate::peripherals::stm32::{Controller, PositionSource};
 
 /// A table's keys with its sub-tables' keys as `table.key`
 /// (`stm32.position_source = "flow"` in TOML is a table `stm32`).
@@ -86,6 +86,8 @@ pub struct RunConfig {
     pub flow_std_m_s: f64,
     /// The CRTP link (docs/CFLIB.md).
     pub crtp: Option<CrtpSpec>,
+    /// The controller a CRTP client's set-points are flown with.
+    pub controller: Controller,
     /// Pacing of a live CRTP link (simulated s per wall s).
     pub pace: f64,
     /// Simulated seconds without a packet that close the CRTP link.
@@ -133,6 +135,7 @@ impl Default for RunConfig {
             firmware_params: BTreeMap::new(),
             position_source: PositionSource::Gps,
             range_max_m: 2.0,
+            controller: Controller::Thesis,
             flow_std_m_s: DEFAULT_FLOW_STD.0,
             crtp: None,
             pace: 1.0,

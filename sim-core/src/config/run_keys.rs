@@ -190,7 +190,7 @@ fn show_or_platform<T: ToString>(v: &Option<T>) -> String {
 }
 
 /// The number of run keys.
-pub const RUN_KEY_COUNT: usize = 26;
+pub const RUN_KEY_COUNT: usize = 27;
 
 /// Every run key, in the order of `cosim keys` and of a written file.
 pub static RUN_KEYS: [RunKey; RUN_KEY_COUNT] = [
@@ -395,6 +395,14 @@ pub static RUN_KEYS: [RunKey; RUN_KEY_COUNT] = [
             Ok(())
         },
         get: |c| c.crtp.as_ref().map_or("off".to_string(), |s| s.to_string()),
+    },
+    RunKey {
+        name: "stabilizer.controller",
+        doc: "the controller a CRTP client's set-points fly: thesis (default; the Webots controller with velocity and position loops) | pid (the Crazyflie firmware's cascaded PID, its default gains, PWM motors; a timestep of at most 4 ms), docs/CFLIB.md",
+        kind: ValueKind::Text,
+        written: Written::UnlessDefault,
+        set: |c, v| v.parse().map(|x| c.controller = x),
+        get: |c| c.controller.to_string(),
     },
     RunKey {
         name: "pace",

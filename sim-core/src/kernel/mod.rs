@@ -133,6 +133,7 @@ fn stm32_config(cfg: &KernelConfig) -> Stm32Config {
         target_cycles: cfg.run.target_cycles,
         unlock_cycles: cfg.run.unlock_cycles,
         position_source: cfg.run.position_source,
+        controller: cfg.run.controller,
         range_max_mm: cfg.run.range_max_m * 1000.0,
         flow_filter: FlowFilterParams {
             flow_std: MetresPerSecond(cfg.run.flow_std_m_s),

@@ -18,7 +18,7 @@ use crate::sensors::{
 use crate::time::Millis;
 use crate::world_file::{CarriedPath, DroneDesc, PhysicsOptions, SensorConfig};
 
-use super::{FRICTION, RESTITUTION};
+use super::FRICTION;
 
 /// A drone's body, motors and contact bookkeeping.
 pub(super) struct DroneBody {
@@ -67,7 +67,7 @@ impl DroneBody {
             .rotation(DVec3::X * std::f64::consts::FRAC_PI_2)
             .density(0.0)
             .friction(FRICTION)
-            .restitution(RESTITUTION)
+            .restitution(opts.restitution.0)
             .user_data(ObjectId::Drone(index).to_user_data());
         if desc.is_carried() {
             // rapier skips kinematic–fixed and kinematic–kinematic pairs by
@@ -79,7 +79,7 @@ impl DroneBody {
         DroneBody {
             body,
             collider,
-            motors: Motors::new(),
+            motors: Motors::with_response(opts.motors),
             carried: desc.carried.clone(),
             touching: Vec::new(),
             collisions: 0,

@@ -22,9 +22,9 @@ use crate::world_file::{CarriedPath, SensorConfig, WorldDesc};
 
 use drone::DroneBody;
 
-/// Webots's default contact properties (`ContactProperties { coulombFriction 1 bounce 0.5 }`).
+/// Webots's default contact friction (`ContactProperties { coulombFriction 1 }`);
+/// its `bounce 0.5` is the world file's `[physics] restitution` default.
 const FRICTION: f64 = 1.0;
-const RESTITUTION: f64 = 0.5;
 
 /// How the world steps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,7 +92,7 @@ impl World {
 
         let ground = ColliderBuilder::halfspace(rapier3d::na::Unit::new_unchecked(Vector::Z))
             .friction(FRICTION)
-            .restitution(RESTITUTION)
+            .restitution(desc.physics.restitution.0)
             .user_data(ObjectId::Ground.to_user_data());
         phys.insert_collider(ground, None);
 
@@ -101,7 +101,7 @@ impl World {
             let collider = ColliderBuilder::cuboid(b.half.x, b.half.y, b.half.z)
                 .position(Pose::from_parts(b.centre, DQuat::from_rotation_z(b.yaw)))
                 .friction(FRICTION)
-                .restitution(RESTITUTION)
+                .restitution(desc.physics.restitution.0)
                 .user_data(b.object.to_user_data());
             phys.insert_collider(collider, None);
         }

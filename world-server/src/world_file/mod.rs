@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use toml::Spanned;
 
+use crate::crazyflie::MotorResponse;
 use crate::radio::RadioConfig;
 
 pub use drone::{CarriedPath, DroneDesc, DEFAULT_DRONE_NAME, MAX_CLOCK_PPM, MAX_NAME_LEN};
@@ -112,7 +113,7 @@ impl Default for Sky {
 }
 
 /// Optional physics settings. DESIGN.md §5: no aerodynamic drag unless the world asks.
-#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PhysicsOptions {
     /// Linear damping of the drone body (1/s), rapier's model.
@@ -121,6 +122,46 @@ pub struct PhysicsOptions {
     /// Angular damping of the drone body (1/s).
     #[serde(default)]
     pub angular_damping: NonNegative,
+    /// How the motors follow their speed targets: `"webots"` (the PROTO's
+    /// acceleration limit, the thesis's) or `"crazyflie"` (a first-order
+    /// lag with a real Crazyflie's time constants; DESIGN.md §20).
+    #[serde(default)]
+    pub motors: MotorResponse,
+    /// Restitution of every contact (0: no bounce, 1: elastic); 0.5 when
+    /// absent, Webots's default `bounce` and the thesis's figures' value.
+    #[serde(default = "default_restitution")]
+    pub restitution: UnitInterval,
+}
+
+impl Default for PhysicsOptions {
+    fn default() -> Self {
+        PhysicsOptions {
+            linear_damping: NonNegative(0.0),
+            angular_damping: NonNegative(0.0),
+            motors: MotorResponse::default(),
+            restitution: default_restitution(),
+        }
+    }
+}
+
+fn default_restitution() -> UnitInterval {
+    UnitInterval(0.5)
+}
+
+/// A finite number in [0, 1].
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(try_from = "f64")]
+pub struct UnitInterval(pub f64);
+
+impl TryFrom<f64> for UnitInterval {
+    type Error = String;
+    fn try_from(v: f64) -> Result<Self, String> {
+        if (0.0..=1.0).contains(&v) {
+            Ok(UnitInterval(v))
+        } else {
+            Err(format!("{v} must be a number in [0, 1]"))
+        }
+    }
 }
 
 /// A square gate: a frame of four bars with a square cross-section, standing
@@ -240,13 +281,65 @@ pub enum WorldFileError {
 }
 
 impl WorldDesc {
-    /// Reads and checks a world file.
+    /// Reads and checks a world file. A file whose first key is
+    /// `base = "other.toml"` (a path relative to it) is that world with the
+    /// file's own tables laid over it: a table it names replaces or extends
+    /// the base's table key by key, an array of tables (`[[box]]`) it names
+    /// replaces the base's. One room serves several worlds that differ in a
+    /// few keys (a cflib room with the Crazyflie's motors) without a copy.
     pub fn load(path: &Path) -> Result<WorldDesc, WorldFileError> {
+        let text = Self::load_text(path, 0)?;
+        Self::parse(&text, path)
+    }
+
+    /// The text of `path`, its `base` chain merged in (at most
+    /// [`MAX_BASE_DEPTH`] deep: a longer chain is a cycle or a mistake).
+    fn load_text(path: &Path, depth: usize) -> Result<String, WorldFileError> {
         let text = std::fs::read_to_string(path).map_err(|cause| WorldFileError::Io {
             path: path.to_path_buf(),
             cause,
         })?;
-        Self::parse(&text, path)
+        let invalid = |offset: usize, field: &str, message: String| {
+            let (line, column) = line_column(&text, offset);
+            WorldFileError::Invalid {
+                path: path.to_path_buf(),
+                line,
+                column,
+                field: field.to_string(),
+                message,
+            }
+        };
+        let mut own: toml::Table = toml::from_str(&text).map_err(|e| {
+            let offset = e.span().map(|s| s.start).unwrap_or(0);
+            invalid(
+                offset,
+                &field_at(&text, offset),
+                e.message().trim().to_string(),
+            )
+        })?;
+        let Some(base) = own.remove("base") else {
+            return Ok(text);
+        };
+        let at = text.find("base").unwrap_or(0);
+        let Some(base) = base.as_str() else {
+            return Err(invalid(
+                at,
+                "base",
+                "expected the path of a world file".into(),
+            ));
+        };
+        if depth >= MAX_BASE_DEPTH {
+            return Err(invalid(
+                at,
+                "base",
+                format!("more than {MAX_BASE_DEPTH} bases deep (a cycle?)"),
+            ));
+        }
+        let base_path = path.parent().unwrap_or(Path::new("")).join(base);
+        let mut merged: toml::Table = toml::from_str(&Self::load_text(&base_path, depth + 1)?)
+            .expect("a world file's merged text is TOML");
+        overlay(&mut merged, own);
+        Ok(toml::to_string(&merged).expect("a TOML table serializes"))
     }
 
     /// Parses world-file text; `path` is only used in error messages.
@@ -332,6 +425,22 @@ impl WorldDesc {
     /// The index of the drone called `name`.
     pub fn drone_index(&self, name: &str) -> Option<usize> {
         self.drones.iter().position(|d| d.name == name)
+    }
+}
+
+/// How many `base` files a world may stand on.
+pub const MAX_BASE_DEPTH: usize = 4;
+
+/// `over`'s keys laid over `under`: tables merge key by key, anything else
+/// (values, arrays of tables) replaces.
+fn overlay(under: &mut toml::Table, over: toml::Table) {
+    for (k, v) in over {
+        match (under.get_mut(&k), v) {
+            (Some(toml::Value::Table(u)), toml::Value::Table(o)) => overlay(u, o),
+            (_, v) => {
+                under.insert(k, v);
+            }
+        }
     }
 }
 

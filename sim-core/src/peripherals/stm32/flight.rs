@@ -24,6 +24,9 @@ pub(super) struct Flight {
     pub(super) past_time: f64,
     pub(super) past_x: f64,
     pub(super) past_y: f64,
+    /// The firmware's cascaded PID, when `stabilizer.controller = pid`
+    /// flies a CRTP client.
+    pub(super) cascade: super::cascade::Cascade,
 }
 
 /// How an iteration ended.

@@ -21,6 +21,7 @@
 //! The extension registers (state estimate, ranges, flow, MotionCommander-like
 //! commands, a heading target) and their commands are in [`motion`].
 
+pub mod cascade;
 mod clock;
 pub mod crtp;
 pub mod estimator;
@@ -94,6 +95,42 @@ pub struct Stm32Config {
     /// The flow-mode estimator's noise settings (run key
     /// `stm32.flow_std_m_s`; [`estimator`]).
     pub flow_filter: FlowFilterParams,
+    /// Which controller flies a CRTP client's set-points (run key
+    /// `stabilizer.controller`).
+    pub controller: Controller,
+}
+
+/// The controller a CRTP client's set-points are flown with (run key
+/// `stabilizer.controller`, DESIGN.md §20).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Controller {
+    /// The thesis's: the Bitcraze Webots controller of [`pid`], with
+    /// velocity and position loops on top (the race's, and the default).
+    #[default]
+    Thesis,
+    /// The Crazyflie firmware's cascaded PID ([`cascade`]): position →
+    /// velocity at 100 Hz, attitude → rate every step, PWM to the motors.
+    Pid,
+}
+
+impl std::str::FromStr for Controller {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "thesis" => Ok(Controller::Thesis),
+            "pid" => Ok(Controller::Pid),
+            _ => Err("expected thesis | pid".into()),
+        }
+    }
+}
+
+impl std::fmt::Display for Controller {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Controller::Thesis => "thesis",
+            Controller::Pid => "pid",
+        })
+    }
 }
 
 impl Default for Stm32Config {
@@ -110,6 +147,7 @@ impl Default for Stm32Config {
             position_source: PositionSource::Gps,
             range_max_mm: 2000.0,
             flow_filter: FlowFilterParams::default(),
+            controller: Controller::Thesis,
         }
     }
 }
@@ -191,6 +229,7 @@ impl Stm32 {
                 past_time: 0.0,
                 past_x: 0.0,
                 past_y: 0.0,
+                cascade: cascade::Cascade::new(),
             },
             timestep: Millis(0),
             initialised: false,

@@ -52,11 +52,12 @@ use self::packet::*;
 use self::param::{Decks, Known, Params};
 pub use self::telemetry::PowerTelemetry;
 use self::telemetry::{LogGroups, Telemetry, PWM_FULL};
+use super::cascade::{self, Axis};
 use super::estimator::Metres;
 use super::flight::Outcome;
 use super::motion::{wrap_angle, K_HEADING, MAX_YAW_RATE};
 use super::pid::{to_body, DesiredState, MotorCommands};
-use super::{invalid, Stm32};
+use super::{invalid, Controller, Stm32};
 use crate::peripherals::motors::MAX_SPEED;
 use crate::peripherals::{DeviceCtx, DeviceError};
 use crate::units::Picos;
@@ -255,6 +256,7 @@ impl CrtpServer {
         est: &[f64; 15],
         world: [f64; 3],
         gains: &super::pid::PidGains,
+        cascade: Option<&cascade::Cascade>,
     ) {
         let t = &mut self.telemetry;
         t.world = world;
@@ -271,7 +273,7 @@ impl CrtpServer {
                 ai: self.cfg.ai_deck,
             };
             self.mems = Some(mem::Memories::new(&decks));
-            self.params = Some(Params::new(decks, gains, self.radar));
+            self.params = Some(Params::new(decks, gains, cascade, self.radar));
         }
     }
 
@@ -531,6 +533,101 @@ impl CrtpServer {
         }
     }
 
+    /// The set-point the firmware's commander hands its controller
+    /// (`crtp_commander_generic.c`'s decoders, `commander.c`'s watchdog,
+    /// the high-level commander's absolute set-points): angles in degrees,
+    /// pitch nose up, yaw counter-clockwise.
+    fn firmware_setpoint(&mut self, now: Picos) -> cascade::Setpoint {
+        use cascade::Setpoint as Fw;
+        let t = self.telemetry;
+        let level = |roll: f64, pitch: f64, yaw_rate: f64| Fw {
+            x: Axis::Disable,
+            y: Axis::Disable,
+            // Packet pitch is nose-up positive; ours nose-down (see
+            // `commander`).
+            roll: roll.to_degrees(),
+            pitch: -pitch.to_degrees(),
+            yaw: Axis::Velocity(yaw_rate.to_degrees()),
+            ..Fw::STOP
+        };
+        let decode = |sp: Setpoint| match sp {
+            Setpoint::Stop => Fw::STOP,
+            Setpoint::Attitude {
+                roll,
+                pitch,
+                yaw_rate,
+                thrust,
+            } => Fw {
+                thrust,
+                ..level(roll, pitch, yaw_rate)
+            },
+            Setpoint::ZDistance {
+                roll,
+                pitch,
+                yaw_rate,
+                z,
+            } => Fw {
+                z: Axis::Abs(z),
+                ..level(roll, pitch, yaw_rate)
+            },
+            Setpoint::Hover {
+                vx,
+                vy,
+                yaw_rate,
+                z,
+            } => Fw {
+                x: Axis::Velocity(vx),
+                y: Axis::Velocity(vy),
+                z: Axis::Abs(z),
+                yaw: Axis::Velocity(yaw_rate.to_degrees()),
+                velocity_body: true,
+                ..Fw::STOP
+            },
+            Setpoint::VelocityWorld {
+                vx,
+                vy,
+                vz,
+                yaw_rate,
+            } => Fw {
+                x: Axis::Velocity(vx),
+                y: Axis::Velocity(vy),
+                z: Axis::Velocity(vz),
+                yaw: Axis::Velocity(yaw_rate.to_degrees()),
+                ..Fw::STOP
+            },
+            Setpoint::Position { x, y, z, yaw } => Fw {
+                x: Axis::Abs(x),
+                y: Axis::Abs(y),
+                z: Axis::Abs(z),
+                yaw: Axis::Abs(yaw.to_degrees()),
+                ..Fw::STOP
+            },
+        };
+        match self.commander.watched(now) {
+            Watched::Shutdown => Fw::STOP,
+            Watched::Fresh(sp) => decode(sp),
+            // Past 500 ms: level, no yaw rate, z as the set-point had it.
+            Watched::Stale(sp) => Fw {
+                x: Axis::Disable,
+                y: Axis::Disable,
+                roll: 0.0,
+                pitch: 0.0,
+                yaw: Axis::Velocity(0.0),
+                ..decode(sp)
+            },
+            Watched::None => match self.hl.aim(now, t.pos[2], t.vel[2]) {
+                Some(r) => Fw {
+                    x: Axis::Abs(r.pos[0]),
+                    y: Axis::Abs(r.pos[1]),
+                    z: Axis::Abs(r.pos[2]),
+                    yaw: Axis::Abs(r.yaw.to_degrees()),
+                    ..Fw::STOP
+                },
+                None => Fw::STOP,
+            },
+        }
+    }
+
     /// The console's complete lines, once a client has connected (see
     /// [`console`]).
     fn send_console(&mut self) -> io::Result<()> {
@@ -638,11 +735,13 @@ impl Stm32 {
         self.stats.pid_iterations += 1;
         let (dt, actual) = self.measured(&s);
         let mut server = self.crtp.take().expect("the CRTP process has a link");
+        let firmware = self.cfg.controller == Controller::Pid;
         server.observe(
             &s,
             &self.motion.est,
             self.motion.world,
             &self.flight.pid.gains,
+            firmware.then_some(&self.flight.cascade),
         );
         server.radar_heard(self.motion.p2p_heard());
         let result = (|| {
@@ -650,6 +749,10 @@ impl Stm32 {
             self.motion.set_p2p_enable(server.radar_enabled());
             server.send_console().map_err(io_device)?;
             self.fuse_external(&mut server, &mut s);
+            if firmware {
+                let commands = self.fly_cascade(&mut server, &s, now, dt);
+                return Self::finish_crtp_step(&mut server, now, ctx, commands);
+            }
             if let Some(p) = &server.params {
                 p.apply_gains(&mut self.flight.pid.gains);
             }
@@ -715,6 +818,70 @@ impl Stm32 {
             t.sp_roll = desired.roll;
             t.sp_pitch = desired.pitch;
             t.sp_yaw = s.yaw;
+            Self::finish_crtp_step(&mut server, now, ctx, commands)
+        })();
+        self.crtp = Some(server);
+        result
+    }
+
+    /// One step of the firmware's cascade: the commander's set-point
+    /// through [`cascade::Cascade`], the power distribution, the motors'
+    /// PWM as the world's propeller speeds.
+    fn fly_cascade(
+        &mut self,
+        server: &mut CrtpServer,
+        s: &Sensors,
+        now: Picos,
+        dt: f64,
+    ) -> MotorCommands {
+        if let Some(p) = &server.params {
+            p.apply_cascade(&mut self.flight.cascade);
+        }
+        let sp = server.firmware_setpoint(now);
+        let t = server.telemetry;
+        let state = cascade::State::from_world(
+            t.pos,
+            t.vel,
+            [s.roll, s.pitch, s.yaw],
+            [s.roll_rate, s.pitch_rate, s.yaw_rate],
+        );
+        let control = self.flight.cascade.step(&sp, &state, dt);
+        let pwm = cascade::power_distribution(&control);
+        let speeds = pwm.map(cascade::world_speed);
+        let commands = MotorCommands {
+            m1: speeds[0],
+            m2: speeds[1],
+            m3: speeds[2],
+            m4: speeds[3],
+        };
+        self.flight.past_time = s.time_s;
+        self.flight.past_x = s.x;
+        self.flight.past_y = s.y;
+        let t = &mut server.telemetry;
+        t.motors = speeds;
+        t.collective = speeds.iter().sum::<f64>() / 4.0;
+        t.pwm = Some((control.thrust, pwm));
+        let att = self.flight.cascade.attitude_desired();
+        t.sp_roll = att[0].to_radians();
+        t.sp_pitch = -att[1].to_radians();
+        t.sp_yaw = att[2].to_radians();
+        commands
+    }
+
+    /// The end of every CRTP step: the due log blocks, and whether the link
+    /// has closed.
+    fn finish_crtp_step(
+        server: &mut CrtpServer,
+        now: Picos,
+        ctx: &mut DeviceCtx<'_>,
+        commands: MotorCommands,
+    ) -> Result<(Outcome, MotorCommands), DeviceError> {
+        {
+            if commands.as_array().iter().any(|m| !m.is_finite()) {
+                return Err(invalid(format!(
+                    "the controller produced non-finite motor commands {commands:?}"
+                )));
+            }
             server.send_logs(now).map_err(io_device)?;
             let outcome = if server.closed(now) {
                 server.flush().map_err(io_device)?;
@@ -729,8 +896,6 @@ impl Stm32 {
                 Outcome::Flying
             };
             Ok((outcome, commands))
-        })();
-        self.crtp = Some(server);
-        result
+        }
     }
 }

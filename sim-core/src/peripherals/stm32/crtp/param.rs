@@ -12,6 +12,7 @@
 use super::localization::DEFAULT_EXT_POS_STD;
 use super::packet::u16_at;
 use super::toc::{self, TocEntry};
+use crate::peripherals::stm32::cascade::{self, Cascade};
 use crate::peripherals::stm32::pid::PidGains;
 
 pub const CHAN_TOC: u8 = 0;
@@ -26,7 +27,9 @@ pub const PARAM_RONLY: u8 = 0x40;
 const ENOENT: u8 = 2;
 
 /// The firmware's `stabilizer.controller` value of the PID controller
-/// (`controller.h`: ControllerTypePID = 1); the only one flown here.
+/// (`controller.h`: ControllerTypePID = 1): the firmware's cascade, or
+/// the thesis's PID when the run flies that one (the run key
+/// `stabilizer.controller` chooses; the parameter cannot switch).
 pub const CONTROLLER_PID: f64 = 1.0;
 
 /// The decks the world gives this drone.
@@ -58,6 +61,8 @@ pub enum Known {
     /// A gain of the Bitcraze controller (DESIGN.md §4), by the firmware's
     /// name for the same loop.
     Gain(Gain),
+    /// A parameter of the firmware's cascade ([`cascade::PARAMS`] index).
+    Cascade(usize),
     /// Seed 004's radar (§4.3.1): the flag that makes the drone broadcast
     /// its P2P beacon, and the drone's own id (its radio's).
     RadarEnable,
@@ -143,8 +148,16 @@ pub struct Params {
 
 impl Params {
     /// `radar`: the drone's radio id when its firmware runs the radar
-    /// (adds `radar.enable` and the read-only `radar.myId`).
-    pub fn new(decks: Decks, gains: &PidGains, radar: Option<u8>) -> Self {
+    /// (adds `radar.enable` and the read-only `radar.myId`). With
+    /// `cascade` (the run flies the firmware's cascade) the gain
+    /// parameters are the cascade's, all of them; without, the thesis's
+    /// controller's gains under the firmware's names for the same loops.
+    pub fn new(
+        decks: Decks,
+        gains: &PidGains,
+        cascade: Option<&Cascade>,
+        radar: Option<u8>,
+    ) -> Self {
         let b = |v: bool| if v { 1.0 } else { 0.0 };
         let p = |ty: u8, group: &'static str, name: &'static str, known: Known, value: f64| Param {
             entry: TocEntry { ty, group, name },
@@ -184,8 +197,25 @@ impl Params {
                 CONTROLLER_PID,
             ),
         ];
-        for (group, name, g) in GAINS {
-            params.push(p(PARAM_FLOAT, group, name, Known::Gain(g), g.of(gains)));
+        match cascade {
+            Some(c) => {
+                let mut c = c.clone();
+                for (i, q) in cascade::PARAMS.iter().enumerate() {
+                    let ty = if q.uint16 { PARAM_UINT16 } else { PARAM_FLOAT };
+                    params.push(p(
+                        ty,
+                        q.group,
+                        q.name,
+                        Known::Cascade(i),
+                        *(q.field)(&mut c),
+                    ));
+                }
+            }
+            None => {
+                for (group, name, g) in GAINS {
+                    params.push(p(PARAM_FLOAT, group, name, Known::Gain(g), g.of(gains)));
+                }
+            }
         }
         if let Some(id) = radar {
             params.push(p(PARAM_UINT8, "radar", "enable", Known::RadarEnable, 0.0));
@@ -249,6 +279,15 @@ impl Params {
         }
     }
 
+    /// The cascade's parameters as they hold them.
+    pub fn apply_cascade(&self, c: &mut Cascade) {
+        for p in &self.params {
+            if let Known::Cascade(i) = p.known {
+                *(cascade::PARAMS[i].field)(c) = p.value;
+            }
+        }
+    }
+
     fn encode(p: &Param) -> Vec<u8> {
         if p.entry.ty & 0x0F == PARAM_FLOAT {
             (p.value as f32).to_le_bytes().to_vec()
@@ -283,14 +322,19 @@ impl Params {
         let v = if p.entry.ty & 0x0F == PARAM_FLOAT {
             super::packet::f32_at(raw, 0)?
         } else {
-            f64::from(*raw.first()?)
+            // An unsigned integer of the type's width (`param.h`: bits 0..1).
+            let n = 1usize << (p.entry.ty & 0x03);
+            let bytes = raw.get(..n.min(8))?;
+            let mut le = [0u8; 8];
+            le[..bytes.len()].copy_from_slice(bytes);
+            u64::from_le_bytes(le) as f64
         };
         p.value = match p.known {
             // One controller is flown (the Bitcraze PID of DESIGN.md §4):
             // the parameter keeps saying so, and the answer shows it.
             Known::Controller => CONTROLLER_PID,
             // A gain must be a finite number (the PID would fly NaN).
-            Known::Gain(_) if !v.is_finite() => p.value,
+            Known::Gain(_) | Known::Cascade(_) if !v.is_finite() => p.value,
             // A standard deviation is finite and not negative (the update
             // would not be a Kalman update).
             Known::ExtPosStdDev if !(v.is_finite() && v >= 0.0) => p.value,
@@ -325,6 +369,7 @@ mod tests {
                 ai: false,
             },
             &PidGains::default(),
+            None,
             None,
         );
         let flow = toc::find(p.entries(), "deck.bcFlow2").unwrap();
@@ -365,7 +410,7 @@ mod tests {
 
     #[test]
     fn the_radar_adds_its_flag_and_its_id() {
-        let mut p = Params::new(Decks::default(), &PidGains::default(), Some(3));
+        let mut p = Params::new(Decks::default(), &PidGains::default(), None, Some(3));
         let en = toc::find(p.entries(), "radar.enable").unwrap();
         let me = toc::find(p.entries(), "radar.myId").unwrap();
         assert_eq!(p.read(&me.to_le_bytes()), Some(vec![me as u8, 0, 0, 3]));
@@ -378,7 +423,7 @@ mod tests {
 
     #[test]
     fn cfclients_decks_read_zero_and_the_extpos_std_dev_refuses_negatives() {
-        let mut p = Params::new(Decks::default(), &PidGains::default(), None);
+        let mut p = Params::new(Decks::default(), &PidGains::default(), None, None);
         // cfclient's decks: present as 0; the extpos σ: 0.01 m, a negative
         // write keeps it.
         let zr = toc::find(p.entries(), "deck.bcZRanger2").unwrap();
@@ -395,7 +440,7 @@ mod tests {
 
     #[test]
     fn the_firmware_revision_reads_in_its_types_width_and_is_read_only() {
-        let mut p = Params::new(Decks::default(), &PidGains::default(), None);
+        let mut p = Params::new(Decks::default(), &PidGains::default(), None, None);
         // The value after `[id u16, 0]`: 4, 2 and 1 bytes (`version.c`'s
         // uint32, uint16, uint8).
         for (name, value) in [
@@ -410,5 +455,48 @@ mod tests {
             w.extend([7, 7, 7, 7]);
             assert_eq!(p.write(&w), None, "{name} is read-only");
         }
+    }
+
+    #[test]
+    fn the_cascades_parameters_have_the_firmwares_names_and_defaults() {
+        let c = Cascade::new();
+        let mut p = Params::new(Decks::default(), &PidGains::default(), Some(&c), None);
+        let read = |p: &Params, name: &str| {
+            let id = toc::find(p.entries(), name).unwrap_or_else(|| panic!("{name}"));
+            p.read(&id.to_le_bytes()).unwrap()[3..].to_vec()
+        };
+        // platform_defaults_cf2.h
+        for (name, v) in [
+            ("posCtlPid.xKp", 2.0f32),
+            ("posCtlPid.zKp", 2.0),
+            ("posCtlPid.zKi", 0.5),
+            ("velCtlPid.vxKp", 25.0),
+            ("velCtlPid.vzKi", 15.0),
+            ("pid_attitude.roll_kp", 6.0),
+            ("pid_attitude.yaw_kd", 0.35),
+            ("pid_rate.roll_kp", 250.0),
+            ("pid_rate.roll_ki", 500.0),
+            ("pid_rate.yaw_kp", 120.0),
+        ] {
+            assert_eq!(read(&p, name), v.to_le_bytes(), "{name}");
+        }
+        assert_eq!(read(&p, "posCtlPid.thrustBase"), 36000u16.to_le_bytes());
+        // A 16-bit write, and the cascade takes it.
+        let id = toc::find(p.entries(), "posCtlPid.thrustBase").unwrap();
+        let mut w = id.to_le_bytes().to_vec();
+        w.extend(38000u16.to_le_bytes());
+        assert_eq!(p.write(&w).unwrap().0[2..], 38000u16.to_le_bytes());
+        let mut c2 = Cascade::new();
+        p.apply_cascade(&mut c2);
+        assert_eq!(c2.limits.thrust_base, 38000.0);
+        // The thesis's gains are not served beside them.
+        assert!(toc::find(p.entries(), "posCtlPid.thrustBase").is_some());
+        assert_eq!(
+            p.entries()
+                .iter()
+                .filter(|e| e.group == "posCtlPid" && e.name == "zKp")
+                .count(),
+            1
+        );
     }
 }

@@ -59,6 +59,9 @@ pub struct Telemetry {
     pub sp_pitch: f64,
     pub sp_yaw: f64,
     pub collective: f64,
+    /// The firmware's cascade flies: its thrust and the four motors' PWM
+    /// (the log shows them rather than speeds mapped onto PWM).
+    pub pwm: Option<(f64, [f64; 4])>,
     pub power: PowerTelemetry,
     /// The radar's last drone heard (0: none for 3 s) and its RSSI (dBm).
     pub radar_id: f64,
@@ -79,6 +82,11 @@ fn mm(m: f64) -> f64 {
 
 fn pwm(speed: f64) -> f64 {
     (speed / MAX_SPEED * PWM_FULL).clamp(0.0, PWM_FULL)
+}
+
+/// Motor `i`'s PWM: the cascade's, or the speed mapped onto PWM.
+fn motor_pwm(t: &Telemetry, i: usize) -> f64 {
+    t.pwm.map_or(pwm(t.motors[i]), |p| p.1[i])
 }
 
 /// The firmware's `pm.state` (`pm.h`: 0 battery, 3 low power).
@@ -176,11 +184,13 @@ pub fn log_toc(groups: LogGroups) -> Vec<LogVar> {
             .sp_pitch
             .to_degrees()),
         var!(LOG_FLOAT, "stabilizer", "yaw", |t| t.sp_yaw.to_degrees()),
-        var!(LOG_FLOAT, "stabilizer", "thrust", |t| pwm(t.collective)),
-        var!(LOG_UINT32, "motor", "m1", |t| pwm(t.motors[0])),
-        var!(LOG_UINT32, "motor", "m2", |t| pwm(t.motors[1])),
-        var!(LOG_UINT32, "motor", "m3", |t| pwm(t.motors[2])),
-        var!(LOG_UINT32, "motor", "m4", |t| pwm(t.motors[3])),
+        var!(LOG_FLOAT, "stabilizer", "thrust", |t| t
+            .pwm
+            .map_or(pwm(t.collective), |p| p.0)),
+        var!(LOG_UINT32, "motor", "m1", |t| motor_pwm(t, 0)),
+        var!(LOG_UINT32, "motor", "m2", |t| motor_pwm(t, 1)),
+        var!(LOG_UINT32, "motor", "m3", |t| motor_pwm(t, 2)),
+        var!(LOG_UINT32, "motor", "m4", |t| motor_pwm(t, 3)),
         var!(LOG_FLOAT, "power", "vbat", |t| t.power.vbat),
         var!(LOG_FLOAT, "power", "soc", |t| t.power.soc),
         var!(LOG_FLOAT, "power", "iBattery", |t| t.power.i_battery),
