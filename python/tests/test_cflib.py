@@ -162,6 +162,51 @@ def test_motion_commander_step_by_step_flies_its_distances(lab):
         assert abs(r["x"] - x) < 0.02 and abs(r["y"] - y) < 0.02, (ts, x, y, r)
 
 
+def test_motion_commander_takes_off_holds_and_lands_as_a_crazyflie(lab):
+    """The firmware's flight stack (`stabilizer.controller = pid`,
+    docs/CFLIB.md): over cflib its parameters have the firmware's names and
+    the Crazyflie 2.x's defaults; MotionCommander's take-off holds 0.5 m two
+    seconds after `take_off()` returns, 0.5 m forward, and the landing
+    touches down without a collision, tipping or sliding, motors off."""
+    from cflib.positioning.motion_commander import MotionCommander
+
+    lab_run = lab("cflib-lab", BASE_PORT + 9, pace=1.0, idle_s=1.0)
+    z = []
+    with SyncCrazyflie(lab_run.uri, cf=Crazyflie(rw_cache=None)) as scf:
+        # platform_defaults_cf2.h
+        for name, value in [("posCtlPid.xKp", 2.0), ("posCtlPid.zKp", 2.0),
+                            ("posCtlPid.zKi", 0.5), ("posCtlPid.thrustBase", 36000),
+                            ("velCtlPid.vxKp", 25.0), ("velCtlPid.vzKp", 25.0),
+                            ("velCtlPid.vzKi", 15.0), ("pid_attitude.roll_kp", 6.0),
+                            ("pid_attitude.yaw_kd", 0.35), ("pid_rate.roll_kp", 250.0),
+                            ("pid_rate.pitch_ki", 500.0), ("pid_rate.yaw_kp", 120.0)]:
+            assert float(scf.cf.param.get_value(name)) == pytest.approx(value), name
+        logconf = LogConfig(name="Height", period_in_ms=20)
+        logconf.add_variable("stateEstimate.z", "float")
+        scf.cf.log.add_config(logconf)
+        logconf.data_received_cb.add_callback(lambda ts, d, _: z.append(d["stateEstimate.z"]))
+        logconf.start()
+        with MotionCommander(scf, default_height=0.5) as mc:
+            time.sleep(2)
+            held = z[-1]
+            mc.forward(0.5)
+            time.sleep(1)
+        logconf.stop()
+    out = lab_run.finish()
+    assert 0.45 <= held <= 0.55, held
+    rows = trajectory(out)
+    assert rows[-1]["collisions"] == 0
+    airborne = [i for i, r in enumerate(rows) if r["z"] > 0.03]
+    landed = rows[airborne[-1] + 1:]
+    assert landed, "the drone never came down"
+    start, end = landed[0], landed[-1]
+    # From x = 0.5 m, 0.5 m forward; then it stays where it came down.
+    assert abs(end["x"] - 1.0) < 0.1, end
+    assert math.hypot(end["x"] - start["x"], end["y"] - start["y"]) < 0.02, (start, end)
+    assert max(max(abs(r["roll"]), abs(r["pitch"])) for r in landed) < 0.1
+    assert all(end[f"w{i}"] == 0.0 for i in range(1, 5)), end
+
+
 def test_logging_step_by_step_matches_the_world(lab):
     """cflib's sbs_connect_log_param: a synchronous log of the stabilizer,
     the asynchronous one, a parameter read and written."""

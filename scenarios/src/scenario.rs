@@ -659,20 +659,22 @@ impl Scenario {
 }
 
 impl Scenario {
-    /// The timestep under every platform's sync mode (the same check
-    /// sim-core makes when the world reports its timestep).
+    /// The timestep under every platform's sync mode and controller (the
+    /// same checks sim-core makes when the world reports its timestep).
     pub fn check_timestep(&self) -> Result<(), ScenarioError> {
-        let modes = std::iter::once(&self.run)
+        let runs = std::iter::once(&self.run)
             .filter(|_| self.platforms.is_empty())
-            .chain(self.platforms.iter().map(|p| &p.run))
-            .map(|r| r.sync);
-        for mode in modes {
-            sim_core::sync::check_timestep(self.timestep_ms.get(), mode).map_err(|e| {
-                ScenarioError::Invalid {
-                    path: self.path.clone(),
-                    message: e.to_string(),
-                }
-            })?;
+            .chain(self.platforms.iter().map(|p| &p.run));
+        let invalid = |message: String| ScenarioError::Invalid {
+            path: self.path.clone(),
+            message,
+        };
+        let ms = self.timestep_ms.get();
+        for run in runs {
+            sim_core::sync::check_timestep(ms, run.sync).map_err(|e| invalid(e.to_string()))?;
+            if run.controller == sim_core::peripherals::stm32::Controller::Pid {
+                sim_core::peripherals::stm32::cascade::check_timestep(ms).map_err(invalid)?;
+            }
         }
         Ok(())
     }

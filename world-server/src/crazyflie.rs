@@ -295,4 +295,24 @@ mod tests {
         let w = hover_speed();
         assert!((4.0 * THRUST_CONSTANT * w * w - MASS_KG * GRAVITY).abs() < 1e-12);
     }
+
+    #[test]
+    fn crazyflie_motors_lag_with_their_time_constants() {
+        // One time constant after a step to 55 rad/s: 1 − 1/e of it; down
+        // from there to 0 with the slower constant, and exactly 0 at the end.
+        let mut m = Motors::with_response(MotorResponse::Crazyflie);
+        m.set_targets(MotorCommands([55.0; 4]));
+        m.advance(TIME_CONSTANT_UP_S);
+        let want = 55.0 * (1.0 - (-1.0f64).exp());
+        assert!((m.speeds()[1] - want).abs() < 1e-9, "{:?}", m.speeds());
+        assert!((m.speeds()[0] + want).abs() < 1e-9, "spin sign kept");
+        let before = m.speeds()[1];
+        m.set_targets(MotorCommands([0.0; 4]));
+        m.advance(TIME_CONSTANT_DOWN_S);
+        assert!((m.speeds()[1] - before * (-1.0f64).exp()).abs() < 1e-9);
+        for _ in 0..100 {
+            m.advance(0.01);
+        }
+        assert!(m.all_stopped());
+    }
 }

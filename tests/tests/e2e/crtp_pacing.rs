@@ -96,11 +96,12 @@ fn a_paced_run_reports_its_achieved_pace_and_lag() {
     assert!(f("worst_lag_ms") >= f("mean_lag_ms") && f("mean_lag_ms") >= 0.0);
     let steps = p["steps"].as_u64().unwrap();
     assert!(p["steps_late"].as_u64().unwrap() <= steps);
-    // One row a step, the 32 ms steps of the paced part.
+    // One row a step, the 2 ms steps of the paced part (cflib-lab flies
+    // the firmware's 500 Hz loops).
     let csv = std::fs::read_to_string(out.join("pacing.csv")).unwrap();
     assert_eq!(csv.lines().next(), Some("platform_s,wall_s,lag_ms"));
     assert_eq!(csv.lines().count() as u64, steps + 1);
-    assert_eq!(steps, (f("paced_s") / 0.032).round() as u64 + 1);
+    assert_eq!(steps, (f("paced_s") / 0.002).round() as u64 + 1);
     // The report says it, and warns exactly when the figures are out of
     // their limits.
     assert!(text.contains("   pacing         pace 4 asked,"), "{text}");

@@ -708,4 +708,39 @@ carried = [[0.0, 1.0, 0.0, 0.5], [12.0, 1.0, 0.0, 0.5],
         let e = error_of("name = \"nothing\"\n");
         assert!(e.contains("missing [start]"), "{e}");
     }
+
+    #[test]
+    fn a_world_on_a_base_is_the_base_with_its_own_tables_laid_over() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("room.toml"), GOOD).unwrap();
+        let child = dir.path().join("cf.toml");
+        std::fs::write(
+            &child,
+            "base = \"room.toml\"\nname = \"cf\"\n[physics]\nmotors = \"crazyflie\"\nrestitution = 0.0\n",
+        )
+        .unwrap();
+        let base = WorldDesc::parse(GOOD, Path::new("room.toml")).unwrap();
+        let w = WorldDesc::load(&child).unwrap();
+        assert_eq!(w.name, "cf");
+        assert_eq!(w.physics.motors, MotorResponse::Crazyflie);
+        assert_eq!(w.physics.restitution, UnitInterval(0.0));
+        assert_eq!(
+            (w.gates, w.boxes, w.start),
+            (base.gates, base.boxes, base.start)
+        );
+        assert_eq!(base.physics.restitution, UnitInterval(0.5));
+        assert_eq!(base.physics.motors, MotorResponse::Webots);
+        // A file that is its own base is refused, not a stack overflow.
+        std::fs::write(&child, "base = \"cf.toml\"\n").unwrap();
+        let e = WorldDesc::load(&child).unwrap_err().to_string();
+        assert!(e.contains("bases deep"), "{e}");
+        // An unknown motor model names the choices.
+        std::fs::write(
+            &child,
+            "base = \"room.toml\"\n[physics]\nmotors = \"brushless\"\n",
+        )
+        .unwrap();
+        let e = WorldDesc::load(&child).unwrap_err().to_string();
+        assert!(e.contains("webots") && e.contains("crazyflie"), "{e}");
+    }
 }

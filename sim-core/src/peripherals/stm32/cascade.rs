@@ -205,6 +205,22 @@ pub struct Limits {
     pub z_vel_max: f64,
 }
 
+/// The largest world timestep (ms) the cascade is flown at: its attitude
+/// and rate loops run once a step, and their gains are the firmware's for
+/// 500 Hz (2 ms). A run key check refuses more before any process starts.
+pub const MAX_TIMESTEP_MS: u64 = 4;
+
+/// The cascade's rule on the world's timestep.
+pub fn check_timestep(ms: u64) -> Result<(), String> {
+    if ms > MAX_TIMESTEP_MS {
+        return Err(format!(
+            "stabilizer.controller = pid flies the firmware's 500 Hz attitude loops once a world step: \
+             basicTimeStep {ms} ms is more than {MAX_TIMESTEP_MS} ms (use timestep_ms = 2)"
+        ));
+    }
+    Ok(())
+}
+
 /// The position loop runs at `POSITION_RATE`, 100 Hz.
 pub const POSITION_PERIOD_S: f64 = 0.01;
 /// The velocity loop's thrust scale (PWM per m/s of output).
@@ -228,7 +244,8 @@ pub struct Cascade {
     att_desired: [f64; 3],
     /// The thrust the velocity loop last asked (PWM).
     thrust: f64,
-    /// Time since the position loop last ran (s).
+    /// Time since the position loop last ran (s; infinite before its
+    /// first run, which is at the first tick as in the firmware).
     since_position: f64,
     modes: Option<[u8; 5]>,
 }
@@ -275,7 +292,7 @@ impl Cascade {
             },
             att_desired: [0.0; 3],
             thrust: 0.0,
-            since_position: POSITION_PERIOD_S,
+            since_position: f64::INFINITY,
             modes: None,
         }
     }
@@ -315,7 +332,11 @@ impl Cascade {
         }
         self.since_position += dt;
         if self.since_position >= POSITION_PERIOD_S - 1e-9 {
-            let period = self.since_position;
+            let period = if self.since_position.is_finite() {
+                self.since_position
+            } else {
+                POSITION_PERIOD_S
+            };
             self.since_position = 0.0;
             self.position(sp, s, period);
         }
@@ -619,7 +640,7 @@ mod tests {
             yaw: 50.0,
         };
         // r = 500 (truncated), p = −200.
-        assert_eq!(power_distribution(&c), [29250.0, 29650.0, 30350.0, 30250.0]);
+        assert_eq!(power_distribution(&c), [29350.0, 29650.0, 30750.0, 30250.0]);
         let high = Control {
             thrust: 65000.0,
             roll: 2000.0,

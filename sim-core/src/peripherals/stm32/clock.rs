@@ -27,6 +27,9 @@ impl Stm32 {
         let timestep_ms = init.timestep.0;
         crate::sync::check_timestep(timestep_ms, ctx.time.mode())
             .map_err(|e| invalid(e.to_string()))?;
+        if self.cfg.controller == super::Controller::Pid {
+            super::cascade::check_timestep(timestep_ms).map_err(invalid)?;
+        }
         ctx.session.hand_clock_to_stm32();
         self.timestep = init.timestep;
         let f = &mut self.flight;
