@@ -48,8 +48,9 @@ mod supervise;
 pub mod swarm;
 pub mod sweep;
 pub mod tracetool;
+pub mod world;
 
-pub use launch::{launch, Binaries, LaunchError, LaunchOptions, RunStatus};
+pub use launch::{launch, Binaries, LaunchError, LaunchOptions, LaunchStatus, RunStatus};
 pub use outcome::{DroneOutcome, RunOutcome};
 pub use run::run_scenario;
 pub use scenario::{Scenario, ScenarioError};

@@ -14,6 +14,7 @@ use super::params::{dir_name, product, Param, SweepError};
 use crate::outcome::RunOutcome;
 use crate::outputs::files;
 use crate::scenario::Scenario;
+use crate::world::World;
 
 /// The record's file name in each run directory.
 pub const RUN_RECORD: &str = "sweep-run.json";
@@ -28,6 +29,8 @@ pub struct PlannedRun {
     pub assignments: Vec<(String, String)>,
     /// The base scenario with this run's assignments applied.
     pub scenario: Scenario,
+    /// Its world file, read when the plan checked the run.
+    pub world: World,
 }
 
 impl PlannedRun {
@@ -97,7 +100,7 @@ impl Plan {
                         error,
                     })?;
             }
-            s.check_files().map_err(|error| SweepError::Scenario {
+            let world = s.check_files().map_err(|error| SweepError::Scenario {
                 label: label.clone(),
                 error,
             })?;
@@ -106,6 +109,7 @@ impl Plan {
                 index,
                 assignments,
                 scenario: s,
+                world,
             });
         }
         Ok(Plan {
