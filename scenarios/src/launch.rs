@@ -588,7 +588,14 @@ impl Names {
 /// summary has the world's STOP time) left the world in order: the others
 /// go on. Any other end before the world's is a death.
 fn stopped_in_order(dir: &Path) -> bool {
-    crate::report::read_summary(dir).is_ok_and(|s| s.world_time_s.is_some())
+    summary_of(dir).is_some_and(|s| s.world_time_s.is_some())
+}
+
+/// A platform's `summary.json`, if it wrote one that reads (what the
+/// report reads in full later; here only its error and STOP time matter).
+fn summary_of(dir: &Path) -> Option<sim_core::kernel::Summary> {
+    let text = std::fs::read_to_string(dir.join(files::SUMMARY)).ok()?;
+    serde_json::from_str(&text).ok()
 }
 
 /// A process that ended badly by itself.
@@ -607,10 +614,7 @@ enum Failure {
 /// the others reads "drone B: …", docs/SWARM.md §2).
 fn blames_another(platforms: &[Platform<'_>], i: usize) -> bool {
     let me = &platforms[i];
-    let Some(err) = crate::report::read_summary(&me.dir)
-        .ok()
-        .and_then(|s| s.error)
-    else {
+    let Some(err) = summary_of(&me.dir).and_then(|s| s.error) else {
         return false;
     };
     platforms.iter().filter_map(|p| p.drone).any(|other| {

@@ -2,7 +2,11 @@
 //!
 //! - [`scenario`]: `scenarios/*.toml`, `--set` overrides, checks
 //!   ([`run_table`]: their `run` tables applied).
-//! - [`launch`]: the two processes on a private socket, supervised.
+//! - [`world`]: a run's world file, read and parsed once.
+//! - [`launch`]: the one launch path (DESIGN.md §19): the world-server and
+//!   one sim-core per platform (a single drone is a swarm of one) on a
+//!   private socket, supervised (the supervision itself is the private
+//!   `supervise`).
 //! - [`run`]: one `cosim run`, launched then reported ([`outcome`]: what
 //!   it produced).
 //! - [`outputs`]: the names of the files a run writes; [`rows`]: the CSV

@@ -15,7 +15,8 @@ use world_server::WorldDesc;
 pub struct World {
     /// The file as the scenario names it.
     pub path: PathBuf,
-    /// Its text, kept for the `radio_seed` copy, which edits it as TOML.
+    /// Its text, kept for the `radio_seed` copy, which edits it as TOML,
+    /// and a sweep's fingerprint of its inputs.
     text: String,
     /// The world as the world server reads it.
     pub desc: WorldDesc,
@@ -60,6 +61,11 @@ impl World {
             text,
             desc,
         })
+    }
+
+    /// The file's text, as read.
+    pub fn text(&self) -> &str {
+        &self.text
     }
 
     /// The drones' names, in file order (`cf1` for a file without
@@ -139,7 +145,6 @@ mod tests {
             position = [1, 0.0, 0.015]
             [[drone]]
             name = "A"
-            position = [0.0, 0.0, 0.015]
             carried = [[0.0, 0.5, 0.25, 0.0], [12.0, 1.0, 0.0, 0.0]]
             "#,
         );

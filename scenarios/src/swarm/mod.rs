@@ -2,11 +2,18 @@
 //! world-server, one sim-core per `[[platform]]`, each platform's outputs
 //! in `<out>/<drone>/`, the world's and the overall ones in `<out>/`.
 //!
-//! The processes are started by [`crate::launch`], as for one drone.
+//! The processes are started by [`crate::launch`], as for one drone
+//! (DESIGN.md §19); this module reads back what they wrote
+//! ([`report_swarm`]).
 //!
 //! - [`platforms`]: the `[[platform]]` tables of a scenario file.
 //! - [`report`]: the outputs split and read back, `summary.json`, the report.
 //! - [`plot`]: the top view with every drone and the radio links.
+//! - [`console`], [`positioning_spec`], [`positioning`], [`accuracy`],
+//!   [`load`]: seed 003's positioning read back (its console lines, the
+//!   `[positioning]` table, the estimates against the truth, the tables,
+//!   the core's load and the packets).
+//! - [`radar`]: seed 004's drone-to-drone radar read back.
 //! - [`bench`]: `cosim bench swarm` (real-time factor against the swarm's size).
 
 pub mod accuracy;
