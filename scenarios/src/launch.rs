@@ -327,7 +327,12 @@ pub fn launch(
     // other user can connect, and two runs never share a path. Kept until
     // the processes ended.
     let mut _sock_dir = None;
-    let world_bar = new_bar("world");
+    // A world that runs elsewhere has no line here.
+    let world_bar = opts
+        .world_endpoint
+        .is_none()
+        .then(|| new_bar("world"))
+        .flatten();
     let (endpoint, mut world) = match &opts.world_endpoint {
         Some(ep) => {
             sink.line("cosim", &format!("world at {ep} (not started here)"));
