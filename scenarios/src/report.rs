@@ -31,8 +31,6 @@ pub enum ReportError {
     Read { path: PathBuf, message: String },
     #[error(transparent)]
     Plot(#[from] plot::PlotError),
-    #[error(transparent)]
-    World(#[from] world_server::world_file::WorldFileError),
 }
 
 fn read_err(path: &Path, e: impl std::fmt::Display) -> ReportError {
