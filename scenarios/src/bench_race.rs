@@ -38,6 +38,7 @@ use crate::outcome::RunOutcome;
 use crate::run::run_scenario;
 use crate::scenario::{resolve_scenario, Scenario};
 pub use crate::swarm::bench::BenchError;
+use crate::world::World;
 
 /// The scenario the benchmark runs.
 pub const RACE: &str = "thesis-race";
@@ -180,13 +181,13 @@ pub fn bench_race(
     progress: impl FnMut(&str),
 ) -> Result<RaceBench, BenchError> {
     let repeat = repeat.max(1);
-    let load = |extra: &[&str]| -> Result<Scenario, BenchError> {
+    let load = |extra: &[&str]| -> Result<(Scenario, World), BenchError> {
         let mut s = Scenario::load(&resolve_scenario(Some(RACE))?)?;
         for a in sets.iter().map(String::as_str).chain(extra.iter().copied()) {
             s.set(a)?;
         }
-        s.check_files()?;
-        Ok(s)
+        let world = s.check_files()?;
+        Ok((s, world))
     };
     let defaults = load(&[])?;
     let fast = load(&FAST_SETS)?;
@@ -206,22 +207,23 @@ pub fn bench_race(
     // Both closures report through `progress`, so it is shared, not captured.
     let progress = std::cell::RefCell::new(progress);
     let say = |m: &str| (progress.borrow_mut())(m);
-    let co_sim = |label: &'static str, sc: &Scenario, dir: &str, o: &LaunchOptions| {
-        let mut best: Option<RaceRun> = None;
-        for k in 0..repeat {
-            say(&format!("{label}, run {} ...", k + 1));
-            let r = run_row(label, &run_scenario(sc, bins, &out.join(dir), o, false)?);
-            say(&format!("{label}: {:.1}x real time", r.realtime_factor));
-            let failed = !r.completed;
-            if failed || best.as_ref().is_none_or(|b| r.wall_s < b.wall_s) {
-                best = Some(r);
+    let co_sim =
+        |label: &'static str, (sc, w): &(Scenario, World), dir: &str, o: &LaunchOptions| {
+            let mut best: Option<RaceRun> = None;
+            for k in 0..repeat {
+                say(&format!("{label}, run {} ...", k + 1));
+                let r = run_row(label, &run_scenario(sc, w, bins, &out.join(dir), o, false)?);
+                say(&format!("{label}: {:.1}x real time", r.realtime_factor));
+                let failed = !r.completed;
+                if failed || best.as_ref().is_none_or(|b| r.wall_s < b.wall_s) {
+                    best = Some(r);
+                }
+                if failed {
+                    break;
+                }
             }
-            if failed {
-                break;
-            }
-        }
-        Ok::<_, BenchError>(best.expect("at least one run"))
-    };
+            Ok::<_, BenchError>(best.expect("at least one run"))
+        };
     let d = co_sim("defaults (traces)", &defaults, "defaults", &with_traces)?;
     let du = co_sim(
         "defaults (no traces)",
@@ -236,35 +238,36 @@ pub fn bench_race(
         &out.join("defaults")
             .join(crate::outputs::files::WORLD_TRACE),
     )?;
-    let alone = |sc: &Scenario, dir: &str, o: &LaunchOptions| -> Result<f64, BenchError> {
-        let w_dir = out.join(dir);
-        std::fs::create_dir_all(&w_dir).map_err(|e| io("create", &w_dir, e))?;
-        let sock = w_dir.join("world.sock");
-        let _ = std::fs::remove_file(&sock);
-        let endpoint = Endpoint::Unix(sock);
-        let mut best = f64::INFINITY;
-        for _ in 0..repeat {
-            let mut world = world_command(sc, bins, &endpoint, &w_dir, o)?
-                .stderr(std::process::Stdio::null())
-                .spawn()
-                .map_err(|e| BenchError::Output(format!("cannot start world-server: {e}")))?;
-            let poll = protocol::busy_poll::BusyPoll::from_micros(sc.busy_poll_us);
-            let wall = feed_world(&endpoint, &requests, poll);
-            let status = world.wait();
-            let wall = wall?;
-            if !status.as_ref().is_ok_and(|s| s.success()) {
-                return Err(BenchError::Output(format!(
-                    "the world-alone world-server failed ({status:?})"
-                )));
+    let alone =
+        |(sc, w): &(Scenario, World), dir: &str, o: &LaunchOptions| -> Result<f64, BenchError> {
+            let w_dir = out.join(dir);
+            std::fs::create_dir_all(&w_dir).map_err(|e| io("create", &w_dir, e))?;
+            let sock = w_dir.join("world.sock");
+            let _ = std::fs::remove_file(&sock);
+            let endpoint = Endpoint::Unix(sock);
+            let mut best = f64::INFINITY;
+            for _ in 0..repeat {
+                let mut world = world_command(sc, w, bins, &endpoint, &w_dir, o)?
+                    .stderr(std::process::Stdio::null())
+                    .spawn()
+                    .map_err(|e| BenchError::Output(format!("cannot start world-server: {e}")))?;
+                let poll = protocol::busy_poll::BusyPoll::from_micros(sc.busy_poll_us);
+                let wall = feed_world(&endpoint, &requests, poll);
+                let status = world.wait();
+                let wall = wall?;
+                if !status.as_ref().is_ok_and(|s| s.success()) {
+                    return Err(BenchError::Output(format!(
+                        "the world-alone world-server failed ({status:?})"
+                    )));
+                }
+                say(&format!("world alone ({dir}): {:.3} s", wall.as_secs_f64()));
+                best = best.min(wall.as_secs_f64());
             }
-            say(&format!("world alone ({dir}): {:.3} s", wall.as_secs_f64()));
-            best = best.min(wall.as_secs_f64());
-        }
-        Ok(best)
-    };
+            Ok(best)
+        };
     let wu = alone(&defaults, "world-alone-untraced", &no_traces)?;
     let wt = alone(&defaults, "world-alone", &with_traces)?;
-    let unpolled = if defaults.busy_poll_us > 0 {
+    let unpolled = if defaults.0.busy_poll_us > 0 {
         let off = load(&["busy_poll_us=0"])?;
         Some(Unpolled {
             defaults_untraced: co_sim(
@@ -286,7 +289,7 @@ pub fn bench_race(
         world_alone_s: wt,
         world_alone_untraced_s: wu,
         world_alone_requests: requests.len(),
-        busy_poll_us: defaults.busy_poll_us,
+        busy_poll_us: defaults.0.busy_poll_us,
         unpolled,
     };
     std::fs::write(out.join("bench.md"), bench.markdown())

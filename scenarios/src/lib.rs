@@ -2,7 +2,11 @@
 //!
 //! - [`scenario`]: `scenarios/*.toml`, `--set` overrides, checks
 //!   ([`run_table`]: their `run` tables applied).
-//! - [`launch`]: the two processes on a private socket, supervised.
+//! - [`world`]: a run's world file, read and parsed once.
+//! - [`launch`]: the one launch path (DESIGN.md §19): the world-server and
+//!   one sim-core per platform (a single drone is a swarm of one) on a
+//!   private socket, supervised (the supervision itself is the private
+//!   `supervise`).
 //! - [`run`]: one `cosim run`, launched then reported ([`outcome`]: what
 //!   it produced).
 //! - [`outputs`]: the names of the files a run writes; [`rows`]: the CSV
@@ -48,8 +52,9 @@ mod supervise;
 pub mod swarm;
 pub mod sweep;
 pub mod tracetool;
+pub mod world;
 
-pub use launch::{launch, Binaries, LaunchError, LaunchOptions, RunStatus};
+pub use launch::{launch, Binaries, LaunchError, LaunchOptions, LaunchStatus, RunStatus};
 pub use outcome::{DroneOutcome, RunOutcome};
 pub use run::run_scenario;
 pub use scenario::{Scenario, ScenarioError};

@@ -46,3 +46,9 @@ pub fn abs(p: &Path) -> String {
         .display()
         .to_string()
 }
+
+/// The directory of one platform's outputs in a run with `[[platform]]`
+/// tables (DESIGN.md §7); a scenario's one drone writes into `out` itself.
+pub fn drone_dir(out: &Path, drone: &str) -> std::path::PathBuf {
+    out.join(drone)
+}

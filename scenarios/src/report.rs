@@ -31,8 +31,6 @@ pub enum ReportError {
     Read { path: PathBuf, message: String },
     #[error(transparent)]
     Plot(#[from] plot::PlotError),
-    #[error(transparent)]
-    World(#[from] world_server::world_file::WorldFileError),
 }
 
 fn read_err(path: &Path, e: impl std::fmt::Display) -> ReportError {
@@ -266,8 +264,12 @@ pub fn draw_power_plots(scenario: &Scenario, out: &Path) -> Result<[PathBuf; 2],
     Ok([power_png, battery_png])
 }
 
-/// Draws the three plots of a run into `out`; returns their paths.
-pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, ReportError> {
+/// Draws the three plots of a run in `world` into `out`; returns their paths.
+pub fn draw_run_plots(
+    scenario: &Scenario,
+    world: &WorldDesc,
+    out: &Path,
+) -> Result<Vec<PathBuf>, ReportError> {
     let [power_png, battery_png] = draw_power_plots(scenario, out)?;
 
     let traj_path = out.join(files::TRAJECTORY);
@@ -278,13 +280,12 @@ pub fn draw_run_plots(scenario: &Scenario, out: &Path) -> Result<Vec<PathBuf>, R
     }
     let traj: Vec<TrajectoryRow> = read_csv(&traj_path)?;
     let flight: Vec<(f64, f64)> = traj.iter().map(|r| (r.x, r.y)).collect();
-    let world = WorldDesc::load(&scenario.world)?;
     let top_png = out.join(plots::TOP_VIEW);
     plot::top_view(
         &top_png,
         &format!("{}: flight seen from above", scenario.name),
         &flight,
-        &world,
+        world,
         &scenario.targets,
     )?;
     Ok(vec![power_png, battery_png, top_png])

@@ -1,27 +1,32 @@
-//! One `cosim run`: the processes launched (one drone, or a swarm), then
-//! the outputs read back, drawn and summed up in `report.txt`.
+//! One `cosim run`: the processes launched (one launch path for one drone
+//! and for several, DESIGN.md §19), then the outputs read back, drawn and
+//! summed up in `report.txt`.
 
 use std::path::Path;
 
 use crate::launch::{launch, Binaries, LaunchError, LaunchOptions};
 use crate::outcome::RunOutcome;
 use crate::scenario::Scenario;
+use crate::world::World;
 use crate::{foxglove, mapping, outputs, report, swarm};
 
-/// Runs a scenario into `out`, then reads the outputs, draws the plots and
-/// writes `report.txt`. Launch errors (a binary missing) are errors; a run
-/// that failed is an outcome with its error.
+/// Runs a scenario in `world` (its world file, as
+/// [`Scenario::check_files`] read it) into `out`, then reads the outputs,
+/// draws the plots and writes `report.txt`. Launch errors (a binary
+/// missing) are errors; a run that failed is an outcome with its error.
 pub fn run_scenario(
     scenario: &Scenario,
+    world: &World,
     bins: &Binaries,
     out: &Path,
     opts: &LaunchOptions,
     draw: bool,
 ) -> Result<RunOutcome, LaunchError> {
+    let launched = launch(scenario, world, bins, out, opts)?;
     if !scenario.platforms.is_empty() {
-        return swarm::run_swarm(scenario, bins, out, opts, draw);
+        return Ok(swarm::report_swarm(scenario, world, launched, out, draw));
     }
-    let status = launch(scenario, bins, out, opts)?;
+    let status = launched.single();
     let summary = report::read_summary(out);
     // Only the first row's SOC is needed here (the plots read the rest).
     let first: Option<report::PowerRow> =
@@ -37,19 +42,11 @@ pub fn run_scenario(
         }
     };
     // The map first: run.mcap carries it.
-    let map = mapping::process(
-        &scenario.world,
-        out,
-        summary.as_ref().map(|s| s.cycles),
-        draw,
-    );
+    let map = mapping::process(&world.desc, out, summary.as_ref().map(|s| s.cycles), draw);
     // run.mcap is written on its own thread while the plots are drawn
     // (docs/FOXGLOVE.md "Cost").
     let mcap_job = scenario.mcap.then(|| {
-        let name = world_server::WorldDesc::load(&scenario.world)
-            .ok()
-            .and_then(|w| w.drones.first().map(|d| d.name.clone()))
-            .unwrap_or_else(|| "cf1".into());
+        let name = world.drone_names()[0].to_string();
         let drone = foxglove::DroneOutputs {
             name,
             dir: out.to_path_buf(),
@@ -58,7 +55,7 @@ pub fn run_scenario(
         foxglove::spawn_run_mcap(out, vec![drone], scenario.mcap_power_every)
     });
     if draw && summary.is_some() {
-        match report::draw_run_plots(scenario, out) {
+        match report::draw_run_plots(scenario, &world.desc, out) {
             Ok(p) => plots = p,
             Err(e) => report_error = Some(e.to_string()),
         }

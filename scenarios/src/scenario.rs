@@ -14,6 +14,8 @@ use protocol::{TimestepError, TimestepMs};
 use serde::{Deserialize, Serialize};
 use sim_core::config::{run_key_names, RunConfig};
 
+use crate::world::World;
+
 pub(crate) use crate::run_table::{apply_run_table, is_run_key, value_text};
 pub use crate::run_table::{NotAScalar, RunTableError, RunTableReason};
 use crate::swarm::platforms::resolve_platforms;
@@ -45,6 +47,9 @@ pub enum ScenarioError {
         scenario: String,
         run: String,
     },
+    /// The world file our world server would refuse (its own message).
+    #[error(transparent)]
+    World(#[from] world_server::world_file::WorldFileError),
     #[error("{what} {path} does not exist")]
     Missing { what: &'static str, path: PathBuf },
     #[error("scenario {0} does not exist; `cosim list` lists the scenarios")]
@@ -279,32 +284,6 @@ pub struct Scenario {
     pub platforms: Vec<PlatformSpec>,
     /// The `[positioning]` table (docs/SWARM_RESULTS.md).
     pub positioning: Option<PositioningSpec>,
-}
-
-/// Why `radio_seed`'s copy of the world file cannot be written.
-#[derive(Debug, thiserror::Error)]
-pub enum WorldCopyError {
-    #[error("cannot read {}: {source}", path.display())]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{}: {source}", path.display())]
-    Toml {
-        path: PathBuf,
-        source: toml::de::Error,
-    },
-    #[error("radio_seed {0}: too large")]
-    SeedTooLarge(u64),
-    #[error("{}: radio is not a table", path.display())]
-    RadioNotATable { path: PathBuf },
-    #[error(transparent)]
-    Serialize(#[from] toml::ser::Error),
-    #[error("cannot write {}: {source}", path.display())]
-    Write {
-        path: PathBuf,
-        source: std::io::Error,
-    },
 }
 
 impl Scenario {
@@ -573,53 +552,14 @@ impl Scenario {
         Ok(())
     }
 
-    /// The world file the world-server of a run in `out` reads: the
-    /// scenario's, or with `radio_seed` set a copy of it in `out`
-    /// (`world.toml`) whose `[radio] seed` is that value.
-    pub fn world_file_for_run(&self, out: &Path) -> Result<PathBuf, WorldCopyError> {
-        let Some(seed) = self.radio_seed else {
-            return Ok(self.world.clone());
-        };
-        let world = || self.world.clone();
-        let text = std::fs::read_to_string(&self.world).map_err(|source| WorldCopyError::Read {
-            path: world(),
-            source,
-        })?;
-        let mut doc: toml::Table =
-            toml::from_str(&text).map_err(|source| WorldCopyError::Toml {
-                path: world(),
-                source,
-            })?;
-        let seed = i64::try_from(seed).map_err(|_| WorldCopyError::SeedTooLarge(seed))?;
-        let radio = doc
-            .entry("radio")
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        let toml::Value::Table(radio) = radio else {
-            return Err(WorldCopyError::RadioNotATable { path: world() });
-        };
-        radio.insert("seed".into(), toml::Value::Integer(seed));
-        let path = out.join("world.toml");
-        let body = toml::to_string(&doc)?;
-        std::fs::write(
-            &path,
-            format!(
-                "# {} with [radio] seed = {seed} (cosim radio_seed)\n{body}",
-                self.world.display()
-            ),
-        )
-        .map_err(|source| WorldCopyError::Write {
-            path: path.clone(),
-            source,
-        })?;
-        Ok(path)
-    }
-
     /// Checks, before any process starts, the rules that tie keys together
     /// (each platform's sync mode against the timestep, DESIGN.md §19) and
     /// that every file the run needs exists. With `[[platform]]` tables:
     /// every platform's firmware and platform file, and the world's drones
-    /// (each claimed by exactly one platform).
-    pub fn check_files(&self) -> Result<(), ScenarioError> {
+    /// (each claimed by exactly one platform). Returns the world file, read
+    /// and parsed: the one reading of it the run is then given (DESIGN.md
+    /// §19).
+    pub fn check_files(&self) -> Result<World, ScenarioError> {
         self.check_timestep()?;
         let mut files = vec![("world file", &self.world)];
         if self.platforms.is_empty() {
@@ -651,10 +591,11 @@ impl Scenario {
                 }
             }
         }
+        let world = World::load(&self.world)?;
         if !self.platforms.is_empty() {
-            self.check_drones()?;
+            self.check_drones(&world)?;
         }
-        Ok(())
+        Ok(world)
     }
 }
 
@@ -760,14 +701,8 @@ impl Scenario {
     /// Every drone of the world file has exactly one platform and every
     /// platform names a drone of the world file: otherwise the world would
     /// wait for a claim that never comes (docs/SWARM.md §2).
-    pub(crate) fn check_drones(&self) -> Result<(), ScenarioError> {
-        let world = crate::swarm::world::WorldDrones::load(&self.world).map_err(|e| {
-            ScenarioError::Invalid {
-                path: self.world.clone(),
-                message: e.to_string(),
-            }
-        })?;
-        let names = world.names();
+    pub(crate) fn check_drones(&self, world: &World) -> Result<(), ScenarioError> {
+        let names = world.drone_names();
         let invalid = |message: String| ScenarioError::Invalid {
             path: self.path.clone(),
             message,

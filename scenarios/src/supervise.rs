@@ -172,21 +172,10 @@ pub(crate) struct Supervised {
 }
 
 impl Supervised {
-    /// `what` names the program and its log prefix; its console (stdout)
-    /// is echoed as `stdout`, its stderr always (but sim-core's summary line).
-    pub(crate) fn spawn(
-        what: &'static str,
-        cmd: Command,
-        sink: &LogSink,
-        role: Role,
-        stdout: Echo,
-    ) -> Result<Self, LaunchError> {
-        Self::spawn_named(what, what.to_string(), cmd, sink, None, role, stdout)
-    }
-
     /// `kind` names the program in errors, `what` (its log prefix) the
-    /// process; `bar` shows its last line.
-    pub(crate) fn spawn_named(
+    /// process; `bar` shows its last line. Its console (stdout) is echoed
+    /// as `stdout`, its stderr always (but sim-core's summary line).
+    pub(crate) fn spawn(
         kind: &'static str,
         what: String,
         mut cmd: Command,

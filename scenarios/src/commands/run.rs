@@ -4,6 +4,7 @@ use crate::{BinArgs, PerturbArgs, RunArgs};
 use anyhow::{bail, Context};
 use scenarios::launch::LaunchOptions;
 use scenarios::scenario::{find_repo_file, resolve_scenario, SCENARIO_KEYS};
+use scenarios::world::World;
 use scenarios::{run_scenario, Scenario};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -54,14 +55,19 @@ pub(crate) fn cmd_perturb(
     Ok(ExitCode::SUCCESS)
 }
 
-pub(crate) fn load_scenario(arg: Option<&str>, sets: &[String]) -> anyhow::Result<Scenario> {
+/// The scenario with `sets` applied, checked, and its world file (read
+/// once, DESIGN.md §19).
+pub(crate) fn load_scenario(
+    arg: Option<&str>,
+    sets: &[String],
+) -> anyhow::Result<(Scenario, World)> {
     let path = resolve_scenario(arg)?;
     let mut s = Scenario::load(&path)?;
     for a in sets {
         s.set(a)?;
     }
-    s.check_files()?;
-    Ok(s)
+    let world = s.check_files()?;
+    Ok((s, world))
 }
 
 pub(crate) fn launch_options(run: &RunArgs, echo: bool) -> anyhow::Result<LaunchOptions> {
@@ -91,7 +97,7 @@ pub(crate) fn cmd_run(
     world_endpoint: Option<protocol::Endpoint>,
     bins: BinArgs,
 ) -> anyhow::Result<ExitCode> {
-    let s = load_scenario(scenario.as_deref(), &run.sets())?;
+    let (s, world) = load_scenario(scenario.as_deref(), &run.sets())?;
     let out = out.unwrap_or_else(|| Path::new("out").join(&s.name));
     let bins = bins.locate()?;
     eprintln!("cosim: {} — {} -> {}", s.name, s.description, out.display());
@@ -99,7 +105,7 @@ pub(crate) fn cmd_run(
         world_endpoint: world_endpoint.clone(),
         ..launch_options(&run, !quiet)?
     };
-    let o = run_scenario(&s, &bins, &out, &opts, !no_plots)?;
+    let o = run_scenario(&s, &world, &bins, &out, &opts, !no_plots)?;
     println!("{}", o.text);
     // A world started by hand elsewhere may not be this scenario's: the
     // platform learns the world's timestep in GET_INIT_DATA, so a mismatch
@@ -131,7 +137,7 @@ pub(crate) struct WorldArgs {
 }
 
 pub(crate) fn cmd_world(a: WorldArgs, bins: BinArgs) -> anyhow::Result<ExitCode> {
-    let s = load_scenario(a.scenario.as_deref(), &a.set)?;
+    let (s, world) = load_scenario(a.scenario.as_deref(), &a.set)?;
     let out = a
         .out
         .unwrap_or_else(|| Path::new("out").join(format!("{}-world", s.name)));
@@ -143,7 +149,7 @@ pub(crate) fn cmd_world(a: WorldArgs, bins: BinArgs) -> anyhow::Result<ExitCode>
         frames: a.frames,
         ..LaunchOptions::default()
     };
-    let mut cmd = scenarios::launch::world_command(&s, &bins, &a.listen, &out, &opts)?;
+    let mut cmd = scenarios::launch::world_command(&s, &world, &bins, &a.listen, &out, &opts)?;
     // What the platform's host connects to: this host's name in place of
     // an any-interface address.
     let connect = match &a.listen {

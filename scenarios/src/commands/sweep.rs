@@ -29,7 +29,7 @@ pub(crate) fn cmd_sweep(a: SweepArgs, bins: BinArgs) -> anyhow::Result<ExitCode>
     let scenario = a
         .scenario
         .context("a scenario is needed (or --merge DIR...)")?;
-    let s = load_scenario(Some(&scenario), &a.run.sets())?;
+    let (s, _) = load_scenario(Some(&scenario), &a.run.sets())?;
     let params: Vec<Param> = if a.param.is_empty() {
         s.sweep
             .iter()

@@ -196,7 +196,7 @@ fn exploration_csv(goals: &[Goal]) -> String {
 /// map; `Ok(None)` when it did not (not a mapping run). `world` is the run's
 /// world file, `total_cycles` the core's cycles (summary.json).
 pub fn process(
-    world_path: &Path,
+    world: &WorldDesc,
     out: &Path,
     total_cycles: Option<u64>,
     draw: bool,
@@ -218,10 +218,6 @@ pub fn process(
         path: cfog.clone(),
         source,
     })?;
-    let world = WorldDesc::load(world_path).map_err(|e| MappingError::Read {
-        path: world_path.to_path_buf(),
-        message: e.to_string(),
-    })?;
     let start = world.start.position.0;
     let est = report.start_estimate_m.unwrap_or([start[0], start[1]]);
     let offset = [start[0] - est[0], start[1] - est[1]];
@@ -229,7 +225,7 @@ pub fn process(
         .height_m
         .ok_or_else(|| MappingError::Console("no EXPLORE settings line (height_mm)".into()))?;
     // The plan in the map's frame: obstacles moved by −offset.
-    let obstacles: Vec<_> = footprints(&world, height)
+    let obstacles: Vec<_> = footprints(world, height)
         .into_iter()
         .map(|mut f| {
             f.centre = [f.centre[0] - offset[0], f.centre[1] - offset[1]];

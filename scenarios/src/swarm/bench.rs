@@ -12,6 +12,7 @@ use crate::launch::{Binaries, LaunchOptions};
 use crate::outcome::RunOutcome;
 use crate::run::run_scenario;
 use crate::scenario::{resolve_scenario, Scenario};
+use crate::world::World;
 
 /// The swarm sizes of the benchmark (scenarios `swarm-hover-N`).
 pub const SIZES: [usize; 4] = [1, 2, 4, 8];
@@ -133,26 +134,26 @@ pub fn bench_swarm(
     opts: &LaunchOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<BenchRow>, BenchError> {
-    let mut planned: Vec<(usize, Scenario, PathBuf)> = Vec::new();
+    let mut planned: Vec<(usize, Scenario, World, PathBuf)> = Vec::new();
     for &n in sizes {
         let name = format!("swarm-hover-{n}");
         let mut s = Scenario::load(&resolve_scenario(Some(&name))?)?;
         for a in sets {
             s.set(a)?;
         }
-        s.check_files()?;
-        planned.push((n, s, out.join(&name)));
+        let world = s.check_files()?;
+        planned.push((n, s, world, out.join(&name)));
     }
     std::fs::create_dir_all(out)
         .map_err(|e| BenchError::Output(format!("cannot create {}: {e}", out.display())))?;
     let mut rows = Vec::new();
-    for (n, s, dir) in planned {
+    for (n, s, world, dir) in planned {
         // The fastest of `repeat` runs: the load of other programs only
         // ever slows a run down. A failed run is the size's result.
         let mut best: Option<BenchRow> = None;
         for k in 0..repeat.max(1) {
             progress(&format!("{}: {} drones, run {} ...", s.name, n, k + 1));
-            let o = run_scenario(&s, bins, &dir, opts, false)?;
+            let o = run_scenario(&s, &world, bins, &dir, opts, false)?;
             let r = row(n, &o);
             progress(&format!(
                 "{}: {:.2}x real time ({:.2} s wall){}",

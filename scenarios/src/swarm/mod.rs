@@ -2,17 +2,23 @@
 //! world-server, one sim-core per `[[platform]]`, each platform's outputs
 //! in `<out>/<drone>/`, the world's and the overall ones in `<out>/`.
 //!
+//! The processes are started by [`crate::launch`], as for one drone
+//! (DESIGN.md §19); this module reads back what they wrote
+//! ([`report_swarm`]).
+//!
 //! - [`platforms`]: the `[[platform]]` tables of a scenario file.
-//! - [`world`]: the drones of a world file (checked before anything starts).
-//! - [`launch`]: the processes, supervised, with a progress line each.
 //! - [`report`]: the outputs split and read back, `summary.json`, the report.
 //! - [`plot`]: the top view with every drone and the radio links.
+//! - [`console`], [`positioning_spec`], [`positioning`], [`accuracy`],
+//!   [`load`]: seed 003's positioning read back (its console lines, the
+//!   `[positioning]` table, the estimates against the truth, the tables,
+//!   the core's load and the packets).
+//! - [`radar`]: seed 004's drone-to-drone radar read back.
 //! - [`bench`]: `cosim bench swarm` (real-time factor against the swarm's size).
 
 pub mod accuracy;
 pub mod bench;
 pub mod console;
-pub mod launch;
 pub mod load;
 pub mod platforms;
 pub mod plot;
@@ -20,20 +26,19 @@ pub mod positioning;
 pub mod positioning_spec;
 pub mod radar;
 pub mod report;
-pub mod world;
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use sim_core::power::log::POWER_CSV;
 
-use crate::launch::{Binaries, LaunchError, LaunchOptions, RunStatus};
+use crate::launch::{LaunchStatus, RunStatus};
 use crate::outcome::{DroneOutcome, RunOutcome};
-use crate::outputs::files;
+use crate::outputs::{drone_dir, files};
 use crate::report::{self as run_report, plots, PowerRow};
 use crate::scenario::{Scenario, RADIO_ID_KEY};
+use crate::world::World;
 
-use self::launch::{drone_dir, launch_swarm};
 use self::plot::{DronePath, Link};
 use self::report::{DroneFigures, Ranging};
 use crate::outputs::swarm_files;
@@ -50,17 +55,17 @@ fn platform_view(scenario: &Scenario, i: usize) -> Scenario {
     s
 }
 
-/// Runs a scenario with `[[platform]]` tables into `out`, then splits and
+/// After the launch of a scenario with `[[platform]]` tables in `world`
+/// into `out` ([`crate::launch::launch`]), which ended as `st`: splits and
 /// reads the outputs, draws the plots and writes `summary.json` and the
-/// reports. Launch errors are errors; a run that failed is an outcome.
-pub fn run_swarm(
+/// reports. A run that failed is an outcome.
+pub fn report_swarm(
     scenario: &Scenario,
-    bins: &Binaries,
+    world: &World,
+    st: LaunchStatus,
     out: &Path,
-    opts: &LaunchOptions,
     draw: bool,
-) -> Result<RunOutcome, LaunchError> {
-    let st = launch_swarm(scenario, bins, out, opts)?;
+) -> RunOutcome {
     // run.mcap on its own thread while the reports and plots are made
     // (docs/FOXGLOVE.md "Cost").
     let mcap_job = scenario.mcap.then(|| {
@@ -140,14 +145,13 @@ pub fn run_swarm(
             }
             if let Some(t) = tracks.get(&p.drone) {
                 let top = dir.join(plots::TOP_VIEW);
-                let path = drone_path(scenario, i, t);
-                let world = world_desc(scenario);
+                let path = drone_path(scenario, world, i, t);
                 match plot::swarm_top_view(
                     &top,
                     &format!("{}: flight seen from above", view.name),
                     &[path],
                     &[],
-                    world.as_ref(),
+                    Some(&world.desc),
                 ) {
                     Ok(()) => plots.push(top),
                     Err(e) => note(e.to_string()),
@@ -259,6 +263,7 @@ pub fn run_swarm(
             .map(|(i, p)| {
                 drone_path(
                     scenario,
+                    world,
                     i,
                     tracks.get(&p.drone).unwrap_or(&Default::default()),
                 )
@@ -281,7 +286,7 @@ pub fn run_swarm(
             &format!("{}: {} drones seen from above", scenario.name, names.len()),
             &paths,
             &links,
-            world_desc(scenario).as_ref(),
+            Some(&world.desc),
         ) {
             Ok(()) => top_plots.push(top),
             Err(e) => note(e.to_string()),
@@ -313,7 +318,7 @@ pub fn run_swarm(
         .map(|(_, c)| *c)
         .find(|c| *c != Some(0))
         .unwrap_or(Some(0));
-    Ok(RunOutcome {
+    RunOutcome {
         status: RunStatus {
             sim_core: failed_code,
             world: st.world,
@@ -327,16 +332,21 @@ pub fn run_swarm(
         text,
         drones,
         map: None,
-    })
+    }
 }
 
-/// A drone's path for the plots: its track, its start from the world file
-/// (the track's first point if the file cannot be read), its targets.
-fn drone_path(scenario: &Scenario, i: usize, track: &report::DroneTrack) -> DronePath {
+/// A drone's path for the plots: its track, its start from the world file,
+/// its targets.
+fn drone_path(
+    scenario: &Scenario,
+    world: &World,
+    i: usize,
+    track: &report::DroneTrack,
+) -> DronePath {
     let p = &scenario.platforms[i];
-    let start = world::WorldDrones::load(&scenario.world)
-        .ok()
-        .and_then(|w| w.get(&p.drone).map(|d| (d.start[0], d.start[1])))
+    let start = world
+        .start_of(&p.drone)
+        .map(|s| (s[0], s[1]))
         .or_else(|| track.points.first().map(|(_, q)| (q[0], q[1])))
         .unwrap_or((0.0, 0.0));
     let pts: Vec<(f64, f64)> = track.points.iter().map(|(_, q)| (q[0], q[1])).collect();
@@ -345,18 +355,6 @@ fn drone_path(scenario: &Scenario, i: usize, track: &report::DroneTrack) -> Dron
         points: plot::thin(&pts, 5000),
         start,
         targets: p.targets.clone(),
-    }
-}
-
-/// The world's gates and boxes for the plots, if our world server's reader
-/// takes the file (a world that only another server understands has none).
-fn world_desc(scenario: &Scenario) -> Option<world_server::WorldDesc> {
-    match world_server::WorldDesc::load(&scenario.world) {
-        Ok(w) => Some(w),
-        Err(e) => {
-            tracing::warn!("top view without the world's gates and boxes: {e}");
-            None
-        }
     }
 }
 

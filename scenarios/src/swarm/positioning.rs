@@ -305,7 +305,7 @@ pub fn analyse(
         .platforms
         .iter()
         .map(|p| {
-            let path = super::launch::drone_dir(out, &p.drone).join(files::CONSOLE);
+            let path = crate::outputs::drone_dir(out, &p.drone).join(files::CONSOLE);
             let text = std::fs::read_to_string(path).unwrap_or_default();
             (p.drone.clone(), console::parse(&text))
         })

@@ -127,7 +127,7 @@ pub fn read_run(
     let mut ids = BTreeMap::new();
     let mut consoles = BTreeMap::new();
     for d in drones {
-        let p = super::launch::drone_dir(out, d).join(crate::outputs::files::CONSOLE);
+        let p = crate::outputs::drone_dir(out, d).join(crate::outputs::files::CONSOLE);
         let text = std::fs::read_to_string(&p).unwrap_or_default();
         if let Some(id) = radar_id(&text) {
             ids.insert(id, d.clone());

@@ -67,7 +67,7 @@ pub fn split_trajectory(
     };
     let mut writers = BTreeMap::new();
     for d in drones {
-        let p = crate::swarm::launch::drone_dir(out, d).join(form.file_name(files::TRAJECTORY));
+        let p = crate::outputs::drone_dir(out, d).join(form.file_name(files::TRAJECTORY));
         let mut w =
             csv::Writer::from_writer(SeriesWriter::create(&p).map_err(|e| read_err(&p, e))?);
         w.write_record(&strip(&header))

@@ -87,7 +87,7 @@ pub fn run_planned(
                 // A panic in one run (a bug in the report code, say) is that
                 // run's failure, not the sweep's.
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    run_scenario(&run.scenario, bins, &dir, &run_opts, true)
+                    run_scenario(&run.scenario, &run.world, bins, &dir, &run_opts, true)
                 }));
                 let (outcome, mut error) = match result {
                     Ok(Ok(o)) => {

@@ -14,6 +14,7 @@ use super::params::{dir_name, product, Param, SweepError};
 use crate::outcome::RunOutcome;
 use crate::outputs::files;
 use crate::scenario::Scenario;
+use crate::world::World;
 
 /// The record's file name in each run directory.
 pub const RUN_RECORD: &str = "sweep-run.json";
@@ -28,6 +29,8 @@ pub struct PlannedRun {
     pub assignments: Vec<(String, String)>,
     /// The base scenario with this run's assignments applied.
     pub scenario: Scenario,
+    /// Its world file, read when the plan checked the run.
+    pub world: World,
 }
 
 impl PlannedRun {
@@ -97,15 +100,16 @@ impl Plan {
                         error,
                     })?;
             }
-            s.check_files().map_err(|error| SweepError::Scenario {
+            let world = s.check_files().map_err(|error| SweepError::Scenario {
                 label: label.clone(),
                 error,
             })?;
-            hasher.run(index, &s)?;
+            hasher.run(index, &s, &world)?;
             runs.push(PlannedRun {
                 index,
                 assignments,
                 scenario: s,
+                world,
             });
         }
         Ok(Plan {
@@ -143,7 +147,7 @@ struct Fingerprint {
 }
 
 impl Fingerprint {
-    fn run(&mut self, index: usize, s: &Scenario) -> Result<(), SweepError> {
+    fn run(&mut self, index: usize, s: &Scenario, world: &World) -> Result<(), SweepError> {
         let file = |p: &Path| -> Result<String, SweepError> {
             let bytes = std::fs::read(p)
                 .map_err(|e| SweepError::Output(format!("cannot read {}: {e}", p.display())))?;
@@ -170,7 +174,7 @@ impl Fingerprint {
             s.max_time_s,
             s.image_encoding.as_str(),
             s.targets,
-            file(&s.world)?,
+            sha256_hex(world.text().as_bytes()),
             run.to_toml(),
         );
         for p in &s.platforms {
@@ -330,7 +334,11 @@ mod tests {
     /// A scenario in its own directory, with a world file and a firmware
     /// of the given bytes.
     fn scenario_in(dir: &Path, firmware: &[u8]) -> Scenario {
-        std::fs::write(dir.join("w.toml"), "# a world\n").unwrap();
+        std::fs::write(
+            dir.join("w.toml"),
+            "# a world\n[start]\nposition = [0.0, 0.0, 0.015]\n",
+        )
+        .unwrap();
         std::fs::write(dir.join("fw.elf"), firmware).unwrap();
         let path = dir.join("s.toml");
         std::fs::write(&path, "world = \"w.toml\"\nfirmware = \"fw.elf\"\n").unwrap();
