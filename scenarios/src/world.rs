@@ -15,7 +15,7 @@ use world_server::WorldDesc;
 pub struct World {
     /// The file as the scenario names it.
     pub path: PathBuf,
-    /// Its text, kept for the `radio_seed` copy, which edits it as TOML,
+    /// Its text (with its `base` merged in), kept for the `radio_seed` copy, which edits it as TOML,
     /// and a sweep's fingerprint of its inputs.
     text: String,
     /// The world as the world server reads it.
@@ -46,11 +46,7 @@ pub enum WorldCopyError {
 impl World {
     /// Reads and parses the world file: the one place a run reads it.
     pub fn load(path: &Path) -> Result<World, WorldFileError> {
-        let text = std::fs::read_to_string(path).map_err(|cause| WorldFileError::Io {
-            path: path.to_path_buf(),
-            cause,
-        })?;
-        World::parse(text, path)
+        World::parse(WorldDesc::read_text(path)?, path)
     }
 
     /// A world from its text (`path` names it in messages).

@@ -288,8 +288,14 @@ impl WorldDesc {
     /// replaces the base's. One room serves several worlds that differ in a
     /// few keys (a cflib room with the Crazyflie's motors) without a copy.
     pub fn load(path: &Path) -> Result<WorldDesc, WorldFileError> {
-        let text = Self::load_text(path, 0)?;
+        let text = Self::read_text(path)?;
         Self::parse(&text, path)
+    }
+
+    /// The world's text as [`WorldDesc::load`] parses it: the file's own,
+    /// or with its `base` chain merged in (one self-contained file).
+    pub fn read_text(path: &Path) -> Result<String, WorldFileError> {
+        Self::load_text(path, 0)
     }
 
     /// The text of `path`, its `base` chain merged in (at most
