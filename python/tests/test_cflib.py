@@ -221,14 +221,14 @@ def test_logging_step_by_step_matches_the_world(lab):
                 print(f"[{ts}][{lg.name}]: {data}")
                 if n == 20:
                     break
-        # The step-by-step's parameter: the attitude loop's kd (0.1 in the
-        # Bitcraze Webots controller), written and read back.
+        # The step-by-step's parameter: the attitude loop's kd (0 in the
+        # firmware's defaults for the Crazyflie 2.x), written and read back.
         cf = scf.cf
-        assert float(cf.param.get_value("pid_attitude.pitch_kd")) == pytest.approx(0.1)
+        assert float(cf.param.get_value("pid_attitude.pitch_kd")) == 0.0
         cf.param.set_value("pid_attitude.pitch_kd", 0.15)
         time.sleep(0.5)
         assert float(cf.param.get_value("pid_attitude.pitch_kd")) == pytest.approx(0.15)
-        cf.param.set_value("pid_attitude.pitch_kd", 0.1)
+        cf.param.set_value("pid_attitude.pitch_kd", 0.0)
         time.sleep(0.2)
     out = lab_run.finish()
     rows = trajectory(out)
@@ -400,8 +400,8 @@ def _fly_square(uri: str, mocap: bool) -> list[float]:
 
 
 def test_external_positions_bound_the_flow_estimates_drift(lab):
-    """Flow-deck dead reckoning drifts (seed 004's room: the flow reads 5 %
-    fast); the world's position sent back as external positions (cflib's
+    """Flow-deck dead reckoning drifts (seed 004's room: the flow is noisy
+    and reads 5 % fast); the world's position sent back as external positions (cflib's
     `send_extpos`) is fused and keeps the estimate on the world's position."""
     drift = {}
     for i, mocap in enumerate((False, True)):
@@ -416,7 +416,11 @@ def test_external_positions_bound_the_flow_estimates_drift(lab):
         assert fused and (int(fused.group(1)) > 100) == mocap, log
     print("estimate - world (max, mean, last; m): without external positions "
           f"{drift[False]}, with {drift[True]}")
-    assert drift[False][2] > 0.1, drift
+    # Without them the estimate strays by centimetres over the 8 m flown
+    # (the firmware's stack at 2 ms: 2-3 cm; the thesis's controller at
+    # 32 ms strayed more than 0.1 m); with them it stays on the world's
+    # position, several times closer.
+    assert drift[False][0] > 0.015, drift
     assert drift[True][0] < 0.1, drift
     assert drift[True][2] < drift[False][2] / 4, drift
 

@@ -124,7 +124,13 @@ impl World {
             cfg,
             boxes,
             gates,
-            sensor_cfg: desc.sensors.clone(),
+            sensor_cfg: SensorConfig {
+                // σ per 32 ms sample in the file: the same noise density at
+                // this timestep.
+                flow_noise_m_s: desc.sensors.flow_noise_m_s
+                    * protocol::TimestepMs::new(cfg.timestep.0)?.white_noise_scale(),
+                ..desc.sensors.clone()
+            },
         })
     }
 

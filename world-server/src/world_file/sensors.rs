@@ -36,7 +36,9 @@ pub struct SensorConfig {
     pub up_down: bool,
     /// Report the optical-flow velocity `FLOW_VX`, `FLOW_VY` in GET_SENSORS.
     pub flow: bool,
-    /// σ of the flow velocity's Gaussian noise (m/s), per axis and sample.
+    /// σ of the flow velocity's Gaussian noise (m/s), per axis and 32 ms
+    /// sample; at another timestep the world scales it by √(32 ms / ts)
+    /// (`TimestepMs::white_noise_scale`: the same noise density).
     pub flow_noise_m_s: f64,
     /// Scale factor of the flow velocity (1 = exact): a flow sensor that
     /// misjudges the height over the floor or the texture scales every

@@ -25,7 +25,7 @@ impl Stm32 {
             .open(now, ctx.world, ctx.time)
             .map_err(session_err)?;
         let timestep_ms = init.timestep.0;
-        crate::sync::check_timestep(timestep_ms, ctx.time.mode())
+        let ts = crate::sync::check_timestep(timestep_ms, ctx.time.mode())
             .map_err(|e| invalid(e.to_string()))?;
         if self.cfg.controller == super::Controller::Pid {
             super::cascade::check_timestep(timestep_ms).map_err(invalid)?;
@@ -45,7 +45,7 @@ impl Stm32 {
         f.past_y = init.y;
         f.height_desired = init.z;
         f.target = [init.x, init.y, init.z];
-        self.motion.init(f.past_time, [init.x, init.y, init.z]);
+        self.motion.init(f.past_time, [init.x, init.y, init.z], ts);
         self.initialised = true;
         // Done when the start-up alignment is (at once if it is over).
         let done = now.max(ctx.session.ready_at());

@@ -291,9 +291,14 @@ impl Motion {
     }
 
     /// At INIT_PID: the start pose, and the estimate from it.
-    pub(super) fn init(&mut self, time_s: f64, pos: [f64; 3]) {
+    /// `ts`: the world's timestep, to which the flow noise the filter
+    /// assumes (σ per 32 ms sample, as the world's) is scaled as the world
+    /// scales its noise (`TimestepMs::white_noise_scale`).
+    pub(super) fn init(&mut self, time_s: f64, pos: [f64; 3], ts: protocol::TimestepMs) {
         self.start = pos;
-        self.dead = FlowFilter::new(self.filter_params, [pos[0], pos[1]]);
+        let mut params = self.filter_params;
+        params.flow_std.0 *= ts.white_noise_scale();
+        self.dead = FlowFilter::new(params, [pos[0], pos[1]]);
         self.last = Some((time_s, pos));
         self.tail[2] = time_s;
         self.est[0..3].copy_from_slice(&pos);
