@@ -17,6 +17,7 @@
 //! trampoline in [`run`].
 
 use super::block::Inst;
+use super::code::Starts;
 use super::decode::op;
 use super::l1::BankArbiter;
 use super::mem::{ram_load, ram_store_data, AccessSize, MemTiming, Region};
@@ -28,7 +29,9 @@ pub(super) struct Run<'a> {
     pub regions: &'a mut [Region],
     /// All cached instructions (blocks are slices of it).
     pub all: &'a [Inst],
-    /// The code region's block index (`Region::block_at`), so blocks there
+    /// Where the cached blocks start, per region (`CodeCache::starts`).
+    starts: &'a [Starts],
+    /// The code region's block index (`Starts::at`), so blocks there
     /// chain without the core: `(base, size in bytes, entries)`.
     code_base: u32,
     code_size: u32,
@@ -128,10 +131,11 @@ pub(super) fn handler(op: u8) -> Handler {
 }
 
 impl<'a> Run<'a> {
-    pub fn new(regions: &'a mut [Region], all: &'a [Inst]) -> Run<'a> {
+    pub fn new(regions: &'a mut [Region], all: &'a [Inst], starts: &'a [Starts]) -> Run<'a> {
         Run {
             regions,
             all,
+            starts,
             code_base: 0,
             code_size: 0,
             block_at: std::ptr::null(),
@@ -206,10 +210,17 @@ impl<'a> Run<'a> {
     /// the hot path direct access to its bytes.
     pub fn set_code_region(&mut self, idx: usize) {
         if let Some(reg) = self.regions.get_mut(idx) {
-            self.code_base = reg.base;
-            self.code_size = reg.size;
-            // `block_at` has one entry per halfword: `size / 2` entries.
-            self.block_at = reg.block_at.as_ptr();
+            // The region's start table has one entry per halfword, `size /
+            // 2` entries, once allocated; chain only through one that is.
+            if let Some(s) = self
+                .starts
+                .get(idx)
+                .filter(|s| s.at.len() == reg.size as usize / 2)
+            {
+                self.code_base = reg.base;
+                self.code_size = reg.size;
+                self.block_at = s.at.as_ptr();
+            }
             // L1 code would bypass the bank arbiter: its data then takes
             // the other-region path (a cluster core normally runs from L2).
             let banked = self.timing.l1_port.is_some() && reg.base == self.timing.l1.0;
@@ -574,7 +585,8 @@ fn transfer(
     let off = to.wrapping_sub(r.code_base);
     let next = if cycles < deadline && !poll && off < r.code_size {
         // SAFETY: `off < code_size`, and `block_at` has `code_size / 2`
-        // entries (see `set_code_region`); nothing changes it during a run.
+        // entries (see `set_code_region`); nothing changes it during a run
+        // (`Run::starts` borrows it).
         unsafe { *r.block_at.add((off >> 1) as usize) }
     } else {
         0
