@@ -373,6 +373,21 @@ mod tests {
     }
 
     #[test]
+    fn a_cache_handed_another_memory_decodes_that_memory() {
+        // The same address, different code: addi x1,x0,1 / lui x1,1.
+        let a = &mut mem_with(&[0x0010_0093, 0x0000_006f]);
+        let b = &mut mem_with(&[0x0000_10b7, 0x0000_006f]);
+        let c = &mut CodeCache::new();
+        let (_, first) = c.block(a, 0x1000).unwrap();
+        assert_eq!(c.insts[first].op, op::ADDI);
+        let (_, first) = c.block(b, 0x1000).unwrap();
+        assert_eq!(c.insts[first].op, op::LUI);
+        // And back: memory A's epoch is not the cache's any more.
+        let (_, first) = c.block(a, 0x1000).unwrap();
+        assert_eq!(c.insts[first].op, op::ADDI);
+    }
+
+    #[test]
     fn a_fetch_outside_ram_faults_with_the_missing_address() {
         let mut m = Memory::new();
         let c = &mut CodeCache::new();

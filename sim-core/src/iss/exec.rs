@@ -29,8 +29,6 @@ pub(super) struct Run<'a> {
     pub regions: &'a mut [Region],
     /// All cached instructions (blocks are slices of it).
     pub all: &'a [Inst],
-    /// Where the cached blocks start, per region (`CodeCache::starts`).
-    starts: &'a [Starts],
     /// The code region's block index (`Starts::at`), so blocks there
     /// chain without the core: `(base, size in bytes, entries)`.
     code_base: u32,
@@ -131,11 +129,10 @@ pub(super) fn handler(op: u8) -> Handler {
 }
 
 impl<'a> Run<'a> {
-    pub fn new(regions: &'a mut [Region], all: &'a [Inst], starts: &'a [Starts]) -> Run<'a> {
+    pub fn new(regions: &'a mut [Region], all: &'a [Inst]) -> Run<'a> {
         Run {
             regions,
             all,
-            starts,
             code_base: 0,
             code_size: 0,
             block_at: std::ptr::null(),
@@ -206,14 +203,15 @@ impl<'a> Run<'a> {
             .extra(self.arbiter.as_deref_mut(), addr, cycles - 1)
     }
 
-    /// Region `idx` holds the code: chain its blocks directly, and give
-    /// the hot path direct access to its bytes.
-    pub fn set_code_region(&mut self, idx: usize) {
+    /// Region `idx` holds the code: chain its blocks directly (`starts`:
+    /// where the cached blocks start, per region, `CodeCache::starts`,
+    /// borrowed as long as the run), and give the hot path direct access
+    /// to its bytes.
+    pub fn set_code_region(&mut self, idx: usize, starts: &'a [Starts]) {
         if let Some(reg) = self.regions.get_mut(idx) {
             // The region's start table has one entry per halfword, `size /
             // 2` entries, once allocated; chain only through one that is.
-            if let Some(s) = self
-                .starts
+            if let Some(s) = starts
                 .get(idx)
                 .filter(|s| s.at.len() == reg.size as usize / 2)
             {
@@ -586,7 +584,7 @@ fn transfer(
     let next = if cycles < deadline && !poll && off < r.code_size {
         // SAFETY: `off < code_size`, and `block_at` has `code_size / 2`
         // entries (see `set_code_region`); nothing changes it during a run
-        // (`Run::starts` borrows it).
+        // (`set_code_region` borrows it for the run's lifetime).
         unsafe { *r.block_at.add((off >> 1) as usize) }
     } else {
         0

@@ -560,10 +560,10 @@ impl Cpu {
         };
         #[cfg(not(target_arch = "x86_64"))]
         let deadline = self.deadline;
-        let mut run = exec::Run::new(&mut mem.regions, &code.insts, &code.starts);
+        let mut run = exec::Run::new(&mut mem.regions, &code.insts);
         run.set_timing(self.mem_timing, mem.l1_arbiter.as_deref_mut());
         if self.code_size != 0 {
-            run.set_code_region(self.code_idx);
+            run.set_code_region(self.code_idx, &code.starts);
         }
         if let Some((base, bytes)) = dev.plain_window() {
             run.set_window(base, bytes, self.latency);
