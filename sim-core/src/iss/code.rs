@@ -64,6 +64,14 @@ impl Starts {
     }
 }
 
+/// The decoded blocks of a [`CodeCache`], borrowed apart from its
+/// translations (the translator reads them while it adds to those).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Blocks<'a> {
+    pub insts: &'a [Inst],
+    pub starts: &'a [Starts],
+}
+
 /// The decoded blocks and translated code of one [`Memory`] (see the
 /// module documentation).
 #[derive(Debug, Default)]

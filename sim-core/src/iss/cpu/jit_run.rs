@@ -4,6 +4,7 @@
 //! would have left it.
 
 use super::*;
+use crate::iss::code::Blocks;
 use crate::iss::jit::ctx::{Bounds, Ctx, NO_TOHOST};
 use crate::iss::jit::{Flavour, JitCache};
 
@@ -82,8 +83,7 @@ impl Cpu {
         let flavour = Flavour::of(l1);
         let Some(e) = jit.entry(
             &mem.regions,
-            insts,
-            starts,
+            Blocks { insts, starts },
             region,
             off as usize,
             first,

@@ -40,8 +40,7 @@ mod helpers;
 use dynasmrt::x64::X64Relocation;
 use dynasmrt::{dynasm, DynasmApi, DynasmLabelApi, VecAssembler};
 
-use super::block::Inst;
-use super::code::Starts;
+use super::code::Blocks;
 use super::mem::Region;
 use buffer::{CodeBuffer, CODE_BYTES};
 use ctx::*;
@@ -262,16 +261,14 @@ impl JitCache {
     }
 
     /// The translation of the block starting at byte `off` of region
-    /// `region`, whose first instruction is `insts[first]` (`starts`: where
-    /// the cached blocks start, per region), translating it
+    /// `region`, whose first instruction is `blocks.insts[first]`, translating it
     /// if needed (`l1`: with a path for L1 accesses, see `emit::translate`);
     /// `None` if the translator does not cover its first
     /// instruction.
     pub fn entry(
         &mut self,
         regions: &[Region],
-        insts: &[Inst],
-        starts: &[Starts],
+        blocks: Blocks,
         region: usize,
         off: usize,
         first: usize,
@@ -291,13 +288,14 @@ impl JitCache {
         if e.worst == UNCOVERED.worst {
             return None;
         }
+        let Blocks { insts, starts } = blocks;
         let len = super::block::block_len(&insts[first..]);
         let b = &insts[first..first + len];
         // Room for the worst block (~100 host bytes per instruction, twice
         // with the careful variant).
         if !self.buf.fits(128 * 1024) {
             self.flush();
-            return self.entry(regions, insts, starts, region, off, first, flavour);
+            return self.entry(regions, blocks, region, off, first, flavour);
         }
         let tables = &self.tables[f];
         let known = |pc: u32| {
