@@ -29,6 +29,10 @@ import netdef  # noqa: E402
 
 SEP_CHECKPOINT = os.path.join(export.HERE, "sep", "checkpoint.npz")
 OUT = os.path.join(export.DEFAULT_OUT, "fallback")
+# The scaling changes activation ranges only, so the int8 weights are the
+# sep network's: weights.c includes sep's weights_int8.h (`export.py
+# --int8-header`) rather than repeating them.
+SEP_INT8_HEADER = "../sep/" + export.INT8_HEADER
 GOLDEN = os.path.join(export.HERE, "fallback", "golden.json")
 
 # act_max factors: a larger range lowers a layer's real multiplier (a larger
@@ -89,8 +93,13 @@ def layer_forms(q):
 def sources():
     """(weights.h, weights.c) of the fallback network."""
     ckpt = checkpoint()
-    return export.c_sources(export.quantize(ckpt), json.loads(str(ckpt["meta"])),
-                            export.decode_rule(ckpt))
+    layers = export.quantize(ckpt)
+    sep = export.int8_weights(export.quantize(export.load_checkpoint(SEP_CHECKPOINT)))
+    for (n, w), (m, v) in zip(export.int8_weights(layers), sep):
+        if n != m or not np.array_equal(w, v):
+            raise ValueError(f"{n}: int8 weights differ from the sep network's ({SEP_INT8_HEADER})")
+    return export.c_sources(layers, json.loads(str(ckpt["meta"])), export.decode_rule(ckpt),
+                            SEP_INT8_HEADER)
 
 
 def golden():

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use sim_core::iss::CodeCache;
 use sim_core::iss::{load_elf, Cpu, CpuConfig, Memory, StopReason};
 use sim_core::machine::run_elf::build_memory;
 use sim_core::units::Picos;
@@ -36,7 +37,7 @@ fn prepare(bytes: &[u8], skip: bool) -> (Cpu, Memory, OpDevice) {
 
 /// Run to the end; returns (instructions retired, instructions interpreted).
 fn run((mut cpu, mut mem, mut dev): (Cpu, Memory, OpDevice)) -> (u64, u64) {
-    match cpu.run_until(&mut mem, &mut dev, Picos::MAX) {
+    match cpu.run_until(&mut mem, &mut CodeCache::new(), &mut dev, Picos::MAX) {
         StopReason::Exit { .. } => {}
         other => panic!("{other:?}"),
     }

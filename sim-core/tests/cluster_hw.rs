@@ -13,6 +13,7 @@ use sim_core::cluster::event_unit::WAKE_LATENCY_CYCLES;
 use sim_core::cluster::{
     Cluster, ClusterConfig, CoreReport, FC_HART_ID, FC_L1_EXTRA_CYCLES, L2_EXTRA_CYCLES,
 };
+use sim_core::iss::CodeCache;
 use sim_core::iss::{load_elf, Cpu, CpuConfig, NoDevices, StopReason};
 use sim_core::machine::run_elf::build_memory;
 use sim_core::units::Picos;
@@ -64,6 +65,7 @@ fn run_with(cores: usize, idle_skip: bool) -> Outcome {
     let bytes = std::fs::read(firmware("cluster_hw_test")).unwrap();
     let elf = load_elf(&bytes).unwrap();
     let mut mem = build_memory(&[], elf.lowest_address()).unwrap();
+    let mut code = CodeCache::new();
     elf.load_into(&mut mem).unwrap();
     let cfg = ClusterConfig {
         cores,
@@ -80,7 +82,7 @@ fn run_with(cores: usize, idle_skip: bool) -> Outcome {
     let console = Console::default();
     fc.set_console(Box::new(console.clone()));
     fc.set_instruction_limit(Some(50_000_000));
-    let stop = cluster.run_until(&mut fc, &mut mem, &mut NoDevices, Picos::MAX);
+    let stop = cluster.run_until(&mut fc, &mut mem, &mut code, &mut NoDevices, Picos::MAX);
     assert_eq!(stop, StopReason::Exit { code: 0 }, "{}", console.text());
     let base = elf.symbol("results").unwrap();
     let words = (0..r::WORDS)

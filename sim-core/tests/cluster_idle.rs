@@ -18,10 +18,11 @@ fn run(name: &str, idle_skip: bool) -> (String, u64) {
     let iss_util::ClusterRun {
         mut cpu,
         mut mem,
+        mut code,
         mut cluster,
         console,
     } = iss_util::cluster_run(name, Backend::DEFAULT, idle_skip, 3_000_000);
-    let stop = cluster.run_until(&mut cpu, &mut mem, &mut NoDevices, Picos::MAX);
+    let stop = cluster.run_until(&mut cpu, &mut mem, &mut code, &mut NoDevices, Picos::MAX);
     cpu.flush_console().unwrap();
     cluster.flush_console().unwrap();
     let unskipped = |s: CoreStats| CoreStats {

@@ -13,6 +13,7 @@ mod iss_util;
 use std::sync::OnceLock;
 
 use object::{Object, ObjectSection, ObjectSymbol};
+use sim_core::iss::CodeCache;
 use sim_core::iss::{CpuConfig, NoDevices, StopReason};
 use sim_core::map_image::{MapError, MapImage};
 use sim_core::units::Picos;
@@ -37,10 +38,11 @@ fn run_to_end(
     sim_core::iss::LoadedElf,
 ) {
     let (mut cpu, mut mem, elf, console) = iss_util::load(name, CpuConfig::default(), &[]);
+    let mut code = CodeCache::new();
     // About 0.5 G (self-test) and 1 G (Table 6) instructions; the limit
     // turns a hang into a failure.
     cpu.set_instruction_limit(Some(4_000_000_000));
-    let code = match cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX) {
+    let code = match cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX) {
         StopReason::Exit { code } => code,
         other => panic!("{name}: unexpected stop {other:?} at pc {:#x}", cpu.pc()),
     };

@@ -6,6 +6,7 @@
 mod iss_util;
 
 use iss_util::op_device::{OpDevice, CTRL};
+use sim_core::iss::CodeCache;
 use sim_core::iss::{CoreStats, CpuConfig, Mmio, StopReason};
 use sim_core::units::{Cycles, Picos};
 
@@ -36,13 +37,14 @@ fn run_elf(name: &str, skip: bool, eventful: bool, latency: u64, slice: Option<u
         ..CpuConfig::default()
     };
     let (mut cpu, mut mem, _, _) = iss_util::load(name, cfg, &[]);
+    let mut code = CodeCache::new();
     cpu.set_instruction_limit(Some(50_000_000));
     let mut dev = OpDevice::default();
     dev.eventful = eventful;
     let mut events = 0;
     let code = loop {
         let limit = slice.map_or(Picos::MAX, |s| cpu.now() + Picos(s));
-        match cpu.run_until(&mut mem, &mut dev, limit) {
+        match cpu.run_until(&mut mem, &mut code, &mut dev, limit) {
             StopReason::Exit { code } => break code,
             StopReason::Limit => assert!(cpu.now() >= limit),
             StopReason::Event => {
@@ -118,10 +120,11 @@ fn clang_xcv_polling_loops_are_skipped_exactly() {
 fn stats_since_a_sample_add_up() {
     // Sample the counters every millisecond as a power model would.
     let (mut cpu, mut mem, _, _) = iss_util::load("idle", CpuConfig::default(), &[]);
+    let mut code = CodeCache::new();
     let mut dev = iss_util::op_device::OpDevice::default();
     let (mut prev, mut total) = (cpu.stats(), CoreStats::default());
     loop {
-        let r = cpu.run_until(&mut mem, &mut dev, cpu.now() + Picos::from_ms(1));
+        let r = cpu.run_until(&mut mem, &mut code, &mut dev, cpu.now() + Picos::from_ms(1));
         let s = cpu.stats();
         let d = s.since(&prev);
         assert_eq!(
@@ -207,7 +210,7 @@ mod exits {
     use std::collections::VecDeque;
 
     use sim_core::iss::{
-        AccessSize, CoreStats, Cpu, CpuConfig, Memory, Mmio, MmioError, StopReason,
+        AccessSize, CodeCache, CoreStats, Cpu, CpuConfig, Memory, Mmio, MmioError, StopReason,
     };
     use sim_core::units::{Cycles, Picos};
 
@@ -377,6 +380,7 @@ mod exits {
         end: Picos,
     ) -> Outcome {
         let mut mem = Memory::new();
+        let mut code = CodeCache::new();
         mem.add_ram(BASE, 0x1_0000).unwrap();
         mem.add_mmio_window(DEV, 0x1000).unwrap();
         for (k, w) in prog.iter().enumerate() {
@@ -393,7 +397,7 @@ mod exits {
         cpu.set_instruction_limit(Some(100_000_000));
         let stop = loop {
             let limit = slice.map_or(end, |s| (cpu.now() + Picos(s)).min(end));
-            match cpu.run_until(&mut mem, &mut dev, limit) {
+            match cpu.run_until(&mut mem, &mut code, &mut dev, limit) {
                 StopReason::Event => {
                     let t = dev.next_event().unwrap();
                     assert!(cpu.now() >= t && cpu.now() < t + Picos(10 * 4_000));

@@ -7,6 +7,7 @@ mod iss_util;
 
 use iss_util::encode::{b, csr, i, jal, r, s};
 
+use sim_core::iss::CodeCache;
 use sim_core::iss::{
     cause, Cpu, CpuConfig, IssError, Memory, NoDevices, Privilege, StopReason, Stuck,
 };
@@ -42,7 +43,8 @@ fn setup(prog: &[u32]) -> (Cpu, Memory) {
 /// handler's spin.
 fn step(cpu: &mut Cpu, mem: &mut Memory, n: u64) {
     cpu.set_instruction_limit(Some(cpu.instret() + n));
-    let r = cpu.run_until(mem, &mut NoDevices, Picos::MAX);
+    // A fresh code cache each time: it decodes again what it needs.
+    let r = cpu.run_until(mem, &mut CodeCache::new(), &mut NoDevices, Picos::MAX);
     if r != parked(HANDLER) {
         assert_eq!(r, StopReason::InstructionLimit);
     }
@@ -317,9 +319,10 @@ fn timer_and_external_interrupts() {
         SPIN,
     ];
     let (mut cpu, mut mem, _) = exec(&prog, &[(11, 0x0200_4000), (12, 500), (13, 1 << 7)], 4);
+    let mut code = CodeCache::new();
     assert_eq!(cpu.pc(), BASE + 24);
     cpu.set_instruction_limit(None);
-    let r = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_us(10));
+    let r = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::from_us(10));
     assert_eq!(r, parked(HANDLER));
     assert!(cpu.cycles().0 >= 500, "the spin waited for the timer");
     assert_eq!(cpu.csr(0x342), Some(cause::INTERRUPT | 7));
@@ -338,11 +341,17 @@ fn timer_and_external_interrupts() {
         &[(11, vec_base | 1), (12, 1 << 11)],
         3,
     );
+    let mut code = CodeCache::new();
     mem.write_bytes(vec_base + 44, &SPIN.to_le_bytes()).unwrap();
     cpu.set_external_irq(true);
     cpu.set_instruction_limit(None);
     assert_eq!(
-        cpu.run_until(&mut mem, &mut NoDevices, cpu.now() + Picos::from_us(1)),
+        cpu.run_until(
+            &mut mem,
+            &mut code,
+            &mut NoDevices,
+            cpu.now() + Picos::from_us(1)
+        ),
         parked(vec_base + 44)
     );
     assert_eq!(cpu.csr(0x342), Some(cause::INTERRUPT | 11));
@@ -368,9 +377,10 @@ fn wfi_sleeps_until_the_timer_and_mcycle_skips_sleep() {
 
     // An interrupt enabled that nothing raises: Idle.
     let (mut cpu, mut mem, _) = exec(&[csr(1, 0, 13, 0x304), WFI], &[(13, 1 << 11)], 1);
+    let mut code = CodeCache::new();
     cpu.set_instruction_limit(None);
     assert_eq!(
-        cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX),
+        cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX),
         StopReason::Idle
     );
 }
@@ -382,7 +392,8 @@ fn a_core_can_move_to_another_memory() {
     let (mut cpu, _, _) = exec(&[NOP, NOP], &[], 2);
     cpu.set_instruction_limit(None);
     let mut other = Memory::new();
-    let r = cpu.run_until(&mut other, &mut NoDevices, Picos::MAX);
+    let mut code = CodeCache::new();
+    let r = cpu.run_until(&mut other, &mut code, &mut NoDevices, Picos::MAX);
     assert!(
         matches!(&r, StopReason::Fatal(e) if e.to_string().contains("fetch")),
         "{r:?}"
@@ -417,6 +428,7 @@ proptest::proptest! {
         let mut prog = vec![csr(1, 0, 31, 0x305)];
         prog.extend_from_slice(&words);
         let (mut cpu, mut mem) = setup(&prog);
+        let mut code = CodeCache::new();
         mem.add_mmio_window(0x2000_0000, 0x1000).unwrap();
         for (k, v) in regs.iter().enumerate() {
             cpu.set_reg(k + 1, *v);
@@ -425,7 +437,7 @@ proptest::proptest! {
         let back = jal((BASE + 4) as i32 - HANDLER as i32, 0);
         mem.write_bytes(HANDLER, &back.to_le_bytes()).unwrap();
         cpu.set_instruction_limit(Some(5_000));
-        let r = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+        let r = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::from_ms(1));
         proptest::prop_assert!(cpu.instret() > 0, "{:?}", r);
     }
 }
@@ -471,6 +483,7 @@ proptest::proptest! {
             let mut prog = vec![csr(1, 0, 31, 0x305)];
             prog.extend_from_slice(&words);
             let (mut cpu, mut mem) = setup(&prog);
+            let mut code = CodeCache::new();
             for (k, v) in regs.iter().enumerate() {
                 cpu.set_reg(k + 1, BASE + v);
             }
@@ -480,14 +493,14 @@ proptest::proptest! {
             if stepwise {
                 while cpu.instret() < N {
                     cpu.set_instruction_limit(Some(cpu.instret() + 1));
-                    stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+                    stop = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::from_ms(1));
                     if stop != StopReason::InstructionLimit {
                         break;
                     }
                 }
             } else {
                 cpu.set_instruction_limit(Some(N));
-                stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+                stop = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::from_ms(1));
             }
             let mut ram = vec![0u8; 0x1000];
             mem.read_bytes(BASE, &mut ram).unwrap();

@@ -11,6 +11,7 @@ mod iss_util;
 
 use iss_util::encode::{b, csr, i, r, s};
 
+use sim_core::iss::CodeCache;
 use sim_core::iss::{Backend, Cpu, CpuConfig, Memory, NoDevices, StopReason};
 use sim_core::units::Picos;
 
@@ -50,16 +51,17 @@ fn run_firmware(name: &str, iss: Backend, limit: u64, slice: Option<Picos>) -> O
     let iss_util::ClusterRun {
         mut cpu,
         mut mem,
+        mut code,
         mut cluster,
         console,
     } = iss_util::cluster_run(name, iss, true, limit);
     let stop = match slice {
-        None => cluster.run_until(&mut cpu, &mut mem, &mut NoDevices, Picos::MAX),
+        None => cluster.run_until(&mut cpu, &mut mem, &mut code, &mut NoDevices, Picos::MAX),
         Some(dt) => {
             let mut t = Picos::ZERO;
             loop {
                 t = Picos(t.0 + dt.0);
-                match cluster.run_until(&mut cpu, &mut mem, &mut NoDevices, t) {
+                match cluster.run_until(&mut cpu, &mut mem, &mut code, &mut NoDevices, t) {
                     StopReason::Limit | StopReason::Event => continue,
                     other => break other,
                 }
@@ -217,8 +219,9 @@ fn self_modifying_code_with_fence_i() {
     ];
     let run = |iss| {
         let (mut cpu, mut mem) = setup(&prog, iss);
+        let mut code = CodeCache::new();
         cpu.set_instruction_limit(Some(1000));
-        let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+        let stop = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::from_ms(1));
         state(stop, &cpu, &mem)
     };
     let (interp, jit) = (run(Backend::Interp), run(Backend::Jit));
@@ -234,8 +237,9 @@ fn self_modifying_code_with_fence_i() {
 fn straight_line_agrees(prog: &[u32]) -> State {
     let run = |iss| {
         let (mut cpu, mut mem) = setup(prog, iss);
+        let mut code = CodeCache::new();
         cpu.set_instruction_limit(Some(prog.len() as u64 + 1000));
-        let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+        let stop = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::from_ms(1));
         state(stop, &cpu, &mem)
     };
     let (interp, jit) = (run(Backend::Interp), run(Backend::Jit));
@@ -369,6 +373,7 @@ proptest::proptest! {
             let mut prog = vec![csr(1, 0, 31, 0x305)];
             prog.extend_from_slice(&words);
             let (mut cpu, mut mem) = setup(&prog, iss);
+            let mut code = CodeCache::new();
             for (k, v) in regs.iter().enumerate() {
                 cpu.set_reg(k + 1, BASE + v);
             }
@@ -379,13 +384,13 @@ proptest::proptest! {
             let mut t = 0;
             for &s in slices.iter().filter(|_| sliced) {
                 t += s * period;
-                stop = cpu.run_until(&mut mem, &mut NoDevices, Picos(t));
+                stop = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos(t));
                 if stop != StopReason::Limit {
                     break;
                 }
             }
             if stop == StopReason::Limit {
-                stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+                stop = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::from_ms(1));
             }
             state(stop, &cpu, &mem)
         };
@@ -407,10 +412,11 @@ fn shared_code_is_translated_for_the_fc_and_the_cores() {
         let iss_util::ClusterRun {
             mut cpu,
             mut mem,
+            mut code,
             mut cluster,
             ..
         } = iss_util::cluster_run(name, Backend::Jit, true, 50_000_000);
-        let stop = cluster.run_until(&mut cpu, &mut mem, &mut NoDevices, Picos::MAX);
+        let stop = cluster.run_until(&mut cpu, &mut mem, &mut code, &mut NoDevices, Picos::MAX);
         assert!(
             matches!(stop, StopReason::Exit { code: 0 }),
             "{name}: {stop:?}"

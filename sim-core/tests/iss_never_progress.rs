@@ -11,6 +11,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use iss_util::encode::{csr, i, jal, s};
+use sim_core::iss::CodeCache;
 use sim_core::iss::{
     cause, load_elf, Backend, Cpu, CpuConfig, IssError, Memory, NoDevices, StopReason, Stuck,
 };
@@ -121,12 +122,13 @@ fn a_self_loop_the_timer_will_end_runs_until_the_timer_fires() {
     ];
     for iss in backends() {
         let (mut cpu, mut mem) = core(&prog, iss);
+        let mut code = CodeCache::new();
         cpu.set_reg(20, HANDLER);
         cpu.set_reg(21, 5000);
         cpu.set_reg(22, CLINT_MTIMECMP);
         cpu.set_reg(23, 1 << 7);
         cpu.set_reg(24, 1 << 3);
-        let r = cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+        let r = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX);
         assert_eq!(
             r,
             StopReason::Fatal(IssError::NeverProgress {
@@ -149,8 +151,9 @@ fn a_self_loop_with_interrupts_on_but_none_enabled_never_progresses() {
     let prog = [csr(2, 0, 24, 0x300), jal(0, 0)];
     for iss in backends() {
         let (mut cpu, mut mem) = core(&prog, iss);
+        let mut code = CodeCache::new();
         cpu.set_reg(24, 1 << 3);
-        let r = cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+        let r = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX);
         assert_eq!(
             r,
             StopReason::Fatal(IssError::NeverProgress {
@@ -180,8 +183,9 @@ fn a_loop_that_is_not_a_self_loop_runs_to_its_end() {
     let prog = [i(-1, 5, 0, 5, 0x13), bnez_back, SPIN];
     for iss in backends() {
         let (mut cpu, mut mem) = core(&prog, iss);
+        let mut code = CodeCache::new();
         cpu.set_reg(5, 1000);
-        let r = cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+        let r = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX);
         assert!(
             matches!(r, StopReason::Fatal(IssError::NeverProgress { pc, .. }) if pc == BASE + 8),
             "{iss:?}: {r:?}"
@@ -195,7 +199,8 @@ fn a_loop_that_is_not_a_self_loop_runs_to_its_end() {
 fn wfi_with_no_interrupt_enabled_never_progresses() {
     for iss in backends() {
         let (mut cpu, mut mem) = core(&[WFI], iss);
-        let r = cpu.run_until(&mut mem, &mut NoDevices, Picos::from_ms(1));
+        let mut code = CodeCache::new();
+        let r = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::from_ms(1));
         assert_eq!(
             r,
             StopReason::Fatal(IssError::NeverProgress {

@@ -5,6 +5,7 @@
 //! copy loop must end in the same state, cycle for cycle, with the window
 //! offered or not, interpreted or translated, run whole or in slices.
 
+use sim_core::iss::CodeCache;
 use sim_core::iss::StopReason;
 
 mod iss_util;
@@ -109,6 +110,7 @@ struct State {
 /// instructions retired in translated code.
 fn run(iss: Backend, plain: bool, slice: Option<u64>) -> (State, u64, u64) {
     let mut mem = Memory::new();
+    let mut code = CodeCache::new();
     mem.add_ram(RAM, 0x1_0000).unwrap();
     mem.add_mmio_window(WINDOW, 0x1000).unwrap();
     for (k, w) in program().iter().enumerate() {
@@ -125,7 +127,7 @@ fn run(iss: Backend, plain: bool, slice: Option<u64>) -> (State, u64, u64) {
     let mut dev = Frame::new(plain);
     loop {
         let limit = slice.map_or(Picos::MAX, |s| cpu.now() + Picos(s));
-        match cpu.run_until(&mut mem, &mut dev, limit) {
+        match cpu.run_until(&mut mem, &mut code, &mut dev, limit) {
             StopReason::Fatal(IssError::NeverProgress { pc, .. }) if pc == RAM + 80 => break,
             StopReason::Limit => assert!(slice.is_some()),
             other => panic!("unexpected stop {other:?} at pc {:#x}", cpu.pc()),

@@ -8,6 +8,7 @@ mod iss_util;
 
 use iss_util::{firmware, run_firmware};
 use sim_core::iss::decode::{decode, op};
+use sim_core::iss::CodeCache;
 use sim_core::iss::{cause, load_elf, Cpu, CpuConfig, Memory, NoDevices, StopReason};
 use sim_core::units::Picos;
 
@@ -142,6 +143,7 @@ fn cv_sdotsp_b(rd: u32, rs1: u32, rs2: u32) -> u32 {
 /// at DATA) for `n` instructions; the core, its cycles.
 fn run(prog: &[u32], n: u64) -> (Cpu, Memory, u64) {
     let mut mem = Memory::new();
+    let mut code = CodeCache::new();
     mem.add_ram(BASE, 0x2000).unwrap();
     for (k, w) in prog.iter().chain(&[0x6f]).enumerate() {
         mem.write_bytes(BASE + 4 * k as u32, &w.to_le_bytes())
@@ -154,7 +156,7 @@ fn run(prog: &[u32], n: u64) -> (Cpu, Memory, u64) {
     cpu.set_reg(6, DATA);
     cpu.set_reg(8, 3);
     cpu.set_instruction_limit(Some(n));
-    let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+    let stop = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX);
     assert_eq!(stop, StopReason::InstructionLimit);
     let cycles = cpu.cycles().0;
     (cpu, mem, cycles)
@@ -234,6 +236,7 @@ fn reserved_encodings_raise_illegal_instruction() {
         // At BASE + 0x100: csrw mtvec, x31 (= BASE + 0x800, a spin); jal
         // to the word at BASE + 4, which must trap there.
         let mut mem = Memory::new();
+        let mut code = CodeCache::new();
         mem.add_ram(BASE, 0x2000).unwrap();
         let jal_back = 0xf01f_f06f; // at 0x104: jal x0, -0x100
         for (at, w) in [
@@ -248,7 +251,7 @@ fn reserved_encodings_raise_illegal_instruction() {
         cpu.set_reg(31, BASE + 0x800);
         cpu.set_pc(BASE + 0x100);
         cpu.set_instruction_limit(Some(3));
-        cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+        cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX);
         assert_eq!(cpu.pc(), BASE + 0x800, "{what}: {word:#010x}");
         assert_eq!(cpu.csr(0x342), Some(cause::ILLEGAL_INSTRUCTION), "{what}");
         assert_eq!(cpu.csr(0x343), Some(word), "{what}: mtval");
@@ -268,6 +271,7 @@ fn post_increment_accesses_off_the_fast_path_update_the_base_too() {
         NOP,
     ];
     let mut mem = Memory::new();
+    let mut code = CodeCache::new();
     mem.add_ram(BASE, 0x2000).unwrap();
     mem.add_ram(0x9000_0000, 0x100).unwrap();
     for (k, w) in prog.iter().enumerate() {
@@ -282,7 +286,7 @@ fn post_increment_accesses_off_the_fast_path_update_the_base_too() {
     cpu.set_reg(12, BASE + 8);
     cpu.set_reg(13, new);
     cpu.set_instruction_limit(Some(3));
-    cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+    cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX);
     assert_eq!((cpu.reg(5), cpu.reg(11)), (0xfeed_beef, 0x9000_0004));
     assert_eq!((cpu.reg(12), cpu.reg(10)), (BASE + 12, 42));
     assert_eq!(mem.read_u32(BASE + 8), Some(new));
@@ -338,6 +342,7 @@ proptest::proptest! {
         const CODE: u32 = 0x8000;
         let run = |split: bool| {
             let mut mem = Memory::new();
+            let mut code = CodeCache::new();
             if split {
                 mem.add_ram(0, CODE).unwrap();
                 mem.add_ram(CODE, 0x8000).unwrap();
@@ -361,7 +366,7 @@ proptest::proptest! {
                 cpu.set_reg(k + 1, *v);
             }
             cpu.set_instruction_limit(Some(60));
-            let stop = cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX);
+            let stop = cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX);
             let mut data = vec![0u8; CODE as usize];
             mem.read_bytes(0, &mut data).unwrap();
             (stop, *cpu.regs(), cpu.pc(), cpu.cycles(), cpu.csr(0x342), data)

@@ -10,6 +10,7 @@ mod iss_util;
 
 use object::{Object, ObjectSymbol};
 use protocol::radio::{dw1000_stamp, ppm_to_ppt, Picos, DW1000_TICKS_PER_SECOND};
+use sim_core::iss::CodeCache;
 use sim_core::iss::{CpuConfig, NoDevices, StopReason};
 
 const ELF: &str = "swarm_selftest";
@@ -24,6 +25,7 @@ const INPUT_EVENT_BYTES: usize = 88;
 /// Run the self-test, with a scenario written into its unused heap first.
 fn run(input: Option<&[u8]>) -> (i32, String) {
     let (mut cpu, mut mem, elf, console) = iss_util::load(ELF, CpuConfig::default(), &[]);
+    let mut code = CodeCache::new();
     if let Some(bytes) = input {
         let start = elf.symbol("__heap_start").expect("__heap_start");
         let end = elf.symbol("__heap_end").expect("__heap_end");
@@ -37,7 +39,12 @@ fn run(input: Option<&[u8]>) -> (i32, String) {
         mem.write_bytes(start, bytes).unwrap();
     }
     cpu.set_instruction_limit(Some(4_000_000_000));
-    let code = match cpu.run_until(&mut mem, &mut NoDevices, sim_core::units::Picos::MAX) {
+    let code = match cpu.run_until(
+        &mut mem,
+        &mut code,
+        &mut NoDevices,
+        sim_core::units::Picos::MAX,
+    ) {
         StopReason::Exit { code } => code,
         other => panic!("{ELF}: unexpected stop {other:?} at pc {:#x}", cpu.pc()),
     };

@@ -17,7 +17,9 @@ use anyhow::{bail, Context};
 use sim_core::cluster::power::{Meter, Totals};
 use sim_core::cluster::{Cluster, ClusterConfig};
 use sim_core::config::PlatformConfig;
-use sim_core::iss::{load_elf, Backend, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason};
+use sim_core::iss::{
+    load_elf, Backend, CodeCache, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason,
+};
 use sim_core::machine::{run_elf::build_memory, Machine};
 use sim_core::units::{Hertz, Picos};
 
@@ -103,6 +105,7 @@ struct Symbols {
 
 pub struct NnMachine {
     mem: Memory,
+    code: CodeCache,
     cluster: Cluster,
     fc: Cpu,
     sym: Symbols,
@@ -175,8 +178,11 @@ impl NnMachine {
             iss,
             ..CpuConfig::default()
         };
-        let Machine { mut fc, cluster } =
-            Machine::new(&mut mem, fc_cfg, Some(cfg)).context("the cluster")?;
+        let Machine {
+            mut fc,
+            cluster,
+            code,
+        } = Machine::new(&mut mem, fc_cfg, Some(cfg)).context("the cluster")?;
         let mut cluster = cluster.expect("a cluster was asked for");
         // The program's console (errors only) must not mix with cosim's
         // stdout, which carries the results.
@@ -186,6 +192,7 @@ impl NnMachine {
         fc.set_tohost(elf.symbol("tohost"));
         let mut m = NnMachine {
             mem,
+            code,
             cluster,
             fc,
             sym,
@@ -232,10 +239,13 @@ impl NnMachine {
     /// Runs until the program's next `ebreak` (then steps over it).
     fn run_to_stop(&mut self) -> anyhow::Result<()> {
         let limit = Picos(self.fc.now().0.saturating_add(FRAME_TIMEOUT.0));
-        match self
-            .cluster
-            .run_until(&mut self.fc, &mut self.mem, &mut NoDevices, limit)
-        {
+        match self.cluster.run_until(
+            &mut self.fc,
+            &mut self.mem,
+            &mut self.code,
+            &mut NoDevices,
+            limit,
+        ) {
             StopReason::Breakpoint { pc } => {
                 self.fc.set_pc(pc.wrapping_add(4));
                 Ok(())
@@ -349,9 +359,13 @@ impl NnMachine {
         self.mem
             .write_bytes(self.sym.command, &CMD_QUIT.to_le_bytes())?;
         let limit = Picos(self.fc.now().0.saturating_add(FRAME_TIMEOUT.0));
-        let stop = self
-            .cluster
-            .run_until(&mut self.fc, &mut self.mem, &mut NoDevices, limit);
+        let stop = self.cluster.run_until(
+            &mut self.fc,
+            &mut self.mem,
+            &mut self.code,
+            &mut NoDevices,
+            limit,
+        );
         self.fc.flush_console()?;
         self.cluster.flush_console()?;
         match stop {

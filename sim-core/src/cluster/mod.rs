@@ -56,7 +56,7 @@ pub use cores::{CoreCount, CoreCountError, MAX_CORES};
 use std::io::Write;
 
 use crate::iss::{
-    AccessSize, Cpu, CpuConfig, IssError, MemTiming, Memory, Mmio, MmioError, StopReason,
+    AccessSize, CodeCache, Cpu, CpuConfig, IssError, MemTiming, Memory, Mmio, MmioError, StopReason,
 };
 use crate::units::{Hertz, Picos};
 
@@ -660,16 +660,18 @@ impl Cluster {
     ///
     /// The FC's external interrupt level the caller set is the platform's;
     /// the cluster ORs its own line (`FC_IRQ`) in before each FC turn and
-    /// puts the caller's level back before it returns.
+    /// puts the caller's level back before it returns. `code` is the code
+    /// cache kept beside `mem`: the FC and the cores share it.
     pub fn run_until(
         &mut self,
         fc: &mut Cpu,
         mem: &mut Memory,
+        code: &mut CodeCache,
         dev: &mut dyn Mmio,
         limit: Picos,
     ) -> StopReason {
         let platform_irq = fc.external_irq();
-        let stop = self.run_agents(fc, mem, dev, limit, platform_irq);
+        let stop = self.run_agents(fc, mem, code, dev, limit, platform_irq);
         fc.set_external_irq(platform_irq);
         stop
     }
@@ -679,6 +681,7 @@ impl Cluster {
         &mut self,
         fc: &mut Cpu,
         mem: &mut Memory,
+        code: &mut CodeCache,
         dev: &mut dyn Mmio,
         limit: Picos,
         platform_irq: bool,
@@ -747,7 +750,7 @@ impl Cluster {
                     sh: &mut self.sh,
                     dev,
                 };
-                match fc.run_until(mem, &mut bus, horizon) {
+                match fc.run_until(mem, code, &mut bus, horizon) {
                     StopReason::Limit | StopReason::Wait => {}
                     // The cluster's own request (its line changed): the
                     // next FC turn sets it.
@@ -771,7 +774,7 @@ impl Cluster {
                     sh: &mut self.sh,
                     core: who,
                 };
-                let stop = core.run_until(mem, &mut bus, horizon);
+                let stop = core.run_until(mem, code, &mut bus, horizon);
                 self.sh.time[who] = core.now();
                 match stop {
                     StopReason::Exit { .. } | StopReason::Breakpoint { .. } => return stop,

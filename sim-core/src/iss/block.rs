@@ -16,16 +16,14 @@
 //! there) and data-dependent costs (taken branch, division, split access)
 //! are added while running.
 //!
-//! Blocks live in [`Memory`] beside the RAM they were decoded from: a block
-//! describes bytes, not a core. Each RAM region keeps, per halfword, the
-//! index of the block that starts there, and a bitmap of the halfwords any
-//! cached instruction occupies. A write to one of those halfwords (a store,
-//! [`Memory::write_bytes`]) drops every block (self-modifying code is rare;
-//! QEMU flushes whole translation caches for the same reason), which is what
-//! makes `fence.i` free. The core never stores into cached code from inside a
-//! block: such a store leaves the block and is done by the general path, so a
-//! block never runs stale instructions.
+//! Blocks live in the [`CodeCache`] beside the memory they were decoded
+//! from (a block describes bytes, not a core): per RAM region, the index
+//! of the block that starts at each halfword, while the memory marks the
+//! halfwords any decoded instruction occupies. A write to one of those
+//! halfwords (a store, [`Memory::write_bytes`]) starts a new code epoch,
+//! and the cache drops every block before its next use (see `code.rs`).
 
+use super::code::CodeCache;
 use super::decode::{self, op, Decoded};
 use super::exec::{self, handler, Handler};
 use super::mem::{Memory, Region};
@@ -174,24 +172,36 @@ fn half(r: &Region, off: usize) -> Option<u16> {
     Some(u16::from_le_bytes([b[0], b[1]]))
 }
 
-impl Memory {
-    /// The block starting at `pc`: `(region index, index of its first
-    /// instruction in [`Memory::insts`])`, decoding it if needed.
-    pub(crate) fn block(&mut self, pc: u32) -> Result<(usize, usize), FetchFault> {
-        let (idx, off) = self.region_index(pc, 2).ok_or(FetchFault(pc))?;
-        let cached = self.regions[idx].block_at[off >> 1];
+impl CodeCache {
+    /// The block starting at `pc` in `mem`: `(region index, index of its
+    /// first instruction in [`CodeCache::insts`])`, decoding it if needed.
+    pub(crate) fn block(
+        &mut self,
+        mem: &mut Memory,
+        pc: u32,
+    ) -> Result<(usize, usize), FetchFault> {
+        self.sync(mem);
+        let (idx, off) = mem.region_index(pc, 2).ok_or(FetchFault(pc))?;
+        let cached = self.start(idx, off);
         if cached != 0 {
             return Ok((idx, cached as usize - 1));
         }
         if self.insts.len() >= MAX_CACHED_INSTS {
-            self.flush_blocks();
+            self.flush(mem);
         }
-        self.build(idx, pc, off).map(|first| (idx, first))
+        self.starts_of(mem, idx);
+        self.build(&mut mem.regions[idx], idx, pc, off)
+            .map(|first| (idx, first))
     }
 
-    fn build(&mut self, idx: usize, pc: u32, off: usize) -> Result<usize, FetchFault> {
+    fn build(
+        &mut self,
+        r: &mut Region,
+        idx: usize,
+        pc: u32,
+        off: usize,
+    ) -> Result<usize, FetchFault> {
         let first = self.insts.len();
-        let r = &mut self.regions[idx];
         let mut at = off;
         let mut prev_load = 0u32;
         loop {
@@ -275,20 +285,8 @@ impl Memory {
                 break;
             }
         }
-        r.block_at[off >> 1] = first as u32 + 1;
+        self.starts[idx].set(off >> 1, first);
         Ok(first)
-    }
-
-    /// Drop every cached block (code was overwritten, or the cache is full).
-    pub(crate) fn flush_blocks(&mut self) {
-        for r in &mut self.regions {
-            r.clear_code();
-        }
-        self.insts.clear();
-        #[cfg(target_arch = "x86_64")]
-        if let Some(j) = &mut self.jit {
-            j.flush();
-        }
     }
 }
 
@@ -336,8 +334,9 @@ mod tests {
             0xfedf_f06f,
             0x0000_006f,
         ]);
-        let (_, first) = m.block(0x1000).unwrap();
-        let b = &m.insts[first..];
+        let c = &mut CodeCache::new();
+        let (_, first) = c.block(m, 0x1000).unwrap();
+        let b = &c.insts[first..];
         assert_eq!(b[0].op, op::LW);
         assert_eq!((b[1].op, b[1].cost), (op::ADDI, 2));
         assert_eq!((b[2].op, b[2].imm), (op::LUI, 0x1008 + 0x1000));
@@ -348,30 +347,54 @@ mod tests {
         assert_eq!((b[6].op, b[6].pc), (op::LW, 0x1000));
         assert_eq!((b[7].op, b[7].cost), (op::ADDI, 2));
         // It loops until the length limit.
-        assert_eq!(m.insts.len(), first + MAX_BLOCK_INSTS + 1);
-        assert_eq!(m.insts.last().unwrap().op, op::END);
+        assert_eq!(c.insts.len(), first + MAX_BLOCK_INSTS + 1);
+        assert_eq!(c.insts.last().unwrap().op, op::END);
         // Cached: the same block comes back.
-        assert_eq!(m.block(0x1000).unwrap().1, first);
+        assert_eq!(c.block(m, 0x1000).unwrap().1, first);
     }
 
     #[test]
     fn writing_cached_code_drops_the_blocks_and_data_writes_do_not() {
         let m = &mut mem_with(&[0x0010_0093, 0x0000_006f]);
-        m.block(0x1000).unwrap();
+        let c = &mut CodeCache::new();
+        let (_, first) = c.block(m, 0x1000).unwrap();
         m.write_bytes(0x1800, &[1, 2, 3, 4]).unwrap();
-        assert_eq!(m.insts.len(), 2);
+        c.sync(m);
+        assert_eq!(c.insts.len(), first + 2);
         m.write_bytes(0x1006, &[0]).unwrap();
-        assert!(m.insts.is_empty());
-        assert_eq!(m.regions[0].block_at[0], 0);
+        // Memory forgets its code marks at once, the cache at its next use.
+        assert!(!m.regions[0].near_code(0, 0x1000));
+        c.sync(m);
+        assert!(c.insts.is_empty());
+        assert_eq!(c.start(0, 0), 0);
+        // Decoded again on the next lookup.
+        let (_, first) = c.block(m, 0x1000).unwrap();
+        assert_eq!(c.insts[first].op, op::ADDI);
+    }
+
+    #[test]
+    fn a_cache_handed_another_memory_decodes_that_memory() {
+        // The same address, different code: addi x1,x0,1 / lui x1,1.
+        let a = &mut mem_with(&[0x0010_0093, 0x0000_006f]);
+        let b = &mut mem_with(&[0x0000_10b7, 0x0000_006f]);
+        let c = &mut CodeCache::new();
+        let (_, first) = c.block(a, 0x1000).unwrap();
+        assert_eq!(c.insts[first].op, op::ADDI);
+        let (_, first) = c.block(b, 0x1000).unwrap();
+        assert_eq!(c.insts[first].op, op::LUI);
+        // And back: memory A's epoch is not the cache's any more.
+        let (_, first) = c.block(a, 0x1000).unwrap();
+        assert_eq!(c.insts[first].op, op::ADDI);
     }
 
     #[test]
     fn a_fetch_outside_ram_faults_with_the_missing_address() {
         let mut m = Memory::new();
+        let c = &mut CodeCache::new();
         m.add_ram(0x1000, 0x1000).unwrap();
-        assert_eq!(m.block(0x4000), Err(FetchFault(0x4000)));
+        assert_eq!(c.block(&mut m, 0x4000), Err(FetchFault(0x4000)));
         // A 32-bit instruction whose second half is past the region.
         m.write_bytes(0x1ffe, &[0x93, 0x00]).unwrap();
-        assert_eq!(m.block(0x1ffe), Err(FetchFault(0x2000)));
+        assert_eq!(c.block(&mut m, 0x1ffe), Err(FetchFault(0x2000)));
     }
 }

@@ -17,6 +17,7 @@
 //! trampoline in [`run`].
 
 use super::block::Inst;
+use super::code::Starts;
 use super::decode::op;
 use super::l1::BankArbiter;
 use super::mem::{ram_load, ram_store_data, AccessSize, MemTiming, Region};
@@ -28,7 +29,7 @@ pub(super) struct Run<'a> {
     pub regions: &'a mut [Region],
     /// All cached instructions (blocks are slices of it).
     pub all: &'a [Inst],
-    /// The code region's block index (`Region::block_at`), so blocks there
+    /// The code region's block index (`Starts::at`), so blocks there
     /// chain without the core: `(base, size in bytes, entries)`.
     code_base: u32,
     code_size: u32,
@@ -202,14 +203,22 @@ impl<'a> Run<'a> {
             .extra(self.arbiter.as_deref_mut(), addr, cycles - 1)
     }
 
-    /// Region `idx` holds the code: chain its blocks directly, and give
-    /// the hot path direct access to its bytes.
-    pub fn set_code_region(&mut self, idx: usize) {
+    /// Region `idx` holds the code: chain its blocks directly (`starts`:
+    /// where the cached blocks start, per region, `CodeCache::starts`,
+    /// borrowed as long as the run), and give the hot path direct access
+    /// to its bytes.
+    pub fn set_code_region(&mut self, idx: usize, starts: &'a [Starts]) {
         if let Some(reg) = self.regions.get_mut(idx) {
-            self.code_base = reg.base;
-            self.code_size = reg.size;
-            // `block_at` has one entry per halfword: `size / 2` entries.
-            self.block_at = reg.block_at.as_ptr();
+            // The region's start table has one entry per halfword, `size /
+            // 2` entries, once allocated; chain only through one that is.
+            if let Some(s) = starts
+                .get(idx)
+                .filter(|s| s.at.len() == reg.size as usize / 2)
+            {
+                self.code_base = reg.base;
+                self.code_size = reg.size;
+                self.block_at = s.at.as_ptr();
+            }
             // L1 code would bypass the bank arbiter: its data then takes
             // the other-region path (a cluster core normally runs from L2).
             let banked = self.timing.l1_port.is_some() && reg.base == self.timing.l1.0;
@@ -574,7 +583,8 @@ fn transfer(
     let off = to.wrapping_sub(r.code_base);
     let next = if cycles < deadline && !poll && off < r.code_size {
         // SAFETY: `off < code_size`, and `block_at` has `code_size / 2`
-        // entries (see `set_code_region`); nothing changes it during a run.
+        // entries (see `set_code_region`); nothing changes it during a run
+        // (`set_code_region` borrows it for the run's lifetime).
         unsafe { *r.block_at.add((off >> 1) as usize) }
     } else {
         0

@@ -24,12 +24,12 @@
 //! skipping for that register.
 
 use std::fmt;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use thiserror::Error;
 
 use crate::units::Picos;
 
-use super::block::Inst;
 use super::l1::BankArbiter;
 
 /// Width of a memory access in bytes.
@@ -202,20 +202,20 @@ pub enum MemError {
     OutOfRam { addr: u32, len: u64 },
 }
 
-/// One RAM region with the code-cache bookkeeping of the blocks decoded
-/// from it (see `block.rs`).
+/// One RAM region, and which of its bytes hold decoded code (the code
+/// cache's, [`CodeCache`](super::CodeCache)): memory keeps that mark, not
+/// the decoded instructions, so that a store can tell whether it
+/// overwrites code without knowing the cache (QEMU's dirty bits for its
+/// translated pages, kept by the memory, not by the translation cache).
 pub(crate) struct Region {
     pub(crate) base: u32,
     pub(crate) size: u32,
     pub(crate) data: Vec<u8>,
-    /// Per halfword: 1 + the index in [`Memory::insts`] of the first
-    /// instruction of the block starting there; 0 means none. Allocated
-    /// zeroed, so the OS only backs the pages that really hold code.
-    pub(crate) block_at: Vec<u32>,
-    /// One bit per halfword occupied by a cached instruction.
+    /// One bit per halfword occupied by a decoded instruction.
     code_bits: Vec<u64>,
-    /// Byte offsets `[code_lo, code_hi)` that hold every cached instruction,
-    /// so a store to data (the common case) skips the bitmap entirely.
+    /// Byte offsets `[code_lo, code_hi)` that hold every decoded
+    /// instruction, so a store to data (the common case) skips the bitmap
+    /// entirely.
     pub(crate) code_lo: usize,
     pub(crate) code_hi: usize,
 }
@@ -232,7 +232,7 @@ impl Region {
         }
     }
 
-    /// Record that bytes `[off, off + len)` hold a cached instruction.
+    /// Record that bytes `[off, off + len)` hold a decoded instruction.
     pub(crate) fn mark_code(&mut self, off: usize, len: usize) {
         for h in off >> 1..(off + len + 1) >> 1 {
             self.code_bits[h >> 6] |= 1 << (h & 63);
@@ -241,31 +241,25 @@ impl Region {
         self.code_hi = self.code_hi.max(off + len);
     }
 
-    /// Whether bytes `[off, off + len)` may overlap cached code (a cheap
+    /// Whether bytes `[off, off + len)` may overlap decoded code (a cheap
     /// range test; [`Region::overwrites_code`] is the exact one).
     #[inline(always)]
     pub(crate) fn near_code(&self, off: usize, len: usize) -> bool {
         off < self.code_hi && off + len > self.code_lo
     }
 
-    /// Whether writing bytes `[off, off + len)` changes a cached instruction.
+    /// Whether writing bytes `[off, off + len)` changes a decoded
+    /// instruction.
     pub(crate) fn overwrites_code(&self, off: usize, len: usize) -> bool {
         self.near_code(off, len)
             && (off >> 1..(off + len + 1) >> 1)
                 .any(|h| self.code_bits[h >> 6] & (1 << (h & 63)) != 0)
     }
 
-    /// Forget every cached block of this region.
-    pub(crate) fn clear_code(&mut self) {
+    /// Forget every code mark of this region.
+    fn clear_code(&mut self) {
         if self.code_lo < self.code_hi {
             let halves = self.code_lo >> 1..(self.code_hi + 1) >> 1;
-            // Reading a never-touched zero page costs nothing; writing would
-            // commit it, so only write where there is something to drop.
-            for slot in &mut self.block_at[halves.clone()] {
-                if *slot != 0 {
-                    *slot = 0;
-                }
-            }
             for w in &mut self.code_bits[halves.start >> 6..=(halves.end - 1) >> 6] {
                 *w = 0;
             }
@@ -281,22 +275,41 @@ impl fmt::Debug for Region {
     }
 }
 
+/// A new code epoch, unique in the process (see [`Memory::code_epoch`]).
+fn fresh_epoch() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
+}
+
 /// The core's view of memory: zero or more RAM regions and zero or more
-/// address windows routed to the platform's [`Mmio`].
-#[derive(Debug, Default)]
+/// address windows routed to the platform's [`Mmio`], and the L1 bank
+/// arbiter when the platform has one. The code decoded and translated
+/// from this RAM lives apart, in a [`CodeCache`](super::CodeCache) that
+/// whoever owns the memory keeps beside it and hands to the cores with it.
+#[derive(Debug)]
 pub struct Memory {
     pub(crate) regions: Vec<Region>,
     windows: Vec<(u32, u32)>,
-    /// The cached blocks' instructions, block after block (see `block.rs`).
-    pub(crate) insts: Vec<Inst>,
+    /// Changes whenever decoded code is overwritten (and the code marks
+    /// are dropped): a [`CodeCache`](super::CodeCache) holds the epoch its
+    /// blocks were decoded under and empties itself when it differs.
+    /// Unique in the process, so a cache handed another memory notices
+    /// too.
+    pub(crate) code_epoch: u64,
     /// The L1 bank arbiter when the platform has one (the cluster's):
     /// the cores' [`MemTiming::l1_port`] accesses go through it.
     pub l1_arbiter: Option<Box<dyn BankArbiter>>,
-    /// Translated code of the cached blocks (`iss/jit`), made on first use
-    /// by a core running the translator, shared by every core on this
-    /// memory.
-    #[cfg(target_arch = "x86_64")]
-    pub(crate) jit: Option<Box<super::jit::JitCache>>,
+}
+
+impl Default for Memory {
+    fn default() -> Memory {
+        Memory {
+            regions: Vec::new(),
+            windows: Vec::new(),
+            code_epoch: fresh_epoch(),
+            l1_arbiter: None,
+        }
+    }
 }
 
 fn check_range(base: u32, size: u32) -> Result<(), MemError> {
@@ -341,7 +354,6 @@ impl Memory {
             base,
             size,
             data: vec![0; size as usize],
-            block_at: vec![0; (size / 2) as usize],
             code_bits: vec![0; (size as usize / 2).div_ceil(64)],
             code_lo: usize::MAX,
             code_hi: 0,
@@ -378,8 +390,9 @@ impl Memory {
         find(&self.regions, addr, len)
     }
 
-    /// Copy bytes into RAM (ELF loading, a device writing a buffer). Drops
-    /// any decoded instruction it overwrites.
+    /// Copy bytes into RAM (ELF loading, a device writing a buffer). If it
+    /// overwrites decoded code, the code caches drop it
+    /// ([`Memory::invalidate_code`]).
     pub fn write_bytes(&mut self, addr: u32, bytes: &[u8]) -> Result<(), MemError> {
         if bytes.is_empty() {
             return Ok(());
@@ -395,7 +408,7 @@ impl Memory {
         let r = &mut self.regions[i];
         r.data[off..off + bytes.len()].copy_from_slice(bytes);
         if r.overwrites_code(off, bytes.len()) {
-            self.flush_blocks();
+            self.invalidate_code();
         }
         Ok(())
     }
@@ -429,7 +442,8 @@ impl Memory {
     }
 
     /// RAM store used by the core's general path; `false` when not RAM.
-    /// Drops the cached blocks if it overwrites one of their instructions.
+    /// Invalidates the decoded code if it overwrites one of its
+    /// instructions.
     #[inline(always)]
     pub(crate) fn store_ram(&mut self, addr: u32, size: AccessSize, value: u32) -> bool {
         let n = size.bytes();
@@ -440,22 +454,21 @@ impl Memory {
         let bytes = value.to_le_bytes();
         r.data[off..off + n as usize].copy_from_slice(&bytes[..n as usize]);
         if r.overwrites_code(off, n as usize) {
-            self.flush_blocks();
+            self.invalidate_code();
         }
         true
     }
 
-    /// The block translator's counters, if a core on this memory used it.
-    #[cfg(target_arch = "x86_64")]
-    pub fn jit_stats(&self) -> Option<super::jit::JitStats> {
-        self.jit.as_ref().map(|j| j.stats())
-    }
-
-    /// Drop every cached block (`fence.i` does not need this since
-    /// writes keep the cache coherent, but a platform that changes RAM
-    /// behind the core's back may call it).
-    pub fn flush_decoded(&mut self) {
-        self.flush_blocks();
+    /// Every decoded instruction is stale: drop the code marks and start a
+    /// new code epoch, so that every [`CodeCache`](super::CodeCache) of
+    /// this memory empties itself before its next use. Stores that
+    /// overwrite decoded code call it (which is what makes `fence.i`
+    /// free); a platform that changes RAM behind the core's back may too.
+    pub fn invalidate_code(&mut self) {
+        for r in &mut self.regions {
+            r.clear_code();
+        }
+        self.code_epoch = fresh_epoch();
     }
 }
 
@@ -469,7 +482,7 @@ fn find(regions: &[Region], addr: u32, len: u32) -> Option<(usize, usize)> {
 }
 
 /// A little-endian load from RAM; `None` when not RAM. (The core's block
-/// loop calls it with the regions borrowed apart from the block cache.)
+/// loop calls it with the regions borrowed on their own.)
 #[inline(always)]
 pub(crate) fn ram_load(regions: &[Region], addr: u32, size: AccessSize) -> Option<u32> {
     let (i, off) = find(regions, addr, size.bytes())?;
@@ -481,9 +494,9 @@ pub(crate) fn ram_load(regions: &[Region], addr: u32, size: AccessSize) -> Optio
     })
 }
 
-/// A store to RAM that is not near cached code; `false` otherwise (not RAM,
-/// or possibly code: the core's general path then does it and keeps the
-/// block cache coherent).
+/// A store to RAM that is not near decoded code; `false` otherwise (not
+/// RAM, or possibly code: the core's general path then does it and keeps
+/// the code caches coherent).
 #[inline(always)]
 pub(crate) fn ram_store_data(
     regions: &mut [Region],

@@ -5,11 +5,15 @@
 //!   extensions ([`xcv`]: xcvalu, xcvmac, xcvmem, xcvsimd, xcvbi,
 //!   xcvbitmanip, DESIGN.md §12), machine and user mode,
 //!   traps, `mret`, `wfi`, a CLINT machine timer, one external interrupt
-//!   line, CV32E40P cycle timing ([`timing`]), a cache of pre-decoded
-//!   basic blocks (`block.rs`) and exact idle skipping.
+//!   line, CV32E40P cycle timing ([`timing`]) and exact idle skipping.
 //! - [`Memory`] / [`Mmio`]: RAM regions owned by the ISS and the device
 //!   window(s) the platform implements (see [`mem`] for the access-time and
 //!   idle-skip contracts).
+//! - [`CodeCache`]: what the cores make of the code in that RAM, kept
+//!   apart from it: pre-decoded basic blocks (`block.rs`) and their
+//!   translation to host code (`jit`). Whoever owns a [`Memory`] keeps
+//!   one beside it and hands both to the cores; memory tells it when code
+//!   is overwritten (`code.rs`).
 //! - [`MemTiming`]: extra cycles of RAM accesses and the L1 bank arbiter
 //!   ([`Memory::l1_arbiter`], the [`l1::BankArbiter`] interface the
 //!   platform's cluster implements) for the cluster's cores and the FC
@@ -31,7 +35,7 @@
 //! ```text
 //! loop {
 //!     let t = kernel.next_event_time();
-//!     match cpu.run_until(&mut memory, &mut peripherals, t) {
+//!     match cpu.run_until(&mut memory, &mut code, &mut peripherals, t) {
 //!         StopReason::Limit | StopReason::Event => kernel.process_due_events(),
 //!         StopReason::DeviceRequest => kernel.handle_request(),
 //!         StopReason::Exit { code } => break,
@@ -100,12 +104,13 @@
 //!   so other code pays nothing. A loop with any other instruction in it
 //!   (a load of a device or of memory another agent writes, a countdown)
 //!   is not one; polling is the idle detector's.
-//! - The block cache is kept coherent by every store (and by
+//! - The code cache is kept coherent by every store (and by
 //!   [`Memory::write_bytes`]), so `fence.i` only costs its 2 cycles.
 //! - Semihosting times (`SYS_CLOCK`, `SYS_TIME`, `SYS_ELAPSED`) are
 //!   simulated time, never the wall clock.
 
 mod block;
+mod code;
 pub mod cpu;
 pub mod decode;
 pub mod elf;
@@ -120,6 +125,7 @@ pub mod semihost;
 pub mod timing;
 pub mod xcv;
 
+pub use code::CodeCache;
 pub use cpu::{cause, Backend, CoreStats, Cpu, CpuConfig, IssError, Privilege, StopReason, Stuck};
 pub use elf::{load_elf, ElfError, LoadedElf, Segment};
 pub use mem::{AccessSize, MemError, MemTiming, Memory, Mmio, MmioError, NoDevices};

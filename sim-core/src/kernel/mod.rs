@@ -34,7 +34,7 @@ use crate::bus::{Platform, PERIPHERAL_BASE, WINDOW_SIZE};
 use crate::cluster::power::{Meter, Totals};
 use crate::cluster::Cluster;
 use crate::config::{PlatformConfig, RunConfig};
-use crate::iss::{load_elf, Cpu, CpuConfig, ElfError, Memory, StopReason};
+use crate::iss::{load_elf, CodeCache, Cpu, CpuConfig, ElfError, Memory, StopReason};
 use crate::machine::Machine;
 use crate::peripherals::radio::{self, RadioDevice};
 use crate::peripherals::stm32::crtp::console::ConsoleTap;
@@ -189,6 +189,8 @@ pub fn simulate<W: WorldLink>(firmware: &[u8], cfg: &KernelConfig, world: W) -> 
 struct Run<W: WorldLink> {
     cpu: Cpu,
     mem: Memory,
+    /// The code decoded and translated from `mem`, beside it.
+    code: CodeCache,
     platform: Platform<W>,
     power: PowerNetwork,
     console: Console,
@@ -235,6 +237,7 @@ impl<W: WorldLink> Run<W> {
         let Machine {
             fc: mut cpu,
             cluster,
+            code,
         } = Machine::new(&mut mem, fc_cfg, cluster_cfg)
             .map_err(|e| KernelError::Config(e.to_string()))?;
         let cluster = cluster
@@ -301,6 +304,7 @@ impl<W: WorldLink> Run<W> {
         Ok(Run {
             cpu,
             mem,
+            code,
             platform,
             power,
             console,
@@ -436,9 +440,13 @@ impl<W: WorldLink> Run<W> {
             self.cpu.set_external_irq(irq);
             let stop = match &mut self.cluster {
                 Some((c, _)) => {
-                    c.run_until(&mut self.cpu, &mut self.mem, &mut self.platform, limit)
+                    let (mem, code) = (&mut self.mem, &mut self.code);
+                    c.run_until(&mut self.cpu, mem, code, &mut self.platform, limit)
                 }
-                None => self.cpu.run_until(&mut self.mem, &mut self.platform, limit),
+                None => {
+                    self.cpu
+                        .run_until(&mut self.mem, &mut self.code, &mut self.platform, limit)
+                }
             };
             self.drain_device_console();
             let now = self.cpu.now();

@@ -10,17 +10,20 @@
 pub mod run_elf;
 
 use crate::cluster::{Cluster, ClusterConfig, ClusterError};
-use crate::iss::{Cpu, CpuConfig, Memory};
+use crate::iss::{CodeCache, Cpu, CpuConfig, Memory};
 
 /// The FC and its cluster, assembled in the order the hardware needs: the
 /// cluster maps its L1 and event unit into `mem` first, then the FC gets
 /// the cluster's hart id (GAP8's FC is hart 0x400, not 0: what a
 /// riscv-tests start-up parks) and its path to the L1 through the
 /// cluster's bank arbiter. Without a cluster the FC is built as
-/// configured.
+/// configured. The code cache the FC and the cluster's cores share goes
+/// beside the memory, as `mem` does with every run (`code` in
+/// [`Cpu::run_until`], [`Cluster::run_until`]).
 pub struct Machine {
     pub fc: Cpu,
     pub cluster: Option<Cluster>,
+    pub code: CodeCache,
 }
 
 impl Machine {
@@ -39,6 +42,10 @@ impl Machine {
             }
             None => Cpu::new(fc),
         };
-        Ok(Machine { fc, cluster })
+        Ok(Machine {
+            fc,
+            cluster,
+            code: CodeCache::new(),
+        })
     }
 }

@@ -149,6 +149,7 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
     let super::Machine {
         fc: mut cpu,
         mut cluster,
+        code: mut cache,
     } = super::Machine::new(&mut mem, fc_cfg, cluster_cfg)
         .context("the cluster (--no-cluster to run the FC alone)")?;
     cpu.set_pc(elf.entry);
@@ -157,8 +158,8 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
 
     let wall = Instant::now();
     let reason = match cluster.as_mut() {
-        Some(c) => c.run_until(&mut cpu, &mut mem, &mut NoDevices, Picos::MAX),
-        None => cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX),
+        Some(c) => c.run_until(&mut cpu, &mut mem, &mut cache, &mut NoDevices, Picos::MAX),
+        None => cpu.run_until(&mut mem, &mut cache, &mut NoDevices, Picos::MAX),
     };
     let wall = wall.elapsed();
     cpu.flush_console().context("flushing the console")?;
@@ -213,7 +214,7 @@ pub fn run(args: &RunElfArgs) -> anyhow::Result<i32> {
             s.sleep_cycles, s.poll_cycles, s.skipped_instructions
         );
         #[cfg(target_arch = "x86_64")]
-        if let Some(j) = mem.jit_stats() {
+        if let Some(j) = cache.jit_stats() {
             eprintln!(
                 "jit: {} blocks translated, {} KiB of code, {} flushes",
                 j.translated,

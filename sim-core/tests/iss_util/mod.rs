@@ -8,6 +8,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
+use sim_core::iss::CodeCache;
 use sim_core::iss::{load_elf, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason};
 use sim_core::machine::run_elf::{build_memory, RamSpec};
 use sim_core::units::Picos;
@@ -56,8 +57,9 @@ pub fn load(name: &str, cfg: CpuConfig, ram: &[RamSpec]) -> (Cpu, Memory, Loaded
 /// Run a firmware to its end; returns the exit code and the console text.
 pub fn run_firmware(name: &str) -> (i32, String, Cpu) {
     let (mut cpu, mut mem, _, console) = load(name, CpuConfig::default(), &[]);
+    let mut code = CodeCache::new();
     cpu.set_instruction_limit(Some(200_000_000));
-    let code = match cpu.run_until(&mut mem, &mut NoDevices, Picos::MAX) {
+    let code = match cpu.run_until(&mut mem, &mut code, &mut NoDevices, Picos::MAX) {
         StopReason::Exit { code } => code,
         other => panic!("{name}: unexpected stop {other:?} at pc {:#x}", cpu.pc()),
     };
@@ -95,6 +97,7 @@ pub fn random_code(raw: &[u32], opcodes: &[usize]) -> Vec<u32> {
 pub struct ClusterRun {
     pub cpu: Cpu,
     pub mem: Memory,
+    pub code: CodeCache,
     pub cluster: sim_core::cluster::Cluster,
     pub console: Console,
 }
@@ -136,6 +139,7 @@ pub fn cluster_run(
     ClusterRun {
         cpu,
         mem,
+        code: CodeCache::new(),
         cluster,
         console,
     }

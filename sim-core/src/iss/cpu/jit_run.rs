@@ -4,6 +4,7 @@
 //! would have left it.
 
 use super::*;
+use crate::iss::code::Blocks;
 use crate::iss::jit::ctx::{Bounds, Ctx, NO_TOHOST};
 use crate::iss::jit::{Flavour, JitCache};
 
@@ -30,7 +31,7 @@ pub(super) enum Translated {
 }
 
 impl Cpu {
-    /// Run the block at `self.pc` (`mem.insts[first]` its first
+    /// Run the block at `self.pc` (`code.insts[first]` its first
     /// instruction) and the translated blocks it chains to.
     ///
     /// `window`: the device registers that read like memory
@@ -39,6 +40,7 @@ impl Cpu {
     pub(super) fn run_translated(
         &mut self,
         mem: &mut Memory,
+        code: &mut CodeCache,
         first: usize,
         window: Option<(u32, &[u8])>,
     ) -> Translated {
@@ -48,9 +50,9 @@ impl Cpu {
             return Translated::TooLong;
         }
         let region = self.code_idx;
-        if mem.jit.is_none() {
+        if code.jit.is_none() {
             match JitCache::new() {
-                Ok(j) => mem.jit = Some(Box::new(j)),
+                Ok(j) => code.jit = Some(Box::new(j)),
                 Err(e) => {
                     tracing::warn!("no executable memory for the translator ({e}); interpreting");
                     self.cfg.iss = Backend::Interp;
@@ -64,7 +66,10 @@ impl Cpu {
         // Each has its own translation of a block they share
         // (`jit::Flavour`), whose checked entry counts accesses its way.
         let has_l1 = mem.l1_arbiter.is_some() && t.l1.1 != 0;
-        let jit = mem.jit.as_mut().expect("made above");
+        let CodeCache {
+            jit, insts, starts, ..
+        } = code;
+        let jit = jit.as_mut().expect("made above");
         let l1 = t.l1_port.is_some() && mem.l1_arbiter.is_some();
         if l1 && t.l1_extra != 0 {
             // The inline grant charges an arbitrated access nothing beyond
@@ -78,7 +83,7 @@ impl Cpu {
         let flavour = Flavour::of(l1);
         let Some(e) = jit.entry(
             &mem.regions,
-            &mem.insts,
+            Blocks { insts, starts },
             region,
             off as usize,
             first,
@@ -131,7 +136,7 @@ impl Cpu {
         } else {
             (extra.max(win_latency), worst_extra.max(win_latency))
         };
-        let stall = self.entry_stall(&mem.insts, first);
+        let stall = self.entry_stall(insts, first);
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
         // Where the worst case does not fit, the careful variant (a

@@ -10,6 +10,7 @@ use std::io::Write;
 use crate::units::{Cycles, Hertz, Picos};
 
 use super::block::{FetchFault, Inst};
+use super::code::CodeCache;
 use super::decode::{self, op, Decoded};
 use super::exec;
 use super::mem::{AccessSize, MemTiming, Memory, Mmio, MmioError};
@@ -375,8 +376,15 @@ impl Cpu {
 
     /// Run until simulated time reaches `limit` (the first instruction
     /// boundary at or after it), or another [`StopReason`]. Like GVSoC's
-    /// `step_until` as MESSY's core adapter uses it.
-    pub fn run_until(&mut self, mem: &mut Memory, dev: &mut dyn Mmio, limit: Picos) -> StopReason {
+    /// `step_until` as MESSY's core adapter uses it. `code` is the code
+    /// cache kept beside `mem` (shared by every core on it).
+    pub fn run_until(
+        &mut self,
+        mem: &mut Memory,
+        code: &mut CodeCache,
+        dev: &mut dyn Mmio,
+        limit: Picos,
+    ) -> StopReason {
         let limit_cycle = self.cycle_of(limit);
         // The cached code window may point into another Memory than this one.
         let window_ok = mem
@@ -427,14 +435,14 @@ impl Cpu {
                 continue;
             }
             self.deadline = deadline;
-            self.run_block(mem, dev);
+            self.run_block(mem, code, dev);
         }
     }
 
     /// Run blocks until the deadline (or a break). Each block runs in
     /// [`Cpu::exec_block`]; what it cannot do (device and code accesses,
     /// system instructions) is done by [`Cpu::step`].
-    fn run_block(&mut self, mem: &mut Memory, dev: &mut dyn Mmio) {
+    fn run_block(&mut self, mem: &mut Memory, code: &mut CodeCache, dev: &mut dyn Mmio) {
         // Every instruction costs at least one cycle and retires at most one
         // instruction, so bounding cycles by the remaining instruction budget
         // stops no later than the instruction limit, with the single
@@ -443,10 +451,10 @@ impl Cpu {
         let budget = self.instr_deadline - self.instret;
         self.deadline = self.deadline.min(self.cycles.saturating_add(budget));
         while self.cycles < self.deadline {
-            let Some(first) = self.lookup(mem) else {
+            let Some(first) = self.lookup(mem, code) else {
                 continue; // the fetch trapped (and ended the run slice)
             };
-            match self.exec_block(mem, dev, first) {
+            match self.exec_block(mem, code, dev, first) {
                 Exit::Poll { from, to } => self.poll_slow(mem, dev, from, to),
                 Exit::General(inst) => self.step(mem, dev, inst),
                 Exit::Paused => {}
@@ -454,21 +462,24 @@ impl Cpu {
         }
     }
 
-    /// The block at `pc` (index of its first instruction in `mem.insts`),
+    /// The block at `pc` (index of its first instruction in `code.insts`),
     /// through the cached code region when it holds one; `None` when the
-    /// fetch faults (the trap has been taken).
+    /// fetch faults (the trap has been taken). The cache is brought up to
+    /// date with memory first: the general path may just have stored into
+    /// code.
     #[inline(always)]
-    fn lookup(&mut self, mem: &mut Memory) -> Option<usize> {
+    fn lookup(&mut self, mem: &mut Memory, code: &mut CodeCache) -> Option<usize> {
+        code.sync(mem);
         let off = self.pc.wrapping_sub(self.code_base);
         if off < self.code_size {
             // `code_size != 0` only while `code_idx` names a region of this
             // `mem` with these bounds (checked on entry to `run_until`).
-            let id = mem.regions[self.code_idx].block_at[(off >> 1) as usize];
+            let id = code.start(self.code_idx, off as usize);
             if id != 0 {
                 return Some(id as usize - 1);
             }
         }
-        match mem.block(self.pc) {
+        match code.block(mem, self.pc) {
             Ok((idx, first)) => {
                 let r = &mem.regions[idx];
                 self.code_idx = idx;
@@ -505,7 +516,7 @@ impl Cpu {
         self.break_block();
     }
 
-    /// Run the block whose first instruction is `mem.insts[first]`, from
+    /// Run the block whose first instruction is `code.insts[first]`, from
     /// `self.pc` = its start, and the blocks it leads to, until the deadline
     /// (checked after every instruction, so the run stops on the same
     /// instruction boundary as a one-by-one run), a block not cached yet, a
@@ -513,7 +524,13 @@ impl Cpu {
     /// general path: a load or store outside RAM, a store near cached code
     /// or to `tohost`, a system instruction. That one is handed back
     /// unexecuted, with the core's state as it was just before it.
-    fn exec_block(&mut self, mem: &mut Memory, dev: &mut dyn Mmio, first: usize) -> Exit {
+    fn exec_block(
+        &mut self,
+        mem: &mut Memory,
+        code: &mut CodeCache,
+        dev: &mut dyn Mmio,
+        first: usize,
+    ) -> Exit {
         // The translator first (`jit_run.rs`), except in a loop the idle
         // detector is measuring (after a device read it runs too, and
         // reports short backward branches as the interpreter does).
@@ -525,7 +542,7 @@ impl Cpu {
             } else {
                 None
             };
-            match self.run_translated(mem, first, window) {
+            match self.run_translated(mem, code, first, window) {
                 jit_run::Translated::Ran => return Exit::Paused,
                 jit_run::Translated::Poll { from, to } => return Exit::Poll { from, to },
                 // The interpreter does what the translator does not take,
@@ -543,10 +560,10 @@ impl Cpu {
         };
         #[cfg(not(target_arch = "x86_64"))]
         let deadline = self.deadline;
-        let mut run = exec::Run::new(&mut mem.regions, &mem.insts);
+        let mut run = exec::Run::new(&mut mem.regions, &code.insts);
         run.set_timing(self.mem_timing, mem.l1_arbiter.as_deref_mut());
         if self.code_size != 0 {
-            run.set_code_region(self.code_idx);
+            run.set_code_region(self.code_idx, &code.starts);
         }
         if let Some((base, bytes)) = dev.plain_window() {
             run.set_window(base, bytes, self.latency);
@@ -555,7 +572,7 @@ impl Cpu {
         run.poll_armed = self.poll.touched || self.poll.active;
         // The one load-use stall a block cannot know: behind whatever
         // instruction ran before it.
-        let stall = self.entry_stall(&mem.insts, first);
+        let stall = self.entry_stall(&code.insts, first);
         let entry = self.cycles;
         let cycles = entry + stall * timing::LOAD_USE_STALL;
         let flow = exec::run(&mut run, &mut self.regs, first, entry, cycles, deadline);

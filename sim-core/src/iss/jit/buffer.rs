@@ -16,8 +16,8 @@ pub(crate) struct CodeBuffer {
     used: usize,
 }
 
-// SAFETY: the buffer is plain memory owned by this value; the core that owns
-// the `Memory` holding it is the only user at any time.
+// SAFETY: the buffer is plain memory owned by this value; the core that has
+// the `CodeCache` holding it is the only user at any time.
 unsafe impl Send for CodeBuffer {}
 
 impl std::fmt::Debug for CodeBuffer {

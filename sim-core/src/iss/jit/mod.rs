@@ -26,10 +26,11 @@
 //! does not fit, polling loops the idle detector watches, what the
 //! templates do not cover) runs on the interpreter.
 //!
-//! The cache lives in [`Memory`](super::Memory) beside the blocks it was
-//! translated from, so the cluster's cores share it, and it is dropped
-//! with them: any write into cached code (stores leave translated code
-//! before they could do one) and a full block cache flush both empty it.
+//! The cache lives in the [`CodeCache`](super::CodeCache) beside the
+//! blocks it was translated from, so the cluster's cores share it, and it
+//! is dropped with them: any write into decoded code (stores leave
+//! translated code before they could do one) and a full block cache flush
+//! both empty it.
 
 mod buffer;
 pub(crate) mod ctx;
@@ -39,7 +40,7 @@ mod helpers;
 use dynasmrt::x64::X64Relocation;
 use dynasmrt::{dynasm, DynasmApi, DynasmLabelApi, VecAssembler};
 
-use super::block::Inst;
+use super::code::Blocks;
 use super::mem::Region;
 use buffer::{CodeBuffer, CODE_BYTES};
 use ctx::*;
@@ -83,7 +84,7 @@ fn unpack(w: [u64; 2]) -> Entry {
     }
 }
 
-/// The translated code of one [`Memory`](super::Memory).
+/// The translated code of one [`CodeCache`](super::CodeCache).
 pub(crate) struct JitCache {
     buf: CodeBuffer,
     stubs: Stubs,
@@ -260,14 +261,14 @@ impl JitCache {
     }
 
     /// The translation of the block starting at byte `off` of region
-    /// `region`, whose first instruction is `insts[first]`, translating it
+    /// `region`, whose first instruction is `blocks.insts[first]`, translating it
     /// if needed (`l1`: with a path for L1 accesses, see `emit::translate`);
     /// `None` if the translator does not cover its first
     /// instruction.
     pub fn entry(
         &mut self,
         regions: &[Region],
-        insts: &[Inst],
+        blocks: Blocks,
         region: usize,
         off: usize,
         first: usize,
@@ -287,13 +288,14 @@ impl JitCache {
         if e.worst == UNCOVERED.worst {
             return None;
         }
+        let Blocks { insts, starts } = blocks;
         let len = super::block::block_len(&insts[first..]);
         let b = &insts[first..first + len];
         // Room for the worst block (~100 host bytes per instruction, twice
         // with the careful variant).
         if !self.buf.fits(128 * 1024) {
             self.flush();
-            return self.entry(regions, insts, region, off, first, flavour);
+            return self.entry(regions, blocks, region, off, first, flavour);
         }
         let tables = &self.tables[f];
         let known = |pc: u32| {
@@ -303,8 +305,9 @@ impl JitCache {
             (e.code != 0).then_some(e)
         };
         let first_reads = |pc: u32| {
-            let r = regions.iter().find(|r| r.offset_of(pc, 2).is_some())?;
-            let id = *r.block_at.get((pc.wrapping_sub(r.base) >> 1) as usize)?;
+            let k = regions.iter().position(|r| r.offset_of(pc, 2).is_some())?;
+            let at = &starts.get(k)?.at;
+            let id = *at.get((pc.wrapping_sub(regions[k].base) >> 1) as usize)?;
             (id != 0).then(|| insts[id as usize - 1].reads())
         };
         let Some(t) = translate(

@@ -7,7 +7,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
-use sim_core::iss::{load_elf, Cpu, CpuConfig, Memory, NoDevices, StopReason};
+use sim_core::iss::{load_elf, CodeCache, Cpu, CpuConfig, Memory, NoDevices, StopReason};
 use sim_core::machine::run_elf::build_memory;
 use sim_core::units::Picos;
 use world_server::camera::Camera;
@@ -77,6 +77,7 @@ pub struct Detection {
 pub struct Firmware {
     cpu: Cpu,
     mem: Memory,
+    code: CodeCache,
     console: Console,
     frame: u32,
     command: u32,
@@ -106,6 +107,7 @@ impl Firmware {
         let mut fw = Firmware {
             cpu,
             mem,
+            code: CodeCache::new(),
             console,
             frame: sym("vision_frame"),
             command: sym("vision_command"),
@@ -123,7 +125,7 @@ impl Firmware {
             .set_instruction_limit(Some(self.cpu.instret() + 50_000_000));
         match self
             .cpu
-            .run_until(&mut self.mem, &mut NoDevices, Picos::MAX)
+            .run_until(&mut self.mem, &mut self.code, &mut NoDevices, Picos::MAX)
         {
             StopReason::Breakpoint { .. } => None,
             StopReason::Exit { code } => Some(code),
