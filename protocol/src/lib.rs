@@ -53,6 +53,7 @@ pub mod heap;
 mod image;
 mod message;
 pub mod radio;
+pub mod sched;
 pub mod series;
 pub mod shm;
 mod timestep;

@@ -737,7 +737,7 @@ pub fn world_command(
     cmd.arg("--connect-timeout")
         .arg(CONNECT_TIMEOUT_S.to_string())
         .arg("--busy-poll-us")
-        .arg(scenario.busy_poll_us.to_string());
+        .arg(scenario.busy_poll_us().to_string());
     // `OUT/world.mcap`, merged into `run.mcap` after the run
     // (crate::foxglove), unless the scenario says `mcap = false`.
     if scenario.mcap {
@@ -791,7 +791,7 @@ fn sim_core_command(
         .arg("--image-encoding")
         .arg(scenario.image_encoding.as_str())
         .arg("--busy-poll-us")
-        .arg(scenario.busy_poll_us.to_string())
+        .arg(scenario.busy_poll_us().to_string())
         .arg("--no-progress");
     if let Some(t) = scenario.max_time_s {
         cmd.arg("--max-time").arg(t.to_string());

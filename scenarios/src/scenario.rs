@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use protocol::{TimestepError, TimestepMs};
 use serde::{Deserialize, Serialize};
 use sim_core::config::{run_key_names, RunConfig};
+use sim_core::peripherals::stm32::crtp::CrtpSpec;
 
 use crate::world::World;
 
@@ -600,6 +601,27 @@ impl Scenario {
 }
 
 impl Scenario {
+    /// The busy-poll budget the processes are started with: the
+    /// scenario's, but 0 when a platform serves a live CRTP link paced to
+    /// the wall clock. Such a run waits for the clock anyway, and on a
+    /// host busy with other work the polling only takes the CPU the peer
+    /// needs: a cflib flight at 2 ms steps beside two CPU-bound processes
+    /// kept 0.67 of the wall clock with 200 µs of polling and 1.00 without
+    /// (docs/notes/2026-12-07-flight-stack.md).
+    pub fn busy_poll_us(&self) -> u64 {
+        let runs = std::iter::once(&self.run)
+            .filter(|_| self.platforms.is_empty())
+            .chain(self.platforms.iter().map(|p| &p.run));
+        let paced = runs
+            .into_iter()
+            .any(|r| matches!(r.crtp, Some(CrtpSpec::Udp(_))) && r.pace > 0.0);
+        if paced {
+            0
+        } else {
+            self.busy_poll_us
+        }
+    }
+
     /// The timestep under every platform's sync mode and controller (the
     /// same checks sim-core makes when the world reports its timestep).
     pub fn check_timestep(&self) -> Result<(), ScenarioError> {

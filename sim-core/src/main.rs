@@ -39,6 +39,7 @@ fn init_logs(default_directive: &str) {
 
 fn main() {
     protocol::heap::keep_freed_memory();
+    protocol::sched::request_short_slice();
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::RunElf(args)) => {
