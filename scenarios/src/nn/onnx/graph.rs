@@ -11,7 +11,7 @@
 //! output runs, possibly through a Relu or Clip (fused as a clamp), into
 //! the QuantizeLinear that fixes the layer's output scale.
 
-use super::layers::{LayerKind, Model, QParams, QType, Value, Window};
+use super::layers::{LayerKind, Model, PoolScale, QParams, QType, Value, Window};
 use super::proto::{data_type, AttributeProto, GraphProto, NodeProto, TensorProto};
 use super::requant::{round_clamp, Requant};
 use std::collections::HashMap;
@@ -597,13 +597,10 @@ impl<'a> Importer<'a> {
                         requant: self.ratio(n, s_x / s_y)?,
                     }
                 } else {
-                    let requant = (0..=kernel[0] * kernel[1])
-                        .map(|c| self.ratio(n, s_x / (s_y * c.max(1) as f64)))
-                        .collect::<Result<_, _>>()?;
                     LayerKind::AvgPool {
                         window,
                         count_include_pad: attr_i(n, "count_include_pad", 0) != 0,
-                        requant,
+                        scale: self.pool_scale(n, s_x, s_y, kernel[0] * kernel[1])?,
                     }
                 };
                 (kind, vec![1, xv.shape[1], ho, wo], 0, vec![x])
@@ -612,10 +609,10 @@ impl<'a> Importer<'a> {
                 if xv.shape.len() != 4 {
                     return Err(rank_err("4-D tensors are supported"));
                 }
-                let hw = (xv.shape[2] * xv.shape[3]) as f64;
+                let hw = xv.shape[2] * xv.shape[3];
                 (
                     LayerKind::GlobalAvgPool {
-                        requant: self.ratio(n, s_x / (s_y * hw))?,
+                        scale: self.pool_scale(n, s_x, s_y, hw)?,
                     },
                     vec![1, xv.shape[1], 1, 1],
                     0,
@@ -717,6 +714,24 @@ impl<'a> Importer<'a> {
         self.by_name.insert(float_out, out);
         self.push(n, &op, inputs, out, clamp, macs, kind);
         Ok(())
+    }
+
+    /// An average pool's division: exact where the scale is kept, else
+    /// one record per window count (1..=max).
+    fn pool_scale(
+        &self,
+        n: &NodeProto,
+        s_x: f64,
+        s_y: f64,
+        max: usize,
+    ) -> Result<PoolScale, ImportError> {
+        if s_x == s_y {
+            return Ok(PoolScale::Divide);
+        }
+        let records = (0..=max)
+            .map(|c| self.ratio(n, s_x / (s_y * c.max(1) as f64)))
+            .collect::<Result<_, _>>()?;
+        Ok(PoolScale::Records(records))
     }
 
     fn const_input(&self, n: &NodeProto, k: usize, what: &str) -> Result<&DqConst, ImportError> {

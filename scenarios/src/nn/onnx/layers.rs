@@ -70,16 +70,15 @@ pub enum LayerKind {
     /// The maximum of the integers (the map to the output is monotone),
     /// then requantized where the output's scale differs.
     MaxPool { window: Window, requant: Requant },
-    /// The sum of (x − zp) over the window, times scale_in / (scale_out ·
-    /// count): one record per window size (edge windows without the pad
-    /// count fewer; `requant[count]`).
+    /// The mean of (x − zp) over the window (edge windows without the pad
+    /// count fewer): see [`PoolScale`].
     AvgPool {
         window: Window,
         count_include_pad: bool,
-        requant: Vec<Requant>,
+        scale: PoolScale,
     },
-    /// AvgPool over the whole plane: `requant` for H·W.
-    GlobalAvgPool { requant: Requant },
+    /// AvgPool over the whole plane.
+    GlobalAvgPool { scale: PoolScale },
     /// a·ra + b·rb with one common shift (`ra.shift == rb.shift`).
     Add { ra: Requant, rb: Requant },
     /// Channel concatenation, each input requantized to the output's scale.
@@ -92,6 +91,20 @@ pub enum LayerKind {
     /// A table from input integer to output integer (Sigmoid between
     /// DequantizeLinear and QuantizeLinear); indexed by q − qmin.
     Lut { table: Vec<i32> },
+}
+
+/// How an average pool's sum becomes its output.
+#[derive(Clone, Debug)]
+pub enum PoolScale {
+    /// The output keeps the input's scale (onnxruntime's quantizer gives
+    /// pools their input's): an integer division by the window's count,
+    /// rounding half to even as ONNX's QuantizeLinear does. Half-way sums
+    /// are frequent here (a sum of 3 over 6 inputs), and a kernel rounding
+    /// them up would be one step off onnxruntime on every one.
+    Divide,
+    /// Another scale: `records[count]` is scale_in / (scale_out · count)
+    /// (ties are then no likelier than anywhere else).
+    Records(Vec<Requant>),
 }
 
 /// One layer: fused from the ONNX nodes named in `op`.

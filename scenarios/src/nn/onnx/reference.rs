@@ -4,7 +4,7 @@
 //! out; float only at the edges (the model's own QuantizeLinear of the
 //! input, the last DequantizeLinear, an output Sigmoid).
 
-use super::layers::{LayerKind, Model, QParams, Window};
+use super::layers::{LayerKind, Model, PoolScale, QParams, Window};
 use super::requant::{round_clamp, Requant};
 
 /// Why a run failed.
@@ -114,16 +114,16 @@ pub fn run_int(model: &Model, input: Vec<i32>) -> Vec<i32> {
             LayerKind::AvgPool {
                 window,
                 count_include_pad,
-                requant,
+                scale,
             } => pool(x, &xv.shape, &out_v.shape, window, |vals, full| {
                 let sum: i64 = vals.iter().map(|&v| (v - zx) as i64).sum();
                 let count = if *count_include_pad { full } else { vals.len() };
-                fin(requant[count].apply(sum))
+                fin(pool_mean(sum, count, scale))
             }),
-            LayerKind::GlobalAvgPool { requant } => {
+            LayerKind::GlobalAvgPool { scale } => {
                 let hw = xv.shape[2] * xv.shape[3];
                 x.chunks(hw)
-                    .map(|plane| fin(requant.apply(plane.iter().map(|&v| (v - zx) as i64).sum())))
+                    .map(|plane| fin(pool_mean(plane.iter().map(|&v| (v - zx) as i64).sum(), hw, scale)))
                     .collect()
             }
             LayerKind::Add { ra, rb } => {
@@ -159,6 +159,24 @@ pub fn run_int(model: &Model, input: Vec<i32>) -> Vec<i32> {
         vals[l.output] = Some(y);
     }
     vals[model.output].take().expect("the output is computed")
+}
+
+/// An average pool's sum over `count` inputs in the output's scale.
+fn pool_mean(sum: i64, count: usize, scale: &PoolScale) -> i64 {
+    match scale {
+        PoolScale::Divide => div_round_half_even(sum, count as i64),
+        PoolScale::Records(r) => r[count].apply(sum),
+    }
+}
+
+/// `a / b` rounded half to even, in integers (b > 0).
+pub fn div_round_half_even(a: i64, b: i64) -> i64 {
+    let (q, r) = (a.div_euclid(b), a.rem_euclid(b));
+    match (2 * r).cmp(&b) {
+        std::cmp::Ordering::Greater => q + 1,
+        std::cmp::Ordering::Equal if q % 2 != 0 => q + 1,
+        _ => q,
+    }
 }
 
 /// `(acc + 2^(shift−1)) >> shift`, the records' rounding.
@@ -250,4 +268,24 @@ fn pool(
         }
     }
     y
+}
+
+#[cfg(test)]
+mod tests {
+    use super::div_round_half_even as d;
+
+    #[test]
+    fn pool_division_rounds_half_to_even() {
+        assert_eq!(d(3, 6), 0); // 0.5
+        assert_eq!(d(9, 6), 2); // 1.5
+        assert_eq!(d(15, 6), 2); // 2.5
+        assert_eq!(d(-3, 6), 0); // -0.5
+        assert_eq!(d(-9, 6), -2); // -1.5
+        assert_eq!(d(-15, 6), -2); // -2.5
+        assert_eq!(d(4, 6), 1);
+        assert_eq!(d(-4, 6), -1);
+        assert_eq!(d(2, 6), 0);
+        assert_eq!(d(-2, 6), 0);
+        assert_eq!(d(17, 9), 2);
+    }
 }
