@@ -146,9 +146,19 @@ def build(name: str, seed: int) -> tuple[Net, str]:
         m = net.node("MaxPool", [c], kernel_shape=[3, 3], strides=[2, 2], pads=[1, 1, 1, 1])
         return net, net.conv(m, 8, 8, 1)
     if name == "avgpool":
+        # The pad counted: every window holds 9, and no sum is half-way
+        # (test_avgpool_ties has the other case).
         c = net.node("Relu", [net.conv(x, 8, 8, 3)])
-        a = net.node("AveragePool", [c], kernel_shape=[3, 3], strides=[1, 1], pads=[1, 1, 1, 1])
+        a = net.node(
+            "AveragePool", [c], kernel_shape=[3, 3], strides=[1, 1], pads=[1, 1, 1, 1], count_include_pad=1
+        )
         return net, net.conv(a, 8, 8, 1)
+    if name == "avgpool_edges":
+        c = net.node("Relu", [net.conv(x, 8, 8, 3)])
+        return net, net.node("AveragePool", [c], kernel_shape=[3, 3], strides=[1, 1], pads=[1, 1, 1, 1])
+    if name == "avgpool_2x2":
+        c = net.node("Relu", [net.conv(x, 8, 8, 3)])
+        return net, net.node("AveragePool", [c], kernel_shape=[2, 2], strides=[2, 2])
     if name == "globalavgpool":
         c = net.node("Relu", [net.conv(x, 8, 16, 3)])
         g = net.node("GlobalAveragePool", [c])
@@ -167,6 +177,10 @@ def build(name: str, seed: int) -> tuple[Net, str]:
         c = net.node("Relu", [net.conv(x, 8, 4, 3, stride=2)])
         shape = net.const("shape", np.array([1, -1], np.int64))
         return net, net.gemm(net.node("Reshape", [c, shape]), 4 * 6 * 6, 10)
+    if name.startswith("mobilenet_body"):
+        # The same blocks, their feature map as the output.
+        s = net.relu6(net.conv(x, 8, 16, 3, stride=2))
+        return net, mobilenet_block(net, mobilenet_block(net, s, 16), 16)
     if name.startswith("mobilenet"):
         # A stem, two inverted residual blocks, a head: GAP, Flatten, Gemm,
         # Sigmoid.
@@ -223,7 +237,7 @@ def steps_off(ours: np.ndarray, ref: np.ndarray, scale: float, sigmoid: bool) ->
 MODELS = [
     "conv3x3_s1", "conv3x3_s2", "depthwise", "grouped", "conv1x1", "relu", "clip",
     "maxpool", "avgpool", "globalavgpool", "add", "concat", "gemm", "matmul",
-    "flatten", "reshape", "sigmoid", "mobilenet", "mobilenet_int8",
+    "flatten", "reshape", "sigmoid", "mobilenet", "mobilenet_int8", "mobilenet_body", "mobilenet_body_int8",
 ]
 
 
@@ -235,10 +249,16 @@ def test_agrees_with_onnxruntime(name, tmp_path, binaries):
         [binaries["cosim"], "nn", "import", q], capture_output=True, text=True, timeout=120
     )
     assert table.returncode == 0, table.stderr
-    assert "total" in table.stdout
+    total = table.stdout.splitlines()[-1].split()
+    assert total[0] == "total", table.stdout
+    if name == "conv3x3_s1":
+        # Cout·Hout·Wout·Cin·Kh·Kw; int8 weights and int32 biases.
+        assert total[-2:] == [str(8 * 16 * 16 * 3 * 9), str(8 * 3 * 9 + 4 * 8)], table.stdout
+    if name == "gemm":
+        assert total[-2:] == [str(32 * 24 + 24 * 10), str(32 * 24 + 24 * 10 + 4 * (24 + 10))], table.stdout
     sess = ort.InferenceSession(str(q), providers=["CPUExecutionProvider"])
     scale = output_scale(q)
-    sigmoid = name in ("sigmoid",) or name.startswith("mobilenet")
+    sigmoid = name == "sigmoid" or name in ("mobilenet", "mobilenet_int8")
     rng = np.random.default_rng(7)
     offs = []
     for k in range(RUNS):
@@ -259,6 +279,66 @@ def test_agrees_with_onnxruntime(name, tmp_path, binaries):
     print(f"{name}: {off.size} values, {100 * exact:.2f} % exact, max {off.max():.3f} steps off")
     assert off.max() <= 1 + 1e-3, f"{name}: {off.max()} steps off"
     assert exact >= 0.99, f"{name}: {100 * exact:.2f} % exact"
+
+
+def window_sums(q: np.ndarray, zp: int, k: int, stride: int, pad: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each AveragePool window's sum of (q - zp) and its count (the pad not
+    counted)."""
+    v = np.pad(q.astype(np.int64) - zp, ((0, 0), (0, 0), (pad, pad), (pad, pad)))
+    ones = np.pad(np.ones_like(q, np.int64), ((0, 0), (0, 0), (pad, pad), (pad, pad)))
+    ho = (v.shape[2] - k) // stride + 1
+    wo = (v.shape[3] - k) // stride + 1
+    win = lambda a: sum(  # noqa: E731
+        a[:, :, i : i + stride * ho : stride, j : j + stride * wo : stride] for i in range(k) for j in range(k)
+    )
+    return win(v), win(ones)
+
+
+@pytest.mark.parametrize("name,k,stride,pad", [("avgpool_edges", 3, 1, 1), ("avgpool_2x2", 2, 2, 0)])
+def test_avgpool_ties(name, k, stride, pad, tmp_path, binaries):
+    """An average pool that keeps its input's scale rounds sum / count. Where
+    the sum is exactly half-way (3 over 6 inputs, 2 over 4), the integer
+    reference rounds half to even, and onnxruntime, which sums dequantized
+    floats, lands either side of the half by float32 rounding: the two
+    differ there by one step, and nowhere else."""
+    q, net = quantized(tmp_path, name)
+    m = onnx.load(q)
+    pool = next(n for n in m.graph.node if n.op_type == "AveragePool")
+    dq = next(n for n in m.graph.node if n.output[0] == pool.input[0])
+    inits = {t.name: numpy_helper.to_array(t) for t in m.graph.initializer}
+    zp = int(inits[dq.input[2]])
+    # The pool's quantized input as a second output of onnxruntime's run.
+    m.graph.output.append(helper.make_empty_tensor_value_info(dq.input[0]))
+    probe = tmp_path / "probe.onnx"
+    onnx.save(m, probe)
+    sess = ort.InferenceSession(str(probe), providers=["CPUExecutionProvider"])
+    scale = output_scale(q)
+    rng = np.random.default_rng(7)
+    offs, ties = [], []
+    for i in range(RUNS):
+        x = rng.normal(0, 1, net.shape).astype(np.float32)
+        xp, yp = tmp_path / f"x{i}.npy", tmp_path / f"y{i}.npy"
+        np.save(xp, x)
+        r = subprocess.run(
+            [binaries["cosim"], "nn", "import", q, "--input", xp, "--output", yp],
+            capture_output=True, text=True, timeout=120,
+        )
+        assert r.returncode == 0, r.stderr
+        ref, pool_in = sess.run(None, {"input": x})
+        sums, counts = window_sums(pool_in, zp, k, stride, pad)
+        offs.append(np.abs(np.load(yp).astype(np.float64) - ref) / scale)
+        ties.append(2 * (sums % counts) == counts)
+    off, tie = np.concatenate(offs).ravel(), np.concatenate(ties).ravel()
+    assert off.shape == tie.shape
+    differ = off > 1e-3
+    print(
+        f"{name}: {off.size} values, {100 * np.mean(~differ):.2f} % exact, max {off.max():.3f} steps off; "
+        f"{100 * tie.mean():.2f} % half-way sums, {100 * differ[tie].mean():.1f} % of them differ"
+    )
+    assert off.max() <= 1 + 1e-3
+    assert not differ[~tie].any(), "a difference where the sum is not half-way"
+    # Both roundings do occur at ties (else the case is not exercised).
+    assert tie.any() and differ.any()
 
 
 def test_unsupported_op_is_one_line_naming_node_and_op(tmp_path, binaries):
