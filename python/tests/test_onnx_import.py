@@ -200,14 +200,18 @@ class Reader(CalibrationDataReader):
         return next(self.data, None)
 
 
-def quantized(tmp: Path, name: str, activation=QuantType.QUInt8) -> tuple[Path, Net]:
-    net, out = build(name, seed=sum(map(ord, name)))
+def quantized(tmp: Path, name: str, activation=QuantType.QUInt8, symmetric=False) -> tuple[Path, Net]:
+    net, out = build(name.removesuffix("_sym"), seed=sum(map(ord, name)))
     f = net.save(out, tmp / f"{name}.onnx")
     q = tmp / f"{name}.q.onnx"
     quantize_static(
         str(f), str(q), Reader(net.shape, seed=1),
         quant_format=QuantFormat.QDQ, per_channel=True,
         weight_type=QuantType.QInt8, activation_type=activation,
+        # Symmetric activations keep a Relu or Clip as its own node between
+        # DequantizeLinear and QuantizeLinear (asymmetric ones fold it into
+        # the previous output's range).
+        extra_options={"ActivationSymmetric": symmetric},
     )
     return q, net
 
@@ -235,7 +239,7 @@ def steps_off(ours: np.ndarray, ref: np.ndarray, scale: float, sigmoid: bool) ->
 
 
 MODELS = [
-    "conv3x3_s1", "conv3x3_s2", "depthwise", "grouped", "conv1x1", "relu", "clip",
+    "conv3x3_s1", "conv3x3_s2", "depthwise", "grouped", "conv1x1", "relu", "clip", "relu_sym", "clip_sym",
     "maxpool", "avgpool", "globalavgpool", "add", "concat", "gemm", "matmul",
     "flatten", "reshape", "sigmoid", "mobilenet", "mobilenet_int8", "mobilenet_body", "mobilenet_body_int8",
 ]
@@ -243,8 +247,9 @@ MODELS = [
 
 @pytest.mark.parametrize("name", MODELS)
 def test_agrees_with_onnxruntime(name, tmp_path, binaries):
-    act = QuantType.QInt8 if name.endswith("_int8") else QuantType.QUInt8
-    q, net = quantized(tmp_path, name, act)
+    sym = name.endswith("_sym")
+    act = QuantType.QInt8 if name.endswith("_int8") or sym else QuantType.QUInt8
+    q, net = quantized(tmp_path, name, act, symmetric=sym)
     table = subprocess.run(
         [binaries["cosim"], "nn", "import", q], capture_output=True, text=True, timeout=120
     )
@@ -254,6 +259,8 @@ def test_agrees_with_onnxruntime(name, tmp_path, binaries):
     if name == "conv3x3_s1":
         # Cout·Hout·Wout·Cin·Kh·Kw; int8 weights and int32 biases.
         assert total[-2:] == [str(8 * 16 * 16 * 3 * 9), str(8 * 3 * 9 + 4 * 8)], table.stdout
+    if name == "relu_sym":
+        assert "Relu" in table.stdout, table.stdout
     if name == "gemm":
         assert total[-2:] == [str(32 * 24 + 24 * 10), str(32 * 24 + 24 * 10 + 4 * (24 + 10))], table.stdout
     sess = ort.InferenceSession(str(q), providers=["CPUExecutionProvider"])

@@ -166,7 +166,9 @@ fn attr_ints(n: &NodeProto, name: &str) -> Option<Vec<i64>> {
 }
 
 fn attr_s(n: &NodeProto, name: &str) -> String {
-    attr(n, name).map_or(String::new(), |a| String::from_utf8_lossy(&a.s).into_owned())
+    attr(n, name).map_or(String::new(), |a| {
+        String::from_utf8_lossy(&a.s).into_owned()
+    })
 }
 
 impl<'a> Importer<'a> {
@@ -195,7 +197,10 @@ impl<'a> Importer<'a> {
             .copied()
             .ok_or_else(|| node_err(n, format!("{name:?} is not a constant initializer")))?;
         if t.data_location == 1 {
-            return Err(node_err(n, format!("{name:?} is stored in an external file")));
+            return Err(node_err(
+                n,
+                format!("{name:?} is stored in an external file"),
+            ));
         }
         Ok(t)
     }
@@ -276,7 +281,15 @@ impl<'a> Importer<'a> {
         let shape = self.model.values[id].shape.clone();
         let out = self.add_value(y, shape, q);
         let requant = self.ratio(n, self.model.values[id].q.scale as f64 / q.scale as f64)?;
-        self.push(n, "QuantizeLinear", vec![id], out, q.ty.range(), 0, LayerKind::Requant { requant });
+        self.push(
+            n,
+            "QuantizeLinear",
+            vec![id],
+            out,
+            q.ty.range(),
+            0,
+            LayerKind::Requant { requant },
+        );
         Ok(())
     }
 
@@ -378,7 +391,11 @@ impl<'a> Importer<'a> {
         };
         let mut cur = n.output[0].clone();
         loop {
-            let cons = self.consumers.get(cur.as_str()).cloned().unwrap_or_default();
+            let cons = self
+                .consumers
+                .get(cur.as_str())
+                .cloned()
+                .unwrap_or_default();
             let [c] = cons[..] else {
                 let why = if cons.is_empty() {
                     format!("its output {cur:?} is not quantized (no QuantizeLinear)")
@@ -403,10 +420,20 @@ impl<'a> Importer<'a> {
                 "QuantizeLinear" => {
                     let q = self.qparams(c_node)?;
                     let (qmin, qmax) = q.ty.range();
-                    let to_q = |r: f64| -> f64 { q.zero_point as f64 + (r / q.scale as f64).round_ties_even() };
+                    let to_q = |r: f64| -> f64 {
+                        q.zero_point as f64 + (r / q.scale as f64).round_ties_even()
+                    };
                     let clamp = (
-                        if lo.is_finite() { (to_q(lo).max(qmin as f64)) as i32 } else { qmin },
-                        if hi.is_finite() { (to_q(hi).min(qmax as f64)) as i32 } else { qmax },
+                        if lo.is_finite() {
+                            (to_q(lo).max(qmin as f64)) as i32
+                        } else {
+                            qmin
+                        },
+                        if hi.is_finite() {
+                            (to_q(hi).min(qmax as f64)) as i32
+                        } else {
+                            qmax
+                        },
                     );
                     return Ok((q, clamp, op, cur));
                 }
@@ -508,12 +535,15 @@ impl<'a> Importer<'a> {
                 if cin_g * groups != cin || cout % groups != 0 {
                     return Err(node_err(
                         n,
-                        format!("weights {:?} with group {groups} on {} channels", w.dims, cin),
+                        format!(
+                            "weights {:?} with group {groups} on {} channels",
+                            w.dims, cin
+                        ),
                     ));
                 }
                 let (window, [ho, wo]) = self.window(n, [xv.shape[2], xv.shape[3]], [kh, kw])?;
-                let weights = int8_weights(n, &w)?;
-                let (bias, requant) = self.bias_requant(n, &w, cout, s_x, s_y)?;
+                let weights = int8_weights(n, w)?;
+                let (bias, requant) = self.bias_requant(n, w, cout, s_x, s_y)?;
                 let macs = (cout * ho * wo * cin_g * kh * kw) as u64;
                 (
                     LayerKind::Conv {
@@ -553,7 +583,7 @@ impl<'a> Importer<'a> {
                 if k != xv.shape[1] {
                     return Err(rank_err(&format!("weights {:?}", w.dims)));
                 }
-                let flat = int8_weights(n, &w)?;
+                let flat = int8_weights(n, w)?;
                 // Stored [out][in] whatever the file's order.
                 let weights = if trans_b {
                     flat
@@ -566,7 +596,7 @@ impl<'a> Importer<'a> {
                     }
                     t
                 };
-                let (bias, requant) = self.bias_requant(n, &w, nout, s_x, s_y)?;
+                let (bias, requant) = self.bias_requant(n, w, nout, s_x, s_y)?;
                 (
                     LayerKind::Dense {
                         weights,
@@ -625,7 +655,10 @@ impl<'a> Importer<'a> {
                 if bv.shape != xv.shape {
                     return Err(node_err(
                         n,
-                        format!("shapes {:?} and {:?}; broadcasting is not supported", xv.shape, bv.shape),
+                        format!(
+                            "shapes {:?} and {:?}; broadcasting is not supported",
+                            xv.shape, bv.shape
+                        ),
                     ));
                 }
                 let (ra, rb) = (s_x / s_y, bv.q.scale as f64 / s_y);
@@ -651,7 +684,10 @@ impl<'a> Importer<'a> {
                     axis += xv.shape.len() as i64;
                 }
                 if axis != 1 {
-                    return Err(node_err(n, format!("axis {axis}; channels (1) are supported")));
+                    return Err(node_err(
+                        n,
+                        format!("axis {axis}; channels (1) are supported"),
+                    ));
                 }
                 let mut ids = Vec::new();
                 let mut requant = Vec::new();
@@ -663,7 +699,10 @@ impl<'a> Importer<'a> {
                     if v.shape.len() != xv.shape.len() || v.shape[2..] != xv.shape[2..] {
                         return Err(node_err(
                             n,
-                            format!("shapes {:?} and {:?} differ beyond channels", xv.shape, v.shape),
+                            format!(
+                                "shapes {:?} and {:?} differ beyond channels",
+                                xv.shape, v.shape
+                            ),
                         ));
                     }
                     shape[1] += v.shape[1];
@@ -680,15 +719,24 @@ impl<'a> Importer<'a> {
                         axis += xv.shape.len() as i64;
                     }
                     let a = (axis.max(0) as usize).min(xv.shape.len());
-                    vec![xv.shape[..a].iter().product(), xv.shape[a..].iter().product()]
+                    vec![
+                        xv.shape[..a].iter().product(),
+                        xv.shape[a..].iter().product(),
+                    ]
                 } else {
                     let target = self.init_values(n, n.input.get(1).map_or("", |s| s))?;
                     reshape(&xv.shape, &target).ok_or_else(|| {
-                        node_err(n, format!("shape {target:?} for an input of {:?}", xv.shape))
+                        node_err(
+                            n,
+                            format!("shape {target:?} for an input of {:?}", xv.shape),
+                        )
                     })?
                 };
                 if shape.first() != Some(&1) || shape.iter().product::<usize>() != total {
-                    return Err(node_err(n, format!("output shape {shape:?}; batch 1 is kept")));
+                    return Err(node_err(
+                        n,
+                        format!("output shape {shape:?}; batch 1 is kept"),
+                    ));
                 }
                 (
                     LayerKind::Requant {
@@ -762,12 +810,17 @@ impl<'a> Importer<'a> {
         }
         let mut bias = vec![0i32; cout];
         if let Some(name) = n.input.get(2).filter(|s| !s.is_empty()) {
-            let b = self
-                .consts
-                .get(name.as_str())
-                .ok_or_else(|| node_err(n, format!("bias {name:?} is not a DequantizeLinear of a constant")))?;
+            let b = self.consts.get(name.as_str()).ok_or_else(|| {
+                node_err(
+                    n,
+                    format!("bias {name:?} is not a DequantizeLinear of a constant"),
+                )
+            })?;
             if b.q.len() != cout {
-                return Err(node_err(n, format!("{} biases for {cout} channels", b.q.len())));
+                return Err(node_err(
+                    n,
+                    format!("{} biases for {cout} channels", b.q.len()),
+                ));
             }
             for (c, v) in bias.iter_mut().enumerate() {
                 let zp = b.zero_point[if b.zero_point.len() == 1 { 0 } else { c }];
@@ -820,7 +873,10 @@ impl<'a> Importer<'a> {
 /// The int8 weights of a DequantizeLinear constant with zero point 0.
 fn int8_weights(n: &NodeProto, w: &DqConst) -> Result<Vec<i8>, ImportError> {
     if w.zero_point.iter().any(|&z| z != 0.0) {
-        return Err(node_err(n, "weights with a non-zero zero point (asymmetric) are not supported"));
+        return Err(node_err(
+            n,
+            "weights with a non-zero zero point (asymmetric) are not supported",
+        ));
     }
     w.q.iter()
         .map(|&v| {
@@ -851,10 +907,126 @@ fn reshape(input: &[usize], target: &[f64]) -> Option<Vec<usize>> {
     }
     if let Some(i) = infer {
         let rest: usize = out.iter().product();
-        if rest == 0 || total % rest != 0 {
+        if rest == 0 || !total.is_multiple_of(rest) {
             return None;
         }
         out[i] = total / rest;
     }
     Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::onnx::proto::{
+        Dimension, TensorShapeProto, TypeProto, TypeProtoTensor, ValueInfoProto,
+    };
+    use crate::nn::onnx::reference;
+
+    fn node(op: &str, name: &str, inputs: &[&str], output: &str) -> NodeProto {
+        NodeProto {
+            input: inputs.iter().map(|s| s.to_string()).collect(),
+            output: vec![output.to_string()],
+            name: name.to_string(),
+            op_type: op.to_string(),
+            ..Default::default()
+        }
+    }
+
+    fn tensor(name: &str, dims: &[i64], ty: i32, raw: Vec<u8>) -> TensorProto {
+        TensorProto {
+            dims: dims.to_vec(),
+            data_type: ty,
+            name: name.to_string(),
+            raw_data: raw,
+            ..Default::default()
+        }
+    }
+
+    fn f32s(v: &[f32]) -> Vec<u8> {
+        v.iter().flat_map(|x| x.to_le_bytes()).collect()
+    }
+
+    /// Input [1, 1, 3, 3] → Q → DQ → Conv 1x1 (2 channels, weights 2 and
+    /// −1 with per-channel scales 0.5 and 1) → Relu → Q → DQ, every
+    /// activation scale 1, int8, zero point 0: channel 0 is max(x, 0) and
+    /// channel 1 max(−x, 0).
+    fn conv_relu_graph() -> GraphProto {
+        let i8 = data_type::INT8;
+        let vi = |name: &str, dims: &[i64]| ValueInfoProto {
+            name: name.to_string(),
+            r#type: Some(TypeProto {
+                tensor_type: Some(TypeProtoTensor {
+                    elem_type: data_type::FLOAT,
+                    shape: Some(TensorShapeProto {
+                        dim: dims
+                            .iter()
+                            .map(|&d| Dimension {
+                                dim_value: Some(d),
+                                dim_param: None,
+                            })
+                            .collect(),
+                    }),
+                }),
+            }),
+        };
+        GraphProto {
+            node: vec![
+                node("QuantizeLinear", "q_in", &["x", "one", "zp"], "xq"),
+                node("DequantizeLinear", "dq_in", &["xq", "one", "zp"], "xf"),
+                node("DequantizeLinear", "dq_w", &["w", "ws", "wzp"], "wf"),
+                node("Conv", "conv", &["xf", "wf"], "c"),
+                node("Relu", "relu", &["c"], "r"),
+                node("QuantizeLinear", "q_out", &["r", "one", "zp"], "yq"),
+                node("DequantizeLinear", "dq_out", &["yq", "one", "zp"], "y"),
+            ],
+            initializer: vec![
+                tensor("one", &[], data_type::FLOAT, f32s(&[1.0])),
+                tensor("zp", &[], i8, vec![0]),
+                tensor("w", &[2, 1, 1, 1], i8, vec![2, (-1i8) as u8]),
+                tensor("ws", &[2], data_type::FLOAT, f32s(&[0.5, 1.0])),
+                tensor("wzp", &[2], i8, vec![0, 0]),
+            ],
+            input: vec![vi("x", &[1, 1, 3, 3])],
+            output: vec![vi("y", &[1, 2, 3, 3])],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn conv_relu_fuses_into_one_clamped_layer() {
+        let m = import_graph(&conv_relu_graph()).unwrap();
+        assert_eq!(m.layers.len(), 1);
+        let l = &m.layers[0];
+        assert_eq!((l.name.as_str(), l.op.as_str()), ("conv", "Conv+Relu"));
+        assert_eq!(l.clamp, (0, 127));
+        assert_eq!(l.macs, 2 * 3 * 3);
+        assert_eq!(l.weight_bytes(), 2 + 4 * 2);
+        assert_eq!(m.values[m.output].shape, [1, 2, 3, 3]);
+        let x: Vec<f32> = (-4..5).map(|v| v as f32 * 1.2).collect();
+        let y = reference::run(&m, &x).unwrap();
+        let q: Vec<f32> = x.iter().map(|v| v.round_ties_even()).collect();
+        let want: Vec<f32> = q
+            .iter()
+            .map(|v| v.max(0.0))
+            .chain(q.iter().map(|v| (-v).max(0.0)))
+            .collect();
+        assert_eq!(y, want);
+    }
+
+    #[test]
+    fn an_unsupported_node_is_named_with_its_op() {
+        let mut g = conv_relu_graph();
+        g.node[4] = node("Softmax", "sm", &["c"], "r");
+        let e = import_graph(&g).unwrap_err().to_string();
+        assert!(
+            e.starts_with("node \"conv\" (Conv): its output \"c\" goes to sm (Softmax)"),
+            "{e}"
+        );
+        let mut g = conv_relu_graph();
+        g.node.insert(0, node("LSTM", "lstm0", &["x"], "h"));
+        let e = import_graph(&g).unwrap_err().to_string();
+        assert_eq!(e, "node \"lstm0\" (LSTM): unsupported op");
+        assert!(!e.contains('\n'));
+    }
 }

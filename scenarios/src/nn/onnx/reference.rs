@@ -86,7 +86,18 @@ pub fn run_int(model: &Model, input: Vec<i32>) -> Vec<i32> {
                 weights,
                 bias,
                 requant,
-            } => conv(x, zx, &xv.shape, &out_v.shape, window, *groups, weights, bias, requant, fin),
+            } => conv(
+                x,
+                zx,
+                &xv.shape,
+                &out_v.shape,
+                window,
+                *groups,
+                weights,
+                bias,
+                requant,
+                fin,
+            ),
             LayerKind::Dense {
                 weights,
                 bias,
@@ -107,10 +118,16 @@ pub fn run_int(model: &Model, input: Vec<i32>) -> Vec<i32> {
                     })
                     .collect()
             }
-            LayerKind::MaxPool { window, requant } => pool(x, &xv.shape, &out_v.shape, window, |vals, _| {
-                let m = vals.iter().copied().max().expect("a window holds one input at least");
-                fin(requant.apply((m - zx) as i64))
-            }),
+            LayerKind::MaxPool { window, requant } => {
+                pool(x, &xv.shape, &out_v.shape, window, |vals, _| {
+                    let m = vals
+                        .iter()
+                        .copied()
+                        .max()
+                        .expect("a window holds one input at least");
+                    fin(requant.apply((m - zx) as i64))
+                })
+            }
             LayerKind::AvgPool {
                 window,
                 count_include_pad,
@@ -123,7 +140,13 @@ pub fn run_int(model: &Model, input: Vec<i32>) -> Vec<i32> {
             LayerKind::GlobalAvgPool { scale } => {
                 let hw = xv.shape[2] * xv.shape[3];
                 x.chunks(hw)
-                    .map(|plane| fin(pool_mean(plane.iter().map(|&v| (v - zx) as i64).sum(), hw, scale)))
+                    .map(|plane| {
+                        fin(pool_mean(
+                            plane.iter().map(|&v| (v - zx) as i64).sum(),
+                            hw,
+                            scale,
+                        ))
+                    })
                     .collect()
             }
             LayerKind::Add { ra, rb } => {
@@ -148,7 +171,10 @@ pub fn run_int(model: &Model, input: Vec<i32>) -> Vec<i32> {
                 }
                 y
             }
-            LayerKind::Requant { requant } => x.iter().map(|&q| fin(requant.apply((q - zx) as i64))).collect(),
+            LayerKind::Requant { requant } => x
+                .iter()
+                .map(|&q| fin(requant.apply((q - zx) as i64)))
+                .collect(),
             LayerKind::Lut { table } => {
                 let base = xv.q.ty.range().0;
                 x.iter()
@@ -217,15 +243,21 @@ fn conv(
                     let plane = &x[(g * cin_g + ci) * h * wd..][..h * wd];
                     for ky in 0..kh {
                         // Padding is the zero point: it adds nothing.
-                        let Some(iy) = (oy * w.stride[0] + ky).checked_sub(w.pads[0]).filter(|&v| v < h) else {
+                        let Some(iy) = (oy * w.stride[0] + ky)
+                            .checked_sub(w.pads[0])
+                            .filter(|&v| v < h)
+                        else {
                             continue;
                         };
                         for kx in 0..kw {
-                            let Some(ix) = (ox * w.stride[1] + kx).checked_sub(w.pads[1]).filter(|&v| v < wd)
+                            let Some(ix) = (ox * w.stride[1] + kx)
+                                .checked_sub(w.pads[1])
+                                .filter(|&v| v < wd)
                             else {
                                 continue;
                             };
-                            acc += (plane[iy * wd + ix] - zx) as i64 * wc[(ci * kh + ky) * kw + kx] as i64;
+                            acc += (plane[iy * wd + ix] - zx) as i64
+                                * wc[(ci * kh + ky) * kw + kx] as i64;
                         }
                     }
                 }
@@ -254,11 +286,17 @@ fn pool(
             for ox in 0..wo {
                 inside.clear();
                 for ky in 0..w.kernel[0] {
-                    let Some(iy) = (oy * w.stride[0] + ky).checked_sub(w.pads[0]).filter(|&v| v < h) else {
+                    let Some(iy) = (oy * w.stride[0] + ky)
+                        .checked_sub(w.pads[0])
+                        .filter(|&v| v < h)
+                    else {
                         continue;
                     };
                     for kx in 0..w.kernel[1] {
-                        if let Some(ix) = (ox * w.stride[1] + kx).checked_sub(w.pads[1]).filter(|&v| v < wd) {
+                        if let Some(ix) = (ox * w.stride[1] + kx)
+                            .checked_sub(w.pads[1])
+                            .filter(|&v| v < wd)
+                        {
                             inside.push(plane[iy * wd + ix]);
                         }
                     }

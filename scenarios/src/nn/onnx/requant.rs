@@ -161,7 +161,10 @@ mod tests {
 
     #[test]
     fn tiny_large_and_invalid_ratios() {
-        assert_eq!(Requant::from_ratio(1e-30).unwrap().apply(i32::MAX as i64), 0);
+        assert_eq!(
+            Requant::from_ratio(1e-30).unwrap().apply(i32::MAX as i64),
+            0
+        );
         assert!(matches!(
             Requant::from_ratio(3e9),
             Err(RequantError::TooLarge(_))
