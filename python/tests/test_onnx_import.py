@@ -18,8 +18,8 @@ import pytest
 
 onnx = pytest.importorskip("onnx", reason="onnx is not installed (python/requirements-test.txt)")
 ort = pytest.importorskip("onnxruntime", reason="onnxruntime is not installed (python/requirements-test.txt)")
-from onnx import TensorProto, helper, numpy_helper  # noqa: E402
-from onnxruntime.quantization import (  # noqa: E402
+from onnx import TensorProto, helper, numpy_helper
+from onnxruntime.quantization import (
     CalibrationDataReader,
     QuantFormat,
     QuantType,
@@ -64,8 +64,14 @@ class Net:
         self.const(n + "_b", b)
         self.nodes.append(
             helper.make_node(
-                "Conv", [x, n + "_w", n + "_b"], [n], name=n,
-                kernel_shape=[k, k], strides=[stride, stride], pads=pads, group=group,
+                "Conv",
+                [x, n + "_w", n + "_b"],
+                [n],
+                name=n,
+                kernel_shape=[k, k],
+                strides=[stride, stride],
+                pads=pads,
+                group=group,
             )
         )
         return n
@@ -149,9 +155,7 @@ def build(name: str, seed: int) -> tuple[Net, str]:
         # The pad counted: every window holds 9, and no sum is half-way
         # (test_avgpool_ties has the other case).
         c = net.node("Relu", [net.conv(x, 8, 8, 3)])
-        a = net.node(
-            "AveragePool", [c], kernel_shape=[3, 3], strides=[1, 1], pads=[1, 1, 1, 1], count_include_pad=1
-        )
+        a = net.node("AveragePool", [c], kernel_shape=[3, 3], strides=[1, 1], pads=[1, 1, 1, 1], count_include_pad=1)
         return net, net.conv(a, 8, 8, 1)
     if name == "avgpool_edges":
         c = net.node("Relu", [net.conv(x, 8, 8, 3)])
@@ -205,9 +209,13 @@ def quantized(tmp: Path, name: str, activation=QuantType.QUInt8, symmetric=False
     f = net.save(out, tmp / f"{name}.onnx")
     q = tmp / f"{name}.q.onnx"
     quantize_static(
-        str(f), str(q), Reader(net.shape, seed=1),
-        quant_format=QuantFormat.QDQ, per_channel=True,
-        weight_type=QuantType.QInt8, activation_type=activation,
+        str(f),
+        str(q),
+        Reader(net.shape, seed=1),
+        quant_format=QuantFormat.QDQ,
+        per_channel=True,
+        weight_type=QuantType.QInt8,
+        activation_type=activation,
         # Symmetric activations keep a Relu or Clip as its own node between
         # DequantizeLinear and QuantizeLinear (asymmetric ones fold it into
         # the previous output's range).
@@ -239,9 +247,29 @@ def steps_off(ours: np.ndarray, ref: np.ndarray, scale: float, sigmoid: bool) ->
 
 
 MODELS = [
-    "conv3x3_s1", "conv3x3_s2", "depthwise", "grouped", "conv1x1", "relu", "clip", "relu_sym", "clip_sym",
-    "maxpool", "avgpool", "globalavgpool", "add", "concat", "gemm", "matmul",
-    "flatten", "reshape", "sigmoid", "mobilenet", "mobilenet_int8", "mobilenet_body", "mobilenet_body_int8",
+    "conv3x3_s1",
+    "conv3x3_s2",
+    "depthwise",
+    "grouped",
+    "conv1x1",
+    "relu",
+    "clip",
+    "relu_sym",
+    "clip_sym",
+    "maxpool",
+    "avgpool",
+    "globalavgpool",
+    "add",
+    "concat",
+    "gemm",
+    "matmul",
+    "flatten",
+    "reshape",
+    "sigmoid",
+    "mobilenet",
+    "mobilenet_int8",
+    "mobilenet_body",
+    "mobilenet_body_int8",
 ]
 
 
@@ -251,7 +279,7 @@ def test_agrees_with_onnxruntime(name, tmp_path, binaries):
     act = QuantType.QInt8 if name.endswith("_int8") or sym else QuantType.QUInt8
     q, net = quantized(tmp_path, name, act, symmetric=sym)
     table = subprocess.run(
-        [binaries["cosim"], "nn", "import", q], capture_output=True, text=True, timeout=120
+        [binaries["cosim"], "nn", "import", q], check=False, capture_output=True, text=True, timeout=120
     )
     assert table.returncode == 0, table.stderr
     total = table.stdout.splitlines()[-1].split()
@@ -274,7 +302,10 @@ def test_agrees_with_onnxruntime(name, tmp_path, binaries):
         np.save(xp, x)
         r = subprocess.run(
             [binaries["cosim"], "nn", "import", q, "--input", xp, "--output", yp],
-            capture_output=True, text=True, timeout=120,
+            check=False,
+            capture_output=True,
+            text=True,
+            timeout=120,
         )
         assert r.returncode == 0, r.stderr
         ours = np.load(yp)
@@ -295,7 +326,7 @@ def window_sums(q: np.ndarray, zp: int, k: int, stride: int, pad: int) -> tuple[
     ones = np.pad(np.ones_like(q, np.int64), ((0, 0), (0, 0), (pad, pad), (pad, pad)))
     ho = (v.shape[2] - k) // stride + 1
     wo = (v.shape[3] - k) // stride + 1
-    win = lambda a: sum(  # noqa: E731
+    win = lambda a: sum(
         a[:, :, i : i + stride * ho : stride, j : j + stride * wo : stride] for i in range(k) for j in range(k)
     )
     return win(v), win(ones)
@@ -328,7 +359,10 @@ def test_avgpool_ties(name, k, stride, pad, tmp_path, binaries):
         np.save(xp, x)
         r = subprocess.run(
             [binaries["cosim"], "nn", "import", q, "--input", xp, "--output", yp],
-            capture_output=True, text=True, timeout=120,
+            check=False,
+            capture_output=True,
+            text=True,
+            timeout=120,
         )
         assert r.returncode == 0, r.stderr
         ref, pool_in = sess.run(None, {"input": x})
@@ -358,10 +392,14 @@ def test_unsupported_op_is_one_line_naming_node_and_op(tmp_path, binaries):
     f = net.save(out, tmp_path / "softmax.onnx")
     q = tmp_path / "softmax.q.onnx"
     quantize_static(
-        str(f), str(q), Reader(net.shape, seed=1),
-        quant_format=QuantFormat.QDQ, per_channel=True, weight_type=QuantType.QInt8,
+        str(f),
+        str(q),
+        Reader(net.shape, seed=1),
+        quant_format=QuantFormat.QDQ,
+        per_channel=True,
+        weight_type=QuantType.QInt8,
     )
-    r = subprocess.run([binaries["cosim"], "nn", "import", q], capture_output=True, text=True, timeout=60)
+    r = subprocess.run([binaries["cosim"], "nn", "import", q], check=False, capture_output=True, text=True, timeout=60)
     assert r.returncode != 0
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1, r.stderr
