@@ -377,6 +377,23 @@ enum NnCmd {
         #[arg(long, value_name = "interp|jit", default_value_t = sim_core::iss::Backend::DEFAULT)]
         iss: sim_core::iss::Backend,
     },
+    /// Imports an int8 ONNX model (QDQ, as onnxruntime's quantize_static
+    /// writes it) and prints its layers: ops, shapes, MACs, weight bytes.
+    /// With --input, runs the host's integer reference: the arithmetic the
+    /// deck's cluster kernels compute, on this machine, NOT a run on the
+    /// ISS (docs/NN_ONNX.md).
+    Import {
+        /// The .onnx file.
+        model: PathBuf,
+        /// A float32 .npy of the model's input shape: quantized with the
+        /// model's own QuantizeLinear, run by the integer reference.
+        #[arg(long, value_name = "X.npy")]
+        input: Option<PathBuf>,
+        /// Where to write the output (float32 .npy, dequantized with the
+        /// model's last DequantizeLinear); needs --input.
+        #[arg(long, value_name = "Y.npy", requires = "input")]
+        output: Option<PathBuf>,
+    },
 }
 
 #[derive(Subcommand, Debug)]
@@ -513,6 +530,14 @@ fn main() -> ExitCode {
         } => cmd_trace_check(trace, world_cmd, world, tolerance, bins),
         Cmd::List => cmd_list(),
         Cmd::Keys => commands::keys::cmd_keys(),
+        Cmd::Nn {
+            what:
+                NnCmd::Import {
+                    model,
+                    input,
+                    output,
+                },
+        } => cmd_nn_import(&model, input.as_deref(), output.as_deref()),
         Cmd::Nn {
             what:
                 NnCmd::Eval {

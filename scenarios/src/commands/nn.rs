@@ -44,3 +44,88 @@ pub(crate) fn cmd_dataset(
     println!("cosim: {line}");
     Ok(ExitCode::SUCCESS)
 }
+
+/// `cosim nn import`: the layer table, and with `--input` the host's
+/// integer reference run.
+pub(crate) fn cmd_nn_import(
+    model_path: &Path,
+    input: Option<&Path>,
+    output: Option<&Path>,
+) -> anyhow::Result<ExitCode> {
+    use scenarios::nn::onnx;
+    let model = onnx::import(model_path)?;
+    let shape = |id: usize| format!("{:?}", model.values[id].shape);
+    let mut rows = vec![[
+        "node".to_string(),
+        "op".into(),
+        "input".into(),
+        "output".into(),
+        "MACs".into(),
+        "weight B".into(),
+    ]];
+    for l in &model.layers {
+        let ins: Vec<String> = l.inputs.iter().map(|&i| shape(i)).collect();
+        rows.push([
+            l.name.clone(),
+            l.op.clone(),
+            ins.join(" "),
+            shape(l.output),
+            l.macs.to_string(),
+            l.weight_bytes().to_string(),
+        ]);
+    }
+    rows.push([
+        "total".into(),
+        format!("{} layers", model.layers.len()),
+        shape(model.input),
+        shape(model.output),
+        model.macs().to_string(),
+        model.weight_bytes().to_string(),
+    ]);
+    let mut widths = [0usize; 6];
+    for r in &rows {
+        for (w, c) in widths.iter_mut().zip(r) {
+            *w = (*w).max(c.chars().count());
+        }
+    }
+    for (i, r) in rows.iter().enumerate() {
+        if i == rows.len() - 1 {
+            println!("{}", "-".repeat(widths.iter().sum::<usize>() + 10));
+        }
+        let mut line = String::new();
+        for (k, (c, w)) in r.iter().zip(widths).enumerate() {
+            // Text left, numbers right.
+            if k >= 4 {
+                line += &format!("  {c:>w$}");
+            } else {
+                line += &format!("{}{c:<w$}", if k == 0 { "" } else { "  " });
+            }
+        }
+        println!("{}", line.trim_end());
+    }
+    if model.output_sigmoid {
+        println!("output: Sigmoid on the dequantized output (float)");
+    }
+    let Some(input) = input else {
+        return Ok(ExitCode::SUCCESS);
+    };
+    let (in_shape, x) = onnx::read_npy_f32(input)?;
+    let want = &model.values[model.input].shape;
+    if in_shape.iter().product::<usize>() != want.iter().product::<usize>() {
+        anyhow::bail!(
+            "{}: shape {in_shape:?}; the model's input {:?} is {want:?}",
+            input.display(),
+            model.input_name
+        );
+    }
+    let y = onnx::reference::run(&model, &x)?;
+    eprintln!(
+        "cosim nn import: the host's integer reference (not the ISS): {} values out",
+        y.len()
+    );
+    if let Some(out) = output {
+        onnx::write_npy_f32(out, &model.values[model.output].shape, &y)?;
+        eprintln!("cosim nn import: -> {}", out.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}

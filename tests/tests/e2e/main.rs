@@ -31,6 +31,7 @@ mod foxglove_mcap;
 mod mcap_time_base;
 mod nn_dataset;
 mod nn_eval;
+mod nn_import;
 mod nn_race;
 mod peer_killed;
 mod platform_bad_input;
