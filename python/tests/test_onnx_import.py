@@ -273,6 +273,22 @@ MODELS = [
 ]
 
 
+def run_import(binaries, model, x, where):
+    """`cosim nn import MODEL --input X --output Y` on `x`; returns Y."""
+    where.mkdir(parents=True, exist_ok=True)
+    xp, yp = where / "x.npy", where / "y.npy"
+    np.save(xp, x)
+    r = subprocess.run(
+        [binaries["cosim"], "nn", "import", model, "--input", xp, "--output", yp],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 0, r.stderr
+    return np.load(yp)
+
+
 @pytest.mark.parametrize("name", MODELS)
 def test_agrees_with_onnxruntime(name, tmp_path, binaries):
     sym = name.endswith("_sym")
@@ -298,17 +314,7 @@ def test_agrees_with_onnxruntime(name, tmp_path, binaries):
     offs = []
     for k in range(RUNS):
         x = rng.normal(0, 1, net.shape).astype(np.float32)
-        xp, yp = tmp_path / f"x{k}.npy", tmp_path / f"y{k}.npy"
-        np.save(xp, x)
-        r = subprocess.run(
-            [binaries["cosim"], "nn", "import", q, "--input", xp, "--output", yp],
-            check=False,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-        assert r.returncode == 0, r.stderr
-        ours = np.load(yp)
+        ours = run_import(binaries, q, x, tmp_path / f"run{k}")
         (ref,) = sess.run(None, {"input": x})
         assert ours.shape == ref.shape and ours.dtype == np.float32
         offs.append(steps_off(ours, ref, scale, sigmoid).ravel())
@@ -355,19 +361,10 @@ def test_avgpool_ties(name, k, stride, pad, tmp_path, binaries):
     offs, ties = [], []
     for i in range(RUNS):
         x = rng.normal(0, 1, net.shape).astype(np.float32)
-        xp, yp = tmp_path / f"x{i}.npy", tmp_path / f"y{i}.npy"
-        np.save(xp, x)
-        r = subprocess.run(
-            [binaries["cosim"], "nn", "import", q, "--input", xp, "--output", yp],
-            check=False,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-        assert r.returncode == 0, r.stderr
+        ours = run_import(binaries, q, x, tmp_path / f"run{i}")
         ref, pool_in = sess.run(None, {"input": x})
         sums, counts = window_sums(pool_in, zp, k, stride, pad)
-        offs.append(np.abs(np.load(yp).astype(np.float64) - ref) / scale)
+        offs.append(np.abs(ours.astype(np.float64) - ref) / scale)
         ties.append(2 * (sums % counts) == counts)
     off, tie = np.concatenate(offs).ravel(), np.concatenate(ties).ravel()
     assert off.shape == tie.shape
