@@ -18,6 +18,7 @@ import pytest
 
 onnx = pytest.importorskip("onnx", reason="onnx is not installed (python/requirements-test.txt)")
 ort = pytest.importorskip("onnxruntime", reason="onnxruntime is not installed (python/requirements-test.txt)")
+from crazyflie_cosim.deck import quantize_for_deck  # noqa: E402
 from onnx import TensorProto, helper, numpy_helper
 from onnxruntime.quantization import (
     CalibrationDataReader,
@@ -208,6 +209,12 @@ def quantized(tmp: Path, name: str, activation=QuantType.QUInt8, symmetric=False
     net, out = build(name.removesuffix("_sym"), seed=sum(map(ord, name)))
     f = net.save(out, tmp / f"{name}.onnx")
     q = tmp / f"{name}.q.onnx"
+    rng = np.random.default_rng(1)
+    calibration = [rng.normal(0, 1, net.shape).astype(np.float32) for _ in range(32)]
+    if not symmetric:
+        # What a user calls (crazyflie_cosim.deck).
+        acts = "uint8" if activation == QuantType.QUInt8 else "int8"
+        return quantize_for_deck(f, q, calibration, activations=acts), net
     quantize_static(
         str(f),
         str(q),
