@@ -8,7 +8,11 @@
  *   Radar reads every 100 ms, §4.3.2.A) while cflib has set the
  *   `radar.enable` parameter ("if this flag was set by the host, a packet
  *   is broadcasted", §4.3.1), in a phase by its id so that drones do not
- *   all send at once;
+ *   all send at once, each period drawn within ±1/4 of it: free-running
+ *   radios do not keep a fixed order, and with one the register's "last
+ *   sender", read by the log at the beacons' own period, named the same
+ *   neighbour at every read and never a nearer one beaconing just before
+ *   it (a guide 3 collision);
  * - hears every beacon and keeps the last sender's id and RSSI in the
  *   STM32's P2P_ID and P2P_RSSI (the `radar.id` and `radar.rssi` log
  *   variables): "these variables will be overridden every time a new drone
@@ -28,6 +32,19 @@
 volatile int32_t radar_period_ms = 100;   /* §4.3.2.A */
 volatile int32_t radar_timeout_ms = 3000; /* §4.3.1: 3 s without a P2P message */
 volatile int32_t radar_core_hz = 250000000;
+
+/* xorshift32 (Marsaglia 2003), seeded by the drone's id: the beacons'
+ * periods, the same in every run of a scenario. */
+static uint32_t rng_state;
+
+static uint32_t rng_next(void)
+{
+    uint32_t x = rng_state;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    return rng_state = x;
+}
 
 enum { PKT_BEACON = 0xA5 };
 
@@ -57,6 +74,9 @@ int main(void)
     uint32_t k = id > 0 ? id - 1 : 0;
     uint64_t phase = ((k % 2) * period / 2 + ((k / 2) % 2) * period / 4) % period;
     uint64_t next_tx = radio_now_cycles() + phase;
+    rng_state = 0x9E3779B9u ^ id;
+    if (rng_state == 0)
+        rng_state = 1;
     uint64_t last_heard = 0;
     uint32_t heard = 0, sent = 0, received = 0;
     uint16_t seq = 0;
@@ -70,8 +90,9 @@ int main(void)
                 seq++;
                 sent++;
             }
+            /* The next period: period ± period/4, uniform. */
             while (next_tx <= now)
-                next_tx += period;
+                next_tx += period - period / 4 + (uint64_t)rng_next() % (period / 2 + 1);
         } else if (!P2P_ENABLE) {
             next_tx = now + phase;
         }
