@@ -323,7 +323,11 @@ fn ranges_in_metres_negative_out_of_range_and_flow_dead_reckoning() {
         ..FlowFilterParams::default()
     };
     let mut m = Motion::new(PositionSource::Flow, 2000.0, raw);
-    m.init(2.0, [1.0, 2.0, 0.015], protocol::TimestepMs::new(32).unwrap());
+    m.init(
+        2.0,
+        [1.0, 2.0, 0.015],
+        protocol::TimestepMs::new(32).unwrap(),
+    );
     let mut s = Sensors {
         time_s: 2.5,
         x: 9.0,
@@ -355,7 +359,11 @@ fn ranges_in_metres_negative_out_of_range_and_flow_dead_reckoning() {
     assert!(m.update(&mut s).unwrap_err().contains("FLOW_VX"));
     // GPS mode: positions as the world says.
     let mut g = Motion::new(PositionSource::Gps, 2000.0, FlowFilterParams::default());
-    g.init(2.0, [1.0, 2.0, 0.015], protocol::TimestepMs::new(32).unwrap());
+    g.init(
+        2.0,
+        [1.0, 2.0, 0.015],
+        protocol::TimestepMs::new(32).unwrap(),
+    );
     let mut s2 = Sensors {
         time_s: 2.5,
         x: 1.5,
