@@ -194,6 +194,7 @@ fn non_default(key: &str) -> &'static str {
         "crtp" => "udp:127.0.0.1:19850",
         "pace" => "4",
         "crtp_idle_s" => "2.5",
+        "stabilizer.controller" => "pid",
         "cluster.cores" => "4",
         "cluster.mhz" => "90",
         "output.compress" => "false",
