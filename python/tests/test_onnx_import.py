@@ -394,15 +394,9 @@ def test_unsupported_op_is_one_line_naming_node_and_op(tmp_path, binaries):
     s = net.node("Softmax", [c], axis=1)
     out = net.conv(s, 8, 8, 1)
     f = net.save(out, tmp_path / "softmax.onnx")
-    q = tmp_path / "softmax.q.onnx"
-    quantize_static(
-        str(f),
-        str(q),
-        Reader(net.shape, seed=1),
-        quant_format=QuantFormat.QDQ,
-        per_channel=True,
-        weight_type=QuantType.QInt8,
-    )
+    rng = np.random.default_rng(1)
+    q = quantize_for_deck(f, tmp_path / "softmax.q.onnx",
+                          [rng.normal(0, 1, net.shape).astype(np.float32) for _ in range(32)])
     r = subprocess.run([binaries["cosim"], "nn", "import", q], check=False, capture_output=True, text=True, timeout=60)
     assert r.returncode != 0
     lines = r.stderr.strip().splitlines()
