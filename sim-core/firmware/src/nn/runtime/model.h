@@ -120,6 +120,15 @@ typedef struct {
      * ADD, CONCAT, REQUANT, LUT: tile_oh rows; buffers: each input's rows
      *   A4(tile_oh * w * c_k), the output A4(tile_oh * w * c_out). */
     uint32_t tile_oh, tile_oc, l1_bytes;
+    /* NN_F_W_L3 layers (CONV, DENSE): the FC reads the weights from L3 in
+     * parts of part_oc whole output channels (each part at most the
+     * header's stage_bytes; the last may be smaller), into the two stage
+     * buffers in turn, and sends one cluster task per part (output
+     * channels [k*part_oc, min((k+1)*part_oc, c_out))); the read of the
+     * next part, of this layer or the next L3 layer, runs while the
+     * cluster computes the current one (DORY's L3 double buffering). 0 for
+     * layers with weights in L2 (one task for the whole layer). */
+    uint32_t part_oc;
     uint32_t macs_lo, macs_hi;
 } nn_layer_t;
 
