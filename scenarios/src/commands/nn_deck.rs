@@ -72,6 +72,9 @@ pub(crate) fn cmd_nn_profile(
         None => profile::seeded_input(&model),
     };
     let (cores, mhz) = (cfg.cores, cfg.mhz);
+    // The directory first: a run is not wasted on an output that cannot
+    // be written.
+    std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let mut deck = Deck::new(&model, cfg)?;
     let run = deck.infer(&q, true)?;
     let plan = deck.plan.clone();
@@ -124,7 +127,6 @@ pub(crate) fn cmd_nn_profile(
         "{cores} cores at {mhz} MHz: {:.1} fps, {:.3} mJ per inference, L2 {} B, L3 {} B",
         t.fps, t.energy_mj, t.l2_bytes, t.l3_bytes
     );
-    std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let json = out_dir.join("profile.json");
     std::fs::write(&json, serde_json::to_string_pretty(&p)? + "\n")
         .with_context(|| format!("writing {}", json.display()))?;

@@ -111,9 +111,17 @@ impl Deck {
                 iss: cfg.iss,
                 vdd: cfg.vdd,
             },
+            &[
+                "nn_l2",
+                "nn_l2_size",
+                "nn_command",
+                "nn_status",
+                "nn_stats",
+                "nn_event",
+            ],
             TIMEOUT,
         )?;
-        let sym = |name: &str| g.symbol(name).context("not nn_run.elf?");
+        let sym = |name: &str| g.symbol(name);
         let sym = Symbols {
             l2: sym("nn_l2")?,
             command: sym("nn_command")?,

@@ -72,16 +72,25 @@ pub struct Mark {
 }
 
 impl Gap8 {
-    /// Loads the ELF and runs it to its first host stop.
+    /// Loads the ELF, checks it has the `interface` symbols (before it
+    /// runs: another program would run to its end), and runs it to its
+    /// first host stop.
     pub fn new(
         elf_path: &Path,
         platform: &Path,
         cfg: Gap8Config,
+        interface: &[&str],
         timeout: Picos,
     ) -> anyhow::Result<Self> {
         let bytes =
             std::fs::read(elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
         let elf = load_elf(&bytes).with_context(|| format!("loading {}", elf_path.display()))?;
+        if let Some(missing) = interface.iter().find(|s| elf.symbol(s).is_none()) {
+            bail!(
+                "{}: no symbol {missing}: not the program this command drives",
+                elf_path.display()
+            );
+        }
         let plat = PlatformConfig::from_path(platform)
             .map_err(|e| anyhow::anyhow!("{}: {e}", platform.display()))?;
         let state = |name: &str| {

@@ -13,7 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use sim_core::iss::Backend;
 use sim_core::units::Picos;
 
@@ -119,9 +119,17 @@ impl NnMachine {
                 iss,
                 vdd: None,
             },
+            &[
+                "nn_image",
+                "nn_command",
+                "nn_head",
+                "nn_out",
+                "nn_stats",
+                "nn_shape",
+            ],
             FRAME_TIMEOUT,
         )?;
-        let sym = |name: &str| g.symbol(name).context("not nn_eval.elf?");
+        let sym = |name: &str| g.symbol(name);
         let sym = Symbols {
             image: sym("nn_image")?,
             command: sym("nn_command")?,
