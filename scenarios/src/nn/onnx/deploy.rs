@@ -618,14 +618,9 @@ fn describe(
         LayerKind::MaxPool { window, requant } => {
             set_window(&mut w, window);
             small.push((W_RQOFF, records(&[*requant])));
-            let c = c_in;
-            let cost = |oh: usize| {
-                2 * (a4(((oh - 1) * window.stride[0] + window.kernel[0]) * w_in * c)
-                    + a4(oh * w_out * c))
-            };
-            tile_oh = fit1(h_out, cost).ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
+            (tile_oh, l1) = pool_tile(window, w_in, w_out, c_in, h_out)
+                .ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
             tile_oc = c_out;
-            l1 = cost(tile_oh);
         }
         LayerKind::AvgPool {
             window,
@@ -640,14 +635,9 @@ fn describe(
                 flags |= F_POOL_RECORDS;
                 small.push((W_RQOFF, records(r)));
             }
-            let c = c_in;
-            let cost = |oh: usize| {
-                2 * (a4(((oh - 1) * window.stride[0] + window.kernel[0]) * w_in * c)
-                    + a4(oh * w_out * c))
-            };
-            tile_oh = fit1(h_out, cost).ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
+            (tile_oh, l1) = pool_tile(window, w_in, w_out, c_in, h_out)
+                .ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
             tile_oc = c_out;
-            l1 = cost(tile_oh);
         }
         LayerKind::GlobalAvgPool { scale } => {
             if let PoolScale::Records(r) = scale {
@@ -735,6 +725,22 @@ fn describe(
         },
         plan,
     ))
+}
+
+/// A pool's tile: the most output rows whose input band and output fit
+/// (model.h), and its L1 bytes.
+fn pool_tile(
+    window: &super::layers::Window,
+    w_in: usize,
+    w_out: usize,
+    c: usize,
+    h_out: usize,
+) -> Option<(usize, usize)> {
+    let cost = |oh: usize| {
+        2 * (a4(((oh - 1) * window.stride[0] + window.kernel[0]) * w_in * c) + a4(oh * w_out * c))
+    };
+    let oh = fit1(h_out, cost)?;
+    Some((oh, cost(oh)))
 }
 
 /// The most rows (up to `rows`) whose tile fits the budget.
