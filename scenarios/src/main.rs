@@ -24,7 +24,7 @@ use scenarios::tracetool;
 use scenarios::Binaries;
 
 mod commands;
-use commands::{bench::*, nn::*, run::*, sweep::*, trace::*};
+use commands::{bench::*, nn::*, nn_deck::*, run::*, sweep::*, trace::*};
 
 /// Co-simulation launcher: the virtual platform (sim-core) and the physics
 /// world (world-server) started together, with reports, plots, sweeps and
@@ -394,6 +394,90 @@ enum NnCmd {
         #[arg(long, value_name = "Y.npy", requires = "input")]
         output: Option<PathBuf>,
     },
+    /// Runs an int8 ONNX model on the simulated AI deck: the generic
+    /// runtime (nn_run.elf) on the ISS, FC + cluster, weights in L2 or
+    /// streamed from the HyperRAM (docs/NN_ONNX.md).
+    Run {
+        /// The .onnx file.
+        model: PathBuf,
+        /// A float32 .npy of the model's input shape, quantized with the
+        /// model's own QuantizeLinear.
+        #[arg(long, value_name = "X.npy")]
+        input: PathBuf,
+        /// Where to write the output (float32 .npy, dequantized with the
+        /// model's last DequantizeLinear).
+        #[arg(long, value_name = "Y.npy")]
+        output: Option<PathBuf>,
+        #[command(flatten)]
+        deck: DeckArgs,
+    },
+    /// One inference stopped after every layer: a per-layer table (MACs,
+    /// cycles, MAC/cycle, L1/DMA/L3 bytes, time, energy), DIR/profile.json
+    /// and DIR/profile.png.
+    Profile {
+        /// The .onnx file.
+        model: PathBuf,
+        /// A float32 .npy input (default: N(0, 1) from a fixed seed; the
+        /// cycles do not depend on it).
+        #[arg(long, value_name = "X.npy")]
+        input: Option<PathBuf>,
+        /// Where to write profile.json and profile.png.
+        #[arg(long, value_name = "DIR", default_value = "out/nn-profile")]
+        out: PathBuf,
+        #[command(flatten)]
+        deck: DeckArgs,
+    },
+}
+
+/// The simulated deck's options.
+#[derive(clap::Args, Debug)]
+struct DeckArgs {
+    /// Cluster cores (1-8).
+    #[arg(long, default_value_t = 8)]
+    cores: usize,
+    /// Cluster clock, MHz.
+    #[arg(long, default_value_t = 175)]
+    mhz: u64,
+    /// Where the weights go: `auto` (L2 when everything fits, else L3) or
+    /// `l3` (every weight streamed from the HyperRAM).
+    #[arg(long, value_name = "auto|l3", default_value = "auto")]
+    weights: String,
+    /// The runtime (default: sim-core/firmware/bin/nn_run.elf).
+    #[arg(long, value_name = "FILE")]
+    elf: Option<PathBuf>,
+    /// The platform file whose FC and cluster power figures are used
+    /// (default: sim-core/platforms/crazyflie-aideck.json).
+    #[arg(long, value_name = "FILE")]
+    platform: Option<PathBuf>,
+    /// The ISS back end: `jit` or `interp`; the results are identical.
+    #[arg(long, value_name = "interp|jit", default_value_t = sim_core::iss::Backend::DEFAULT)]
+    iss: sim_core::iss::Backend,
+}
+
+impl DeckArgs {
+    fn config(self) -> anyhow::Result<scenarios::nn::deck::DeckConfig> {
+        use scenarios::nn::onnx::deploy::WeightsPlace;
+        if !(1..=8).contains(&self.cores) {
+            anyhow::bail!("--cores {}: the cluster has 1 to 8 cores", self.cores);
+        }
+        if self.mhz == 0 {
+            anyhow::bail!("--mhz 0: the cluster needs a clock");
+        }
+        let weights = match self.weights.as_str() {
+            "auto" => WeightsPlace::Auto,
+            "l3" => WeightsPlace::L3,
+            w => anyhow::bail!("--weights {w:?}: auto or l3"),
+        };
+        let mut c = scenarios::nn::deck::config(self.cores, self.mhz, self.iss);
+        c.weights = weights;
+        if let Some(e) = self.elf {
+            c.elf = e;
+        }
+        if let Some(p) = self.platform {
+            c.platform = p;
+        }
+        Ok(c)
+    }
 }
 
 #[derive(Subcommand, Debug)]
@@ -538,6 +622,28 @@ fn main() -> ExitCode {
                     output,
                 },
         } => cmd_nn_import(&model, input.as_deref(), output.as_deref()),
+        Cmd::Nn {
+            what:
+                NnCmd::Run {
+                    model,
+                    input,
+                    output,
+                    deck,
+                },
+        } => deck
+            .config()
+            .and_then(|c| cmd_nn_run(&model, &input, output.as_deref(), c)),
+        Cmd::Nn {
+            what:
+                NnCmd::Profile {
+                    model,
+                    input,
+                    out,
+                    deck,
+                },
+        } => deck
+            .config()
+            .and_then(|c| cmd_nn_profile(&model, input.as_deref(), &out, c)),
         Cmd::Nn {
             what:
                 NnCmd::Eval {

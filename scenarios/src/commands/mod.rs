@@ -4,6 +4,7 @@
 pub(crate) mod bench;
 pub(crate) mod keys;
 pub(crate) mod nn;
+pub(crate) mod nn_deck;
 pub(crate) mod run;
 pub(crate) mod sweep;
 pub(crate) mod trace;

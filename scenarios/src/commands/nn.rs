@@ -55,7 +55,7 @@ pub(crate) fn cmd_nn_import(
     use scenarios::nn::onnx;
     let model = onnx::import(model_path)?;
     let shape = |id: usize| format!("{:?}", model.values[id].shape);
-    let mut rows = vec![[
+    let mut rows = vec![vec![
         "node".to_string(),
         "op".into(),
         "input".into(),
@@ -65,7 +65,7 @@ pub(crate) fn cmd_nn_import(
     ]];
     for l in &model.layers {
         let ins: Vec<String> = l.inputs.iter().map(|&i| shape(i)).collect();
-        rows.push([
+        rows.push(vec![
             l.name.clone(),
             l.op.clone(),
             ins.join(" "),
@@ -74,7 +74,7 @@ pub(crate) fn cmd_nn_import(
             l.weight_bytes().to_string(),
         ]);
     }
-    rows.push([
+    rows.push(vec![
         "total".into(),
         format!("{} layers", model.layers.len()),
         shape(model.input),
@@ -82,27 +82,7 @@ pub(crate) fn cmd_nn_import(
         model.macs().to_string(),
         model.weight_bytes().to_string(),
     ]);
-    let mut widths = [0usize; 6];
-    for r in &rows {
-        for (w, c) in widths.iter_mut().zip(r) {
-            *w = (*w).max(c.chars().count());
-        }
-    }
-    for (i, r) in rows.iter().enumerate() {
-        if i == rows.len() - 1 {
-            println!("{}", "-".repeat(widths.iter().sum::<usize>() + 10));
-        }
-        let mut line = String::new();
-        for (k, (c, w)) in r.iter().zip(widths).enumerate() {
-            // Text left, numbers right.
-            if k >= 4 {
-                line += &format!("  {c:>w$}");
-            } else {
-                line += &format!("{}{c:<w$}", if k == 0 { "" } else { "  " });
-            }
-        }
-        println!("{}", line.trim_end());
-    }
+    print_table(&rows, 4);
     if model.output_sigmoid {
         println!("output: Sigmoid on the dequantized output (float)");
     }
@@ -128,4 +108,31 @@ pub(crate) fn cmd_nn_import(
         eprintln!("cosim nn import: -> {}", out.display());
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Columns padded to their widest cell, text left and numbers (columns
+/// from `first_numeric`) right; a rule above the last row (the total).
+pub(crate) fn print_table(rows: &[Vec<String>], first_numeric: usize) {
+    let cols = rows.iter().map(Vec::len).max().unwrap_or(0);
+    let mut widths = vec![0usize; cols];
+    for r in rows {
+        for (w, c) in widths.iter_mut().zip(r) {
+            *w = (*w).max(c.chars().count());
+        }
+    }
+    for (i, r) in rows.iter().enumerate() {
+        if i == rows.len() - 1 {
+            println!("{}", "-".repeat(widths.iter().sum::<usize>() + 2 * cols));
+        }
+        let mut line = String::new();
+        for (k, (c, w)) in r.iter().zip(&widths).enumerate() {
+            let w = *w;
+            if k >= first_numeric {
+                line += &format!("  {c:>w$}");
+            } else {
+                line += &format!("{}{c:<w$}", if k == 0 { "" } else { "  " });
+            }
+        }
+        println!("{}", line.trim_end());
+    }
 }

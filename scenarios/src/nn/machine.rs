@@ -14,14 +14,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use sim_core::cluster::power::{Meter, Totals};
-use sim_core::cluster::{Cluster, ClusterConfig};
-use sim_core::config::PlatformConfig;
-use sim_core::iss::{
-    load_elf, Backend, CodeCache, Cpu, CpuConfig, LoadedElf, Memory, NoDevices, StopReason,
-};
-use sim_core::machine::{run_elf::build_memory, Machine};
-use sim_core::units::{Hertz, Picos};
+use sim_core::iss::Backend;
+use sim_core::units::Picos;
+
+pub use super::gap8::default_platform;
+use super::gap8::{repo_path, Gap8, Gap8Config};
 
 /// `nn_command` values (nn_eval.c).
 const CMD_INFER: u32 = 1;
@@ -37,17 +34,9 @@ const FRAME_TIMEOUT: Picos = Picos::from_ms(2_000);
 
 /// The ELF, relative to the repository.
 pub const ELF: &str = "sim-core/firmware/bin/nn_eval.elf";
-/// The platform file whose FC and cluster power figures are used.
-pub const PLATFORM: &str = "sim-core/platforms/crazyflie-aideck.json";
 
-fn repo_path(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(rel)
-}
 pub fn default_elf() -> PathBuf {
     repo_path(ELF)
-}
-pub fn default_platform() -> PathBuf {
-    repo_path(PLATFORM)
 }
 
 /// The network's geometry as the program reports it.
@@ -104,27 +93,10 @@ struct Symbols {
 }
 
 pub struct NnMachine {
-    mem: Memory,
-    code: CodeCache,
-    cluster: Cluster,
-    fc: Cpu,
+    g: Gap8,
     sym: Symbols,
     pub shape: Shape,
     n_layers: usize,
-    meter: Meter,
-    /// FC power while it runs and while it sleeps in `wfi` (the platform's
-    /// `core.states.running` and `sleeping` currents at `core.vref`): it
-    /// sleeps while the cluster infers (pmsis `pi_task_wait_on`).
-    fc_running_w: f64,
-    fc_sleeping_w: f64,
-    /// The FC's clock period (its sleep is counted in cycles).
-    fc_period: Picos,
-    done: bool,
-}
-
-fn symbol(elf: &LoadedElf, name: &str) -> anyhow::Result<u32> {
-    elf.symbol(name)
-        .with_context(|| format!("the ELF has no symbol {name} (not nn_eval.elf?)"))
 }
 
 impl NnMachine {
@@ -138,80 +110,22 @@ impl NnMachine {
         mhz: u64,
         iss: Backend,
     ) -> anyhow::Result<Self> {
-        let bytes =
-            std::fs::read(elf_path).with_context(|| format!("reading {}", elf_path.display()))?;
-        let elf = load_elf(&bytes).with_context(|| format!("loading {}", elf_path.display()))?;
-        let plat = PlatformConfig::from_path(platform)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", platform.display()))?;
-        let running = plat
-            .core
-            .states
-            .get("running")
-            .with_context(|| format!("{}: no core state `running`", platform.display()))?;
-        let sleeping = plat
-            .core
-            .states
-            .get("sleeping")
-            .with_context(|| format!("{}: no core state `sleeping`", platform.display()))?;
-        let vref = plat.cluster.as_ref().map_or(1.2, |c| c.vref);
+        let g = Gap8::new(
+            elf_path,
+            platform,
+            Gap8Config { cores, mhz, iss },
+            FRAME_TIMEOUT,
+        )?;
+        let sym = |name: &str| g.symbol(name).context("not nn_eval.elf?");
         let sym = Symbols {
-            image: symbol(&elf, "nn_image")?,
-            command: symbol(&elf, "nn_command")?,
-            head: symbol(&elf, "nn_head")?,
-            out: symbol(&elf, "nn_out")?,
-            stats: symbol(&elf, "nn_stats")?,
-            shape: symbol(&elf, "nn_shape")?,
+            image: sym("nn_image")?,
+            command: sym("nn_command")?,
+            head: sym("nn_head")?,
+            out: sym("nn_out")?,
+            stats: sym("nn_stats")?,
+            shape: sym("nn_shape")?,
         };
-        let mut mem = build_memory(&[], elf.lowest_address())?;
-        elf.load_into(&mut mem)
-            .with_context(|| format!("loading {}", elf_path.display()))?;
-        let cfg = ClusterConfig {
-            cores,
-            clock: Hertz(mhz.saturating_mul(1_000_000)),
-            vref,
-            idle_skip: true,
-            iss,
-        };
-        let fc_cfg = CpuConfig {
-            clock: Hertz(plat.core.frequency),
-            ebreak_stops: true,
-            iss,
-            ..CpuConfig::default()
-        };
-        let Machine {
-            mut fc,
-            cluster,
-            code,
-        } = Machine::new(&mut mem, fc_cfg, Some(cfg)).context("the cluster")?;
-        let mut cluster = cluster.expect("a cluster was asked for");
-        // The program's console (errors only) must not mix with cosim's
-        // stdout, which carries the results.
-        fc.set_console(Box::new(std::io::stderr()));
-        cluster.set_console(|| Box::new(std::io::stderr()));
-        fc.set_pc(elf.entry);
-        fc.set_tohost(elf.symbol("tohost"));
-        let mut m = NnMachine {
-            mem,
-            code,
-            cluster,
-            fc,
-            sym,
-            shape: Shape {
-                camera: 0,
-                grid: 0,
-                head_channels: 0,
-                macs: 0,
-                layer_macs: Vec::new(),
-            },
-            n_layers: 0,
-            meter: Meter::new(vref, cfg.clock),
-            fc_running_w: running.current().0 * plat.core.vref,
-            fc_sleeping_w: sleeping.current().0 * plat.core.vref,
-            fc_period: Hertz(plat.core.frequency).period(),
-            done: false,
-        };
-        m.run_to_stop()?;
-        let w = |i: u32| m.word(m.sym.shape + 4 * i);
+        let w = |i: u32| g.word(sym.shape + 4 * i);
         let n_layers = w(3)? as usize;
         if n_layers == 0 || n_layers > 64 {
             bail!("nn_shape reports {n_layers} layers");
@@ -225,69 +139,16 @@ impl NnMachine {
                 .map(|i| w(5 + i).map(u64::from))
                 .collect::<anyhow::Result<_>>()?,
         };
-        m.shape = shape;
-        m.n_layers = n_layers;
-        Ok(m)
+        Ok(NnMachine {
+            g,
+            sym,
+            shape,
+            n_layers,
+        })
     }
 
     fn word(&self, addr: u32) -> anyhow::Result<u32> {
-        self.mem
-            .read_u32(addr)
-            .with_context(|| format!("reading {addr:#010x}"))
-    }
-
-    /// Runs until the program's next `ebreak` (then steps over it).
-    fn run_to_stop(&mut self) -> anyhow::Result<()> {
-        let limit = Picos(self.fc.now().0.saturating_add(FRAME_TIMEOUT.0));
-        match self.cluster.run_until(
-            &mut self.fc,
-            &mut self.mem,
-            &mut self.code,
-            &mut NoDevices,
-            limit,
-        ) {
-            StopReason::Breakpoint { pc } => {
-                self.fc.set_pc(pc.wrapping_add(4));
-                Ok(())
-            }
-            StopReason::Exit { code } => {
-                self.done = true;
-                let _ = self.fc.flush_console();
-                let _ = self.cluster.flush_console();
-                bail!("the program ended (exit code {code}) instead of asking for a frame")
-            }
-            StopReason::Limit => bail!(
-                "no result within {} of simulated time (pc {:#010x})",
-                FRAME_TIMEOUT,
-                self.fc.pc()
-            ),
-            StopReason::Fatal(e) => bail!("the program failed: {e}"),
-            other => bail!("unexpected stop {other:?} at pc {:#010x}", self.fc.pc()),
-        }
-    }
-
-    /// Every cluster core's instructions and L1 stall cycles so far.
-    fn core_counts(&self) -> (u64, u64) {
-        self.cluster
-            .report_at(&self.mem, self.fc.now())
-            .iter()
-            .fold((0, 0), |(i, s), r| {
-                (i + r.instructions, s + r.l1_stall_cycles)
-            })
-    }
-
-    /// FC + cluster energy since the meter's last sample (at `t0`, when the
-    /// FC had slept `slept0` cycles), J.
-    fn energy_since(&mut self, t0: Picos, slept0: u64) -> f64 {
-        let now = self.fc.now();
-        let before = self.meter.energy_j;
-        self.meter
-            .sample(Totals::of(&self.cluster, &self.mem, now), now);
-        let elapsed = now.saturating_sub(t0).as_secs_f64();
-        let slept = self.fc.stats().sleep_cycles - slept0;
-        let asleep = Picos(slept.saturating_mul(self.fc_period.0)).as_secs_f64();
-        let fc = self.fc_running_w * (elapsed - asleep).max(0.0) + self.fc_sleeping_w * asleep;
-        self.meter.energy_j - before + fc
+        self.g.word(addr)
     }
 
     /// One frame (`camera`² bytes, row-major) through the network.
@@ -298,17 +159,16 @@ impl NnMachine {
         }
         // Energy and latency from the frame's arrival: what came before
         // (boot, the previous frame's stop) is not this inference's.
-        let t0 = self.fc.now();
-        let slept0 = self.fc.stats().sleep_cycles;
-        self.energy_since(t0, slept0);
-        let counts0 = self.core_counts();
-        self.mem.write_bytes(self.sym.image, image)?;
-        self.mem
-            .write_bytes(self.sym.command, &CMD_INFER.to_le_bytes())?;
-        self.run_to_stop()?;
-        let latency = self.fc.now().saturating_sub(t0);
-        let energy_j = self.energy_since(t0, slept0);
-        let counts = self.core_counts();
+        let m0 = self.g.mark();
+        let e0 = self.g.cluster_energy_j();
+        self.g.mem.write_bytes(self.sym.image, image)?;
+        self.g.set_word(self.sym.command, CMD_INFER)?;
+        self.g.run_to_stop(FRAME_TIMEOUT)?;
+        let m1 = self.g.mark();
+        let latency = m1.t.saturating_sub(m0.t);
+        let energy_j = self
+            .g
+            .energy_between(&m0, &m1, self.g.cluster_energy_j() - e0);
         let stat = |i: usize| self.word(self.sym.stats + 4 * i as u32);
         if stat(0)? != 0 {
             bail!(
@@ -318,7 +178,7 @@ impl NnMachine {
         }
         let cells = self.shape.grid * self.shape.grid * self.shape.head_channels;
         let mut raw = vec![0u8; cells * 2];
-        self.mem.read_bytes(self.sym.head, &mut raw)?;
+        self.g.mem.read_bytes(self.sym.head, &mut raw)?;
         let head = raw
             .chunks_exact(2)
             .map(|b| i16::from_le_bytes([b[0], b[1]]))
@@ -346,31 +206,17 @@ impl NnMachine {
                 .collect::<anyhow::Result<_>>()?,
             latency,
             energy_j,
-            cluster_instructions: counts.0 - counts0.0,
-            l1_stall_cycles: counts.1 - counts0.1,
+            cluster_instructions: m1.instructions - m0.instructions,
+            l1_stall_cycles: m1.l1_stalls - m0.l1_stalls,
         })
     }
 
     /// Tells the program to close the cluster and exit; its exit code.
     pub fn finish(mut self) -> anyhow::Result<i32> {
-        if self.done {
+        if self.g.done {
             return Ok(0);
         }
-        self.mem
-            .write_bytes(self.sym.command, &CMD_QUIT.to_le_bytes())?;
-        let limit = Picos(self.fc.now().0.saturating_add(FRAME_TIMEOUT.0));
-        let stop = self.cluster.run_until(
-            &mut self.fc,
-            &mut self.mem,
-            &mut self.code,
-            &mut NoDevices,
-            limit,
-        );
-        self.fc.flush_console()?;
-        self.cluster.flush_console()?;
-        match stop {
-            StopReason::Exit { code } => Ok(code),
-            other => bail!("the program did not exit after its last frame: {other:?}"),
-        }
+        self.g.set_word(self.sym.command, CMD_QUIT)?;
+        self.g.run_to_exit(FRAME_TIMEOUT)
     }
 }

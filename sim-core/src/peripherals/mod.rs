@@ -8,6 +8,7 @@
 //! [`DeviceCtx`].
 
 pub mod camera;
+pub mod hyperram;
 pub mod motors;
 pub mod power_state;
 pub mod radio;

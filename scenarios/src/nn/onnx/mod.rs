@@ -5,6 +5,7 @@
 //! ([`layers`]), and run by the host's integer reference ([`reference`]):
 //! the arithmetic the deck's cluster kernels compute, not a run on the ISS.
 
+pub mod deploy;
 pub mod graph;
 pub mod layers;
 pub mod proto;

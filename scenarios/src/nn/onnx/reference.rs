@@ -37,6 +37,12 @@ pub fn dequantize(q: &[i32], p: QParams) -> Vec<f32> {
 /// One inference on float input: quantize, the integer layers, dequantize
 /// (and the output Sigmoid, if the graph ends with one).
 pub fn run(model: &Model, input: &[f32]) -> Result<Vec<f32>, RunError> {
+    let q = quantize_input(model, input)?;
+    Ok(output_floats(model, &run_int(model, q)))
+}
+
+/// The model's own QuantizeLinear of a float input.
+pub fn quantize_input(model: &Model, input: &[f32]) -> Result<Vec<i32>, RunError> {
     let iv = &model.values[model.input];
     let want: usize = iv.shape.iter().product();
     if input.len() != want {
@@ -47,15 +53,20 @@ pub fn run(model: &Model, input: &[f32]) -> Result<Vec<f32>, RunError> {
             got: input.len(),
         });
     }
-    let q = run_int(model, quantize(input, iv.q));
+    Ok(quantize(input, iv.q))
+}
+
+/// The output's integers as the graph returns them: the last
+/// DequantizeLinear, then the Sigmoid if the graph ends with one.
+pub fn output_floats(model: &Model, q: &[i32]) -> Vec<f32> {
     let ov = &model.values[model.output];
-    let mut y = dequantize(&q, ov.q);
+    let mut y = dequantize(q, ov.q);
     if model.output_sigmoid {
         for v in &mut y {
             *v = 1.0 / (1.0 + (-*v).exp());
         }
     }
-    Ok(y)
+    y
 }
 
 /// The layers on the quantized input; returns the output value's integers.

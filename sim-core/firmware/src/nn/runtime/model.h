@@ -101,10 +101,34 @@ typedef struct {
     uint32_t rq_off;
     /* LUT: 256 int8 outputs (stored domain), indexed by q + 128. */
     uint32_t lut_off;
-    /* The L1 tile the host planned (CONV): tile_oh output rows by tile_oc
-     * output channels; other kinds: tile_oh rows of the output (all
-     * channels). l1_bytes: what the tile takes in L1, both buffers. */
+    /* The L1 tile the host planned. l1_bytes = 2 x (the buffers of one
+     * tile), each buffer rounded up to 4 bytes (A4), never above the
+     * header's l1_budget:
+     * CONV: tile_oh output rows x tile_oc output channels (the last tiles
+     *   may be smaller); buffers: the input band A4(((tile_oh-1)*sh + kh)
+     *   * (w_in + pl + pr) * c_in) with every input channel, the weights
+     *   A4(tile_oc * kh * kw * c_in/groups), bias and records tile_oc * 12,
+     *   the output A4(tile_oh * w_out * tile_oc).
+     * DENSE: tile_oc output rows (tile_oh 1); buffers: the input A4(in),
+     *   the weights A4(tile_oc * in), bias and records tile_oc * 12, the
+     *   output A4(tile_oc).
+     * MAXPOOL, AVGPOOL: tile_oh output rows, all channels; buffers: the
+     *   input band A4(((tile_oh-1)*sh + kh) * w_in * c), the output
+     *   A4(tile_oh * w_out * c) (records in L2, read by the cores).
+     * GAP: tile_oh input rows; buffers: the band A4(tile_oh * w * c), plus
+     *   4 * c bytes of sums once (counted twice in l1_bytes).
+     * ADD, CONCAT, REQUANT, LUT: tile_oh rows; buffers: each input's rows
+     *   A4(tile_oh * w * c_k), the output A4(tile_oh * w * c_out). */
     uint32_t tile_oh, tile_oc, l1_bytes;
+    /* NN_F_W_L3 layers (CONV, DENSE): the FC reads the weights from L3 in
+     * parts of part_oc whole output channels (each part at most the
+     * header's stage_bytes; the last may be smaller), into the two stage
+     * buffers in turn, and sends one cluster task per part (output
+     * channels [k*part_oc, min((k+1)*part_oc, c_out))); the read of the
+     * next part, of this layer or the next L3 layer, runs while the
+     * cluster computes the current one (DORY's L3 double buffering). 0 for
+     * layers with weights in L2 (one task for the whole layer). */
+    uint32_t part_oc;
     uint32_t macs_lo, macs_hi;
 } nn_layer_t;
 
