@@ -30,7 +30,7 @@
 #endif
 
 uint8_t nn_l2[NN_L2_BYTES] __attribute__((aligned(8)));
-const uint32_t nn_l2_size = sizeof nn_l2;
+__attribute__((used)) const uint32_t nn_l2_size = sizeof nn_l2;
 volatile uint32_t nn_command;
 volatile int32_t nn_status;
 nn_layer_stats_t nn_stats[NN_MAX_LAYERS];
@@ -308,6 +308,9 @@ static int32_t infer(void)
 
 int main(void)
 {
+    /* The host reads nn_l2_size; the reference keeps it from the linker's
+     * garbage collection. */
+    __asm__ volatile("" ::"r"(&nn_l2_size));
     struct pi_cluster_conf conf;
     pi_cluster_conf_init(&conf);
     pi_open_from_conf(&cluster, &conf);
