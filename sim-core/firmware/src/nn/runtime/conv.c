@@ -44,7 +44,7 @@ typedef struct {
     const nn_record_t *rec;
     int oc_begin, noc;
     int toh, toc, n_r, n_c, rows_inner;
-    int per, row_b, row_w, wch, fast, nch_max;
+    int per, row_b, row_w, wch, fast, nch_max, dw3x3;
     uint32_t o_w, o_b, o_r, o_out, set_bytes;
     int in_key[2], w_key[2], w_repack[2];
     kargs_t k;
@@ -106,6 +106,8 @@ static uint32_t layout(conv_t *c, int toh, int toc)
     int one;
     channel_plan(c, toc, &c->nch_max, &one);
     c->fast = one;
+    /* Depthwise 3x3 over several groups: conv_dw3x3. */
+    c->dw3x3 = !one && c->cin_g == 1 && c->cout_g == 1 && c->kh == 3 && c->kw == 3;
     c->row_w = (c->row_b + 3) / 4;
     c->wch = c->fast ? c->kh * c->row_w * 4 : c->per;
     uint32_t rows_in = (uint32_t)((toh - 1) * c->sh + c->kh);
@@ -363,37 +365,106 @@ static void conv_generic(void *arg)
     const kargs_t k = ((const conv_t *)arg)->k;
     int first, last;
     rt_share(k.P * k.n, &first, &last);
+    if (first >= last)
+        return;
     int pix = first / k.n, ch = first - pix * k.n;
     int y = pix / k.Wo, x = pix - y * k.Wo;
     const int per = k.kh * k.kw * k.cin_g;
+    /* Channel ch's group, walked without dividing: its input channels'
+     * offset in the band and its place within the group. */
+    const int g0 = k.oc0 / k.cout_g, r0 = k.oc0 - g0 * k.cout_g;
+    const int choff0 = g0 * k.cin_g - k.ci0;
+    int oc = k.oc0 + ch, g = oc / k.cout_g;
+    int gpos = oc - g * k.cout_g, choff = g * k.cin_g - k.ci0;
+    const int8_t *base = k.band + y * k.ystep + x * k.pix;
     for (int it = first; it < last; it++) {
-        const int8_t *base = k.band + y * k.ystep + x * k.pix;
-        int oc = k.oc0 + ch;
-        base += (oc / k.cout_g) * k.cin_g - k.ci0;
         const int8_t *wp = k.w + ch * per;
+        const int8_t *in = base + choff;
         int32_t acc = 0;
-        for (int ky = 0; ky < k.kh; ky++) {
-            const int8_t *ip = base + ky * k.band_row;
-            for (int kx = 0; kx < k.kw; kx++, ip += k.nch) {
-                if (k.words) {
-                    const uint32_t *iw = (const uint32_t *)ip, *ww = (const uint32_t *)wp;
-                    for (int i = k.cin_g >> 2; i > 0; i--)
-                        acc = xcv_sdotsp_b(acc, *iw++, *ww++);
-                    wp += k.cin_g;
-                } else {
-                    for (int i = 0; i < k.cin_g; i++)
-                        acc += ip[i] * *wp++;
+        if (k.cin_g == 1) {
+            /* Depthwise: one input channel, a tap per byte. */
+            for (int ky = 0; ky < k.kh; ky++) {
+                const int8_t *ip = in + ky * k.band_row;
+                for (int kx = 0; kx < k.kw; kx++, ip += k.nch)
+                    acc += *ip * *wp++;
+            }
+        } else {
+            for (int ky = 0; ky < k.kh; ky++) {
+                const int8_t *ip = in + ky * k.band_row;
+                for (int kx = 0; kx < k.kw; kx++, ip += k.nch) {
+                    if (k.words) {
+                        const uint32_t *iw = (const uint32_t *)ip, *ww = (const uint32_t *)wp;
+                        for (int i = k.cin_g >> 2; i > 0; i--)
+                            acc = xcv_sdotsp_b(acc, *iw++, *ww++);
+                        wp += k.cin_g;
+                    } else {
+                        for (int i = 0; i < k.cin_g; i++)
+                            acc += ip[i] * *wp++;
+                    }
                 }
             }
         }
         put(&k, pix, ch, acc);
+        if (++gpos == k.cout_g) {
+            gpos = 0;
+            choff += k.cin_g;
+        }
         if (++ch == k.n) {
             ch = 0;
+            gpos = r0;
+            choff = choff0;
             pix++;
             if (++x == k.Wo) {
                 x = 0;
                 y++;
-            }
+                base = k.band + y * k.ystep;
+            } else
+                base += k.pix;
+        }
+    }
+}
+
+/* A depthwise 3x3 layer (one input channel per output channel): an item
+ * is one output row of one channel, so the channel's nine weights, bias
+ * and record stay in registers along the row; each tap a load and a
+ * cv.mac. */
+static void conv_dw3x3(void *arg)
+{
+    const kargs_t k = ((const conv_t *)arg)->k;
+    const int rows = k.P / k.Wo;
+    int first, last;
+    rt_share(k.n * rows, &first, &last);
+    if (first >= last)
+        return;
+    int ch = first / rows, y = first - ch * rows;
+    const int br = k.band_row, nch = k.nch, pix = k.pix;
+    for (int it = first; it < last; it++) {
+        const int8_t *w = k.w + 9 * ch;
+        const int32_t w0 = w[0], w1 = w[1], w2 = w[2], w3 = w[3], w4 = w[4], w5 = w[5];
+        const int32_t w6 = w[6], w7 = w[7], w8 = w[8];
+        const int32_t bias = k.bias[ch];
+        const nn_record_t rec = k.rec[ch];
+        const int8_t *r0 = k.band + y * k.ystep + (k.oc0 + ch - k.ci0);
+        int8_t *o = k.out + y * k.Wo * k.n + ch;
+        for (int x = k.Wo; x > 0; x--) {
+            const int8_t *r1 = r0 + br, *r2 = r1 + br;
+            int32_t acc = bias;
+            acc = xcv_mac(acc, r0[0], w0);
+            acc = xcv_mac(acc, r0[nch], w1);
+            acc = xcv_mac(acc, r0[2 * nch], w2);
+            acc = xcv_mac(acc, r1[0], w3);
+            acc = xcv_mac(acc, r1[nch], w4);
+            acc = xcv_mac(acc, r1[2 * nch], w5);
+            acc = xcv_mac(acc, r2[0], w6);
+            acc = xcv_mac(acc, r2[nch], w7);
+            acc = xcv_mac(acc, r2[2 * nch], w8);
+            *o = (int8_t)rt_out(acc, &rec, k.zy, k.lo, k.hi);
+            o += k.n;
+            r0 += pix;
+        }
+        if (++y == rows) {
+            y = 0;
+            ch++;
         }
     }
 }
@@ -437,6 +508,8 @@ static void conv_compute(void *arg)
     conv_t *c = arg;
     if (c->fast)
         conv_fast(arg);
+    else if (c->dw3x3)
+        conv_dw3x3(arg);
     else
         conv_generic(arg);
 }

@@ -64,15 +64,28 @@ static void pool_compute(void *arg)
         int count = (y1 - y0) * (x1 - x0);
         const int8_t *win = band + (y0 - iy0) * row + x0 * c.C;
         int8_t *o = out + pix * c.C;
+        /* The window's taps inside the input, as offsets from its first. */
+        int taps[16], nt = 0;
+        if (count <= 16)
+            for (int y = 0; y < y1 - y0; y++)
+                for (int x = 0; x < x1 - x0; x++)
+                    taps[nt++] = y * row + x * c.C;
         if (!c.avg) {
             for (int ch = 0; ch < c.C; ch++) {
                 int32_t m = -128;
                 const int8_t *q = win + ch;
-                for (int y = y0; y < y1; y++, q += row)
-                    for (int x = 0; x < x1 - x0; x++) {
-                        int32_t v = q[x * c.C];
+                if (count <= 16) {
+                    for (int k = 0; k < nt; k++) {
+                        int32_t v = q[taps[k]];
                         m = v > m ? v : m;
                     }
+                } else {
+                    for (int y = y0; y < y1; y++, q += row)
+                        for (int x = 0; x < x1 - x0; x++) {
+                            int32_t v = q[x * c.C];
+                            m = v > m ? v : m;
+                        }
+                }
                 o[ch] = count ? c.tab[m + 128] : c.tab[c.zx + 128];
             }
             continue;
@@ -82,9 +95,14 @@ static void pool_compute(void *arg)
         for (int ch = 0; ch < c.C; ch++) {
             int32_t s = 0;
             const int8_t *q = win + ch;
-            for (int y = y0; y < y1; y++, q += row)
-                for (int x = 0; x < x1 - x0; x++)
-                    s += q[x * c.C];
+            if (count <= 16) {
+                for (int k = 0; k < nt; k++)
+                    s += q[taps[k]];
+            } else {
+                for (int y = y0; y < y1; y++, q += row)
+                    for (int x = 0; x < x1 - x0; x++)
+                        s += q[x * c.C];
+            }
             s -= count * c.zx;
             int32_t v = c.records ? rt_rq(s, rec.mult, rec.shift) : n ? rt_div_rhe(s, n) : 0;
             o[ch] = (int8_t)rt_clamp(c.zy + v, c.lo, c.hi);
