@@ -18,6 +18,7 @@ built (cargo build --release -p scenarios).
 """
 
 import argparse
+import json
 import subprocess
 from pathlib import Path
 
@@ -29,11 +30,11 @@ from crazyflie_cosim.server import find_checkout
 from onnx import TensorProto, helper, numpy_helper
 
 # MobileNetV1's depthwise-separable blocks (output channels, stride) at
-# width 1 (Howard et al. 2017, Table 1), up to the 7x7 stage.
-BLOCKS = [(64, 1), (128, 2), (128, 1), (256, 2), (256, 1), (512, 2), (512, 1), (1024, 2)]
+# width 1 (Howard et al. 2017, Table 1).
+BLOCKS = [(64, 1), (128, 2), (128, 1), (256, 2), (256, 1), (512, 2)] + [(512, 1)] * 5 + [(1024, 2), (1024, 1)]
 
 
-def mobilenet(width: float, size: int, seed: int = 0) -> onnx.ModelProto:
+def mobilenet(width: float, size: int, channels: int = 1, classes: int = 4, seed: int = 0) -> onnx.ModelProto:
     rng = np.random.default_rng(seed)
     nodes, inits = [], []
 
@@ -49,26 +50,30 @@ def mobilenet(width: float, size: int, seed: int = 0) -> onnx.ModelProto:
         return r
 
     c = max(8, int(32 * width))
-    x = conv("input", 1, c, 3, 2)
+    x = conv("input", channels, c, 3, 2)
     for cout, stride in BLOCKS:
         cout = max(8, int(cout * width))
         x = conv(conv(x, c, c, 3, stride, group=c), c, cout, 1, 1)
         c = cout
     nodes.append(helper.make_node("GlobalAveragePool", [x], ["pool"], name="pool"))
     nodes.append(helper.make_node("Flatten", ["pool"], ["flat"], name="flat"))
-    w = rng.normal(0, np.sqrt(1 / c), (4, c)).astype(np.float32)
-    inits.extend([numpy_helper.from_array(w, "fc_w"), numpy_helper.from_array(np.zeros(4, np.float32), "fc_b")])
+    w = rng.normal(0, np.sqrt(1 / c), (classes, c)).astype(np.float32)
+    inits.extend([numpy_helper.from_array(w, "fc_w"), numpy_helper.from_array(np.zeros(classes, np.float32), "fc_b")])
     nodes.append(helper.make_node("Gemm", ["flat", "fc_w", "fc_b"], ["output"], name="fc", transB=1))
     g = helper.make_graph(nodes, "mobilenet", [helper.make_tensor_value_info("input", TensorProto.FLOAT,
-                                                                              [1, 1, size, size])],
-                          [helper.make_tensor_value_info("output", TensorProto.FLOAT, [1, 4])], inits)
+                                                                              [1, channels, size, size])],
+                          [helper.make_tensor_value_info("output", TensorProto.FLOAT, [1, classes])], inits)
     return helper.make_model(g, opset_imports=[helper.make_opsetid("", 13)], ir_version=8)
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--width", type=float, default=0.25, help="width multiplier (MobileNet's alpha)")
-    ap.add_argument("--size", type=int, default=96, help="input side (grey images)")
+    ap.add_argument("--size", type=int, default=96, help="input side")
+    ap.add_argument("--channels", type=int, default=1, help="input channels (1: the deck's grey camera)")
+    ap.add_argument("--classes", type=int, default=4, help="outputs of the dense layer")
+    ap.add_argument("--cores", default="1,2,4,8", help="cluster cores to profile")
+    ap.add_argument("--mhz", default="50,100,175", help="cluster clocks to profile, MHz")
     ap.add_argument("--out", type=Path, default=Path("out/deck-mobilenet"))
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
@@ -76,19 +81,30 @@ def main():
     cosim = str(root / "target" / "release" / "cosim") if root else "cosim"
 
     float_model = a.out / "mobilenet.onnx"
-    onnx.save(mobilenet(a.width, a.size), float_model)
+    onnx.save(mobilenet(a.width, a.size, a.channels, a.classes), float_model)
+    shape = (1, a.channels, a.size, a.size)
     rng = np.random.default_rng(1)
-    images = [rng.uniform(0, 1, (1, 1, a.size, a.size)).astype(np.float32) for _ in range(16)]
+    images = [rng.uniform(0, 1, shape).astype(np.float32) for _ in range(16)]
     q = quantize_for_deck(float_model, a.out / "mobilenet.q.onnx", images)
 
     subprocess.run([cosim, "nn", "import", str(q)], check=True)
-    x = rng.uniform(0, 1, (1, 1, a.size, a.size)).astype(np.float32)
+    x = rng.uniform(0, 1, shape).astype(np.float32)
     np.save(a.out / "x.npy", x)
-    subprocess.run([cosim, "nn", "import", str(q), "--input", str(a.out / "x.npy"),
+    subprocess.run([cosim, "nn", "run", str(q), "--input", str(a.out / "x.npy"),
                     "--output", str(a.out / "y.npy")], check=True)
     ours = np.load(a.out / "y.npy")
     (ref,) = ort.InferenceSession(str(q), providers=["CPUExecutionProvider"]).run(None, {"input": x})
-    print(f"integer reference {ours.ravel()}\nonnxruntime       {ref.ravel()}")
+    print(f"the deck (ISS)  {ours.ravel()[:8]}\nonnxruntime     {ref.ravel()[:8]}")
+
+    print(f"{'cores':>5} {'MHz':>5} {'fps':>8} {'ms':>9} {'mJ':>8} {'MAC/cycle':>9}")
+    for cores in map(int, a.cores.split(",")):
+        for mhz in map(int, a.mhz.split(",")):
+            d = a.out / f"profile-{cores}x{mhz}"
+            subprocess.run([cosim, "nn", "profile", str(q), "--cores", str(cores), "--mhz", str(mhz),
+                            "--out", str(d)], check=True, stdout=subprocess.DEVNULL)
+            t = json.loads((d / "profile.json").read_text())["totals"]
+            print(f"{cores:>5} {mhz:>5} {t['fps']:>8.1f} {t['latency_ms']:>9.3f} {t['energy_mj']:>8.3f}"
+                  f" {t['mac_per_cycle']:>9.2f}")
 
 
 if __name__ == "__main__":

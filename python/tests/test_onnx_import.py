@@ -10,6 +10,7 @@ of them equal to it."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 from pathlib import Path
 
@@ -397,8 +398,119 @@ def test_unsupported_op_is_one_line_naming_node_and_op(tmp_path, binaries):
     rng = np.random.default_rng(1)
     q = quantize_for_deck(f, tmp_path / "softmax.q.onnx",
                           [rng.normal(0, 1, net.shape).astype(np.float32) for _ in range(32)])
-    r = subprocess.run([binaries["cosim"], "nn", "import", q], check=False, capture_output=True, text=True, timeout=60)
-    assert r.returncode != 0
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1, r.stderr
-    assert '"softmax2"' in lines[0] and "(Softmax)" in lines[0], lines[0]
+    np.save(tmp_path / "x.npy", rng.normal(0, 1, net.shape).astype(np.float32))
+    for cmd in (["import"], ["run", "--input", tmp_path / "x.npy"], ["profile", "--out", tmp_path / "p"]):
+        r = subprocess.run([binaries["cosim"], "nn", cmd[0], q, *cmd[1:]], check=False, capture_output=True,
+                           text=True, timeout=60)
+        assert r.returncode != 0, cmd
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1, r.stderr
+        assert '"softmax2"' in lines[0] and "(Softmax)" in lines[0], lines[0]
+
+
+# On the simulated deck: `cosim nn run`, the generic runtime on the ISS.
+
+
+def run_deck(binaries, model, x, where, *extra) -> tuple[np.ndarray, str]:
+    """`cosim nn run MODEL --input X --output Y` on `x`; returns Y and the
+    command's report line."""
+    where.mkdir(parents=True, exist_ok=True)
+    xp, yp = where / "x.npy", where / "y.npy"
+    np.save(xp, x)
+    r = subprocess.run(
+        [binaries["cosim"], "nn", "run", model, "--input", xp, "--output", yp, *extra],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stderr
+    return np.load(yp), r.stderr
+
+
+@pytest.mark.parametrize("name", MODELS + ["avgpool_edges", "avgpool_2x2"])
+def test_deck_equals_the_reference_and_onnxruntime(name, tmp_path, binaries):
+    """The runtime on the ISS computes what the host's integer reference
+    computes, bit for bit, so it is within one step of onnxruntime and
+    equal to it on at least 90 % of the values (the pools with half-way
+    sums: 98 %; the others: 100 %), and the argmax is onnxruntime's."""
+    sym = name.endswith("_sym")
+    act = QuantType.QInt8 if name.endswith("_int8") or sym else QuantType.QUInt8
+    q, net = quantized(tmp_path, name, act, symmetric=sym)
+    sess = ort.InferenceSession(str(q), providers=["CPUExecutionProvider"])
+    scale = output_scale(q)
+    sigmoid = name == "sigmoid" or name in ("mobilenet", "mobilenet_int8")
+    x = np.random.default_rng(11).normal(0, 1, net.shape).astype(np.float32)
+    ours, _ = run_deck(binaries, q, x, tmp_path / "deck")
+    reference = run_import(binaries, q, x, tmp_path / "reference")
+    (ort_y,) = sess.run(None, {"input": x})
+    assert ours.shape == ort_y.shape and ours.dtype == np.float32
+    assert np.array_equal(ours, reference), f"{name}: the deck differs from the integer reference"
+    off = steps_off(ours, ort_y, scale, sigmoid).ravel()
+    exact = float(np.mean(off < 1e-3))
+    print(f"{name} on the deck: {off.size} values, {100 * exact:.2f} % exact, max {off.max():.3f} steps off")
+    assert off.max() <= 1 + 1e-3 and exact >= 0.9
+    if ours.ndim == 2 and ours.shape[1] > 1:
+        assert np.argmax(ours) == np.argmax(ort_y)
+
+
+def big_dense(tmp: Path) -> tuple[Path, Net]:
+    """Weights (530 kB) beyond the deck's 512 kB L2: they must stream from
+    the HyperRAM."""
+    net = Net("big_dense", [1, 1024], seed=5)
+    out = net.gemm(net.node("Relu", [net.gemm("input", 1024, 512)]), 512, 10)
+    f = net.save(out, tmp / "big_dense.onnx")
+    rng = np.random.default_rng(1)
+    cal = [rng.normal(0, 1, net.shape).astype(np.float32) for _ in range(32)]
+    return quantize_for_deck(f, tmp / "big_dense.q.onnx", cal), net
+
+
+def l3_bytes(report: str) -> int:
+    return int(report.split(" B from L3")[0].rsplit(maxsplit=1)[-1])
+
+
+def test_weights_beyond_l2_stream_from_l3(tmp_path, binaries):
+    q, net = big_dense(tmp_path)
+    x = np.random.default_rng(3).normal(0, 1, net.shape).astype(np.float32)
+    ours, report = run_deck(binaries, q, x, tmp_path / "deck")
+    assert l3_bytes(report) >= 1024 * 512 + 512 * 10, report
+    assert np.array_equal(ours, run_import(binaries, q, x, tmp_path / "reference"))
+    (ort_y,) = ort.InferenceSession(str(q), providers=["CPUExecutionProvider"]).run(None, {"input": x})
+    assert steps_off(ours, ort_y, output_scale(q), False).max() <= 1 + 1e-3
+    assert np.argmax(ours) == np.argmax(ort_y)
+
+
+def test_weights_forced_to_l3_give_the_same_output_later(tmp_path, binaries):
+    q, net = quantized(tmp_path, "mobilenet_body")
+    x = np.random.default_rng(4).normal(0, 1, net.shape).astype(np.float32)
+    in_l2, r2 = run_deck(binaries, q, x, tmp_path / "l2")
+    in_l3, r3 = run_deck(binaries, q, x, tmp_path / "l3", "--weights", "l3")
+    assert np.array_equal(in_l2, in_l3)
+    assert l3_bytes(r2) == 0 and l3_bytes(r3) > 0, (r2, r3)
+    ms = [float(r.split(": ")[2].split(" ms")[0]) for r in (r2, r3)]
+    assert ms[1] > ms[0], ms
+
+
+def test_profile_counts_macs_and_its_layers_add_up(tmp_path, binaries):
+    q, _ = quantized(tmp_path, "mobilenet")
+    out = tmp_path / "profile"
+    r = subprocess.run([binaries["cosim"], "nn", "profile", q, "--cores", "4", "--mhz", "100", "--out", out],
+                       check=False, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    p = json.loads((out / "profile.json").read_text())
+    assert (out / "profile.png").stat().st_size > 10_000
+    assert (p["cores"], p["mhz"]) == (4, 100)
+    table = subprocess.run([binaries["cosim"], "nn", "import", q], check=True, capture_output=True, text=True)
+    rows = [line.split() for line in table.stdout.splitlines()[1:-2]]
+    assert [layer["name"] for layer in p["layers"]] == [row[0] for row in rows]
+    assert [layer["macs"] for layer in p["layers"]] == [int(row[-2]) for row in rows]
+    t = p["totals"]
+    assert t["macs"] == sum(layer["macs"] for layer in p["layers"]) == int(table.stdout.split()[-2])
+    assert t["cycles"] == sum(layer["cycles"] for layer in p["layers"]) > 0
+    assert sum(layer["latency_ms"] for layer in p["layers"]) == pytest.approx(t["latency_ms"], rel=0.05)
+    assert sum(layer["energy_uj"] for layer in p["layers"]) == pytest.approx(1e3 * t["energy_mj"], rel=0.05)
+    assert t["fps"] == pytest.approx(1e3 / t["latency_ms"])
+    for layer in p["layers"]:
+        assert layer["l1_bytes"] <= 64 * 1024
+        if layer["macs"]:
+            assert layer["mac_per_cycle"] == pytest.approx(layer["macs"] / layer["cycles"])

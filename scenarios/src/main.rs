@@ -442,6 +442,10 @@ struct DeckArgs {
     /// `l3` (every weight streamed from the HyperRAM).
     #[arg(long, value_name = "auto|l3", default_value = "auto")]
     weights: String,
+    /// The cluster's supply, V: its dynamic energy scales with the square
+    /// (default: the platform file's, 1.2 V).
+    #[arg(long, value_name = "V")]
+    vdd: Option<f64>,
     /// The runtime (default: sim-core/firmware/bin/nn_run.elf).
     #[arg(long, value_name = "FILE")]
     elf: Option<PathBuf>,
@@ -468,8 +472,12 @@ impl DeckArgs {
             "l3" => WeightsPlace::L3,
             w => anyhow::bail!("--weights {w:?}: auto or l3"),
         };
+        if let Some(v) = self.vdd.filter(|v| !(0.5..=1.5).contains(v)) {
+            anyhow::bail!("--vdd {v}: GAP8 runs from 1.0 to 1.2 V; 0.5 to 1.5 V are taken");
+        }
         let mut c = scenarios::nn::deck::config(self.cores, self.mhz, self.iss);
         c.weights = weights;
+        c.vdd = self.vdd;
         if let Some(e) = self.elf {
             c.elf = e;
         }

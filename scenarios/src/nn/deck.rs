@@ -45,6 +45,8 @@ pub struct DeckConfig {
     pub elf: PathBuf,
     pub platform: PathBuf,
     pub weights: WeightsPlace,
+    /// The cluster's supply, V (default: the platform file's).
+    pub vdd: Option<f64>,
 }
 
 /// One layer of one inference.
@@ -107,6 +109,7 @@ impl Deck {
                 cores: cfg.cores,
                 mhz: cfg.mhz,
                 iss: cfg.iss,
+                vdd: cfg.vdd,
             },
             TIMEOUT,
         )?;
@@ -232,6 +235,7 @@ pub fn config(cores: usize, mhz: u64, iss: Backend) -> DeckConfig {
         elf: default_elf(),
         platform: super::gap8::default_platform(),
         weights: WeightsPlace::Auto,
+        vdd: None,
     }
 }
 

@@ -37,6 +37,8 @@ pub struct Gap8Config {
     pub cores: usize,
     pub mhz: u64,
     pub iss: Backend,
+    /// The cluster's supply, V (default: the platform file's `cluster.vref`).
+    pub vdd: Option<f64>,
 }
 
 /// The machine.
@@ -90,7 +92,9 @@ impl Gap8 {
         };
         let fc_running_w = state("running")?.current().0 * plat.core.vref;
         let fc_sleeping_w = state("sleeping")?.current().0 * plat.core.vref;
-        let vref = plat.cluster.as_ref().map_or(1.2, |c| c.vref);
+        let vref = cfg
+            .vdd
+            .unwrap_or_else(|| plat.cluster.as_ref().map_or(1.2, |c| c.vref));
         let mut mem = build_memory(&[], elf.lowest_address())?;
         mem.add_mmio_window(hyperram::BASE, hyperram::WINDOW)
             .context("the µDMA window")?;

@@ -113,7 +113,12 @@ impl NnMachine {
         let g = Gap8::new(
             elf_path,
             platform,
-            Gap8Config { cores, mhz, iss },
+            Gap8Config {
+                cores,
+                mhz,
+                iss,
+                vdd: None,
+            },
             FRAME_TIMEOUT,
         )?;
         let sym = |name: &str| g.symbol(name).context("not nn_eval.elf?");

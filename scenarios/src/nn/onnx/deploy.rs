@@ -264,6 +264,13 @@ pub fn deploy(
     let weights_total: usize = descs.iter().map(|d| a8(d.weights.len())).sum();
     let fixed = a8(img.bytes.len());
     let all_l2 = fixed + weights_total + arena_bytes;
+    if fixed + arena_bytes > l2_capacity {
+        return Err(DeployError::Size(format!(
+            "the activations ({arena_bytes} B) and the descriptors ({fixed} B) need {} B of L2; the \
+             runtime's L2 image holds {l2_capacity} B",
+            fixed + arena_bytes
+        )));
+    }
     let to_l3 = match place {
         WeightsPlace::L3 => weights_total > 0,
         WeightsPlace::Auto => all_l2 > l2_capacity,
@@ -756,4 +763,210 @@ fn fit2(
         .rev()
         .find(|&r| cost(r, oc) <= L1_BUDGET)?;
     Some((oh, oc))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::layers::{QParams, Value, Window};
+    use super::*;
+
+    fn value(name: &str, shape: &[usize], zp: i32, ty: QType) -> Value {
+        Value {
+            name: name.into(),
+            shape: shape.to_vec(),
+            q: QParams {
+                scale: 0.1,
+                zero_point: zp,
+                ty,
+            },
+        }
+    }
+
+    fn record() -> Requant {
+        Requant::from_ratio(0.01).unwrap()
+    }
+
+    /// input [1,2,4,4] u8 -> conv 3x3 pad 1 -> [1,3,4,4] -> flatten ->
+    /// dense 48 -> 5.
+    fn model(dense_out: usize) -> Model {
+        let conv_w: Vec<i8> = (0..3 * 2 * 9).map(|i| (i % 7) as i8 - 3).collect();
+        let dense_w: Vec<i8> = (0..48 * dense_out).map(|i| (i % 5) as i8 - 2).collect();
+        Model {
+            values: vec![
+                value("x", &[1, 2, 4, 4], 130, QType::U8),
+                value("c", &[1, 3, 4, 4], 120, QType::U8),
+                value("f", &[1, 48], 120, QType::U8),
+                value("y", &[1, dense_out], -3, QType::I8),
+            ],
+            layers: vec![
+                Layer {
+                    name: "conv".into(),
+                    op: "Conv".into(),
+                    inputs: vec![0],
+                    output: 1,
+                    clamp: (0, 255),
+                    kind: LayerKind::Conv {
+                        window: Window {
+                            kernel: [3, 3],
+                            stride: [1, 1],
+                            pads: [1, 1, 1, 1],
+                        },
+                        groups: 1,
+                        weights: conv_w,
+                        bias: vec![10, -20, 30],
+                        requant: vec![record(); 3],
+                    },
+                    macs: 3 * 16 * 18,
+                },
+                Layer {
+                    name: "flat".into(),
+                    op: "Flatten".into(),
+                    inputs: vec![1],
+                    output: 2,
+                    clamp: (0, 255),
+                    kind: LayerKind::Requant {
+                        requant: Requant::from_ratio(1.0).unwrap(),
+                    },
+                    macs: 0,
+                },
+                Layer {
+                    name: "fc".into(),
+                    op: "Gemm".into(),
+                    inputs: vec![2],
+                    output: 3,
+                    clamp: (-128, 127),
+                    kind: LayerKind::Dense {
+                        weights: dense_w,
+                        bias: vec![5; dense_out],
+                        requant: vec![record(); dense_out],
+                    },
+                    macs: 48 * dense_out as u64,
+                },
+            ],
+            input_name: "x".into(),
+            input: 0,
+            output: 3,
+            output_name: "y".into(),
+            output_sigmoid: false,
+        }
+    }
+
+    fn word(b: &[u8], at: usize) -> u32 {
+        u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+    }
+
+    fn layer_word(d: &Deployment, layer: usize, w: usize) -> u32 {
+        let off = word(&d.l2, 20) as usize;
+        word(&d.l2, off + (layer * LAYER_WORDS + w) * 4)
+    }
+
+    #[test]
+    fn header_tables_and_the_stored_domain() {
+        let m = model(5);
+        let d = deploy(&m, 400 * 1024, WeightsPlace::Auto).unwrap();
+        assert_eq!(word(&d.l2, 0), MAGIC);
+        assert_eq!(word(&d.l2, 8), 4);
+        assert_eq!(word(&d.l2, 12), 3);
+        assert_eq!(word(&d.l2, 44), d.l2.len() as u32);
+        assert!(d.l3.is_empty());
+        // The input's zero point in the stored domain: 130 - 128.
+        let voff = word(&d.l2, 16) as usize;
+        assert_eq!(word(&d.l2, voff + 12) as i32, 2);
+        // The output is int8: no shift.
+        assert_eq!(word(&d.l2, voff + 3 * 24 + 12) as i32, -3);
+        // The conv's clamp in the stored domain.
+        assert_eq!(layer_word(&d, 0, W_LO) as i32, -128);
+        assert_eq!(layer_word(&d, 0, W_HI) as i32, 127);
+        // Bias folded: bias - zp' * sum(weights of the channel).
+        let LayerKind::Conv { weights, bias, .. } = &m.layers[0].kind else {
+            unreachable!()
+        };
+        let boff = layer_word(&d, 0, W_BOFF) as usize;
+        for c in 0..3 {
+            let s: i32 = weights[c * 18..(c + 1) * 18]
+                .iter()
+                .map(|&w| w as i32)
+                .sum();
+            assert_eq!(word(&d.l2, boff + 4 * c) as i32, bias[c] - 2 * s);
+        }
+        // Weights [co][ky][kx][ci]: (co 1, ky 2, kx 0, ci 1) came from
+        // [co][ci][ky][kx] = (1, 1, 2, 0).
+        let woff = layer_word(&d, 0, W_WOFF) as usize;
+        assert_eq!(
+            d.l2[woff + 18 + (2 * 3) * 2 + 1] as i8,
+            weights[18 + 9 + 2 * 3]
+        );
+    }
+
+    #[test]
+    fn hwc_order_round_trips_and_the_flattened_dense_reads_it() {
+        let m = model(5);
+        let d = deploy(&m, 400 * 1024, WeightsPlace::Auto).unwrap();
+        let q: Vec<i32> = (0..32).map(|i| 100 + i).collect();
+        let b = d.input_bytes(&q);
+        // Logical (ch 1, y 0, x 2) = index 16 + 2 at HWC (0*4 + 2)*2 + 1.
+        assert_eq!(b[5] as i8 as i32, 118 - 128);
+        // The flattened value keeps the conv output's HWC block.
+        assert_eq!(d.values[2].block, [3, 4, 4]);
+        // Dense column 17 (logical ch 1, y 0, x 1) sits at storage
+        // position (0*4 + 1)*3 + 1 = 4.
+        let LayerKind::Dense { weights, .. } = &m.layers[2].kind else {
+            unreachable!()
+        };
+        let woff = layer_word(&d, 2, W_WOFF) as usize;
+        assert_eq!(d.l2[woff + 48 + 4] as i8, weights[48 + 17]);
+    }
+
+    #[test]
+    fn values_alive_together_do_not_overlap() {
+        let m = model(5);
+        let d = deploy(&m, 400 * 1024, WeightsPlace::Auto).unwrap();
+        for l in &m.layers {
+            let o = &d.values[l.output];
+            for &i in &l.inputs {
+                let v = &d.values[i];
+                assert!(
+                    o.off >= v.off + v.bytes || v.off >= o.off + o.bytes,
+                    "{}",
+                    l.name
+                );
+            }
+        }
+        // The input is dead once the conv ran: the flatten's output may
+        // reuse it.
+        assert!(
+            d.arena_bytes
+                < d.values
+                    .iter()
+                    .map(|v| v.bytes.div_ceil(8) * 8)
+                    .sum::<usize>()
+        );
+    }
+
+    #[test]
+    fn weights_beyond_l2_go_to_l3_in_parts() {
+        // 48 x 6000 = 288 kB of dense weights against a 200 kB L2 image.
+        let m = model(6000);
+        let d = deploy(&m, 200 * 1024, WeightsPlace::Auto).unwrap();
+        assert!(d.layers[2].weights_l3 && d.layers[0].weights_l3);
+        assert_eq!(word(&d.l2, 40) as usize, d.l3.len());
+        let stage = word(&d.l2, 36) as usize;
+        assert!(stage > 0 && stage <= STAGE_BYTES);
+        assert_eq!(d.layers[2].part_oc, stage / 48);
+        assert_eq!(layer_word(&d, 2, W_FLAGS) & F_W_L3, F_W_L3);
+        // Forced: the same model, small, in L3 too.
+        let f = deploy(&model(5), 400 * 1024, WeightsPlace::L3).unwrap();
+        assert!(f.layers[0].weights_l3 && !f.l3.is_empty());
+    }
+
+    #[test]
+    fn too_large_is_refused_with_sizes() {
+        // Activations alone beyond the image.
+        let e = deploy(&model(5), 256, WeightsPlace::Auto).unwrap_err();
+        assert!(e.to_string().contains("holds 256 B"), "{e}");
+        // Weights beyond the HyperRAM: 48 x 200 000 = 9.6 MB (on an L2
+        // large enough for the 200 000 channels' biases and records).
+        let e = deploy(&model(200_000), 64 << 20, WeightsPlace::L3).unwrap_err();
+        assert!(e.to_string().contains("HyperRAM"), "{e}");
+    }
 }
