@@ -8,11 +8,12 @@
  *   weights its channels' [kh][kw][cin/groups] bytes (the fast kernel's
  *           rows padded to whole words, the spare bytes zero);
  *   bias, records, output (HWC, the tile's channels).
- * Two kernels: the fast one (groups 1, or every tile inside one group),
+ * Three kernels: the fast one (groups 1, or every tile inside one group),
  * 2 output pixels x 4 channels per item with cv.sdotsp.b (PULP-NN's 4x2
  * register blocking, Garofalo et al. 2020, §4) over whole window rows,
- * which are contiguous in the HWC band and in the weights; the generic one,
- * a pixel x channel item over the taps (words when cin/groups allows).
+ * which are contiguous in the HWC band and in the weights; the depthwise
+ * 3x3 one, a channel's output row per item; the generic one, a pixel x
+ * channel item over the taps (words when cin/groups allows).
  */
 #include "rt.h"
 
@@ -428,6 +429,14 @@ static void conv_generic(void *arg)
  * is one output row of one channel, so the channel's nine weights, bias
  * and record stay in registers along the row; each tap a load and a
  * cv.mac. */
+/* A signed byte load that advances the pointer by a register. */
+#define LB_INC(p, inc)                                                         \
+    ({                                                                         \
+        int32_t lb_v_;                                                         \
+        __asm__ volatile("cv.lb %0, (%1), %2" : "=r"(lb_v_), "+r"(p) : "r"(inc) : "memory"); \
+        lb_v_;                                                                 \
+    })
+
 static void conv_dw3x3(void *arg)
 {
     const kargs_t k = ((const conv_t *)arg)->k;
@@ -446,18 +455,22 @@ static void conv_dw3x3(void *arg)
         const nn_record_t rec = k.rec[ch];
         const int8_t *r0 = k.band + y * k.ystep + (k.oc0 + ch - k.ci0);
         int8_t *o = k.out + y * k.Wo * k.n + ch;
+        /* One pointer walks the window: two steps of a pixel (nch) along
+         * a row, then down to the next row's start (jump), with
+         * post-increment loads (cv.lb rd, (rs1), rs2). */
+        const int jump = br - 2 * nch;
         for (int x = k.Wo; x > 0; x--) {
-            const int8_t *r1 = r0 + br, *r2 = r1 + br;
+            const int8_t *q = r0;
             int32_t acc = bias;
-            acc = xcv_mac(acc, r0[0], w0);
-            acc = xcv_mac(acc, r0[nch], w1);
-            acc = xcv_mac(acc, r0[2 * nch], w2);
-            acc = xcv_mac(acc, r1[0], w3);
-            acc = xcv_mac(acc, r1[nch], w4);
-            acc = xcv_mac(acc, r1[2 * nch], w5);
-            acc = xcv_mac(acc, r2[0], w6);
-            acc = xcv_mac(acc, r2[nch], w7);
-            acc = xcv_mac(acc, r2[2 * nch], w8);
+            acc = xcv_mac(acc, LB_INC(q, nch), w0);
+            acc = xcv_mac(acc, LB_INC(q, nch), w1);
+            acc = xcv_mac(acc, LB_INC(q, jump), w2);
+            acc = xcv_mac(acc, LB_INC(q, nch), w3);
+            acc = xcv_mac(acc, LB_INC(q, nch), w4);
+            acc = xcv_mac(acc, LB_INC(q, jump), w5);
+            acc = xcv_mac(acc, LB_INC(q, nch), w6);
+            acc = xcv_mac(acc, LB_INC(q, nch), w7);
+            acc = xcv_mac(acc, *q, w8);
             *o = (int8_t)rt_out(acc, &rec, k.zy, k.lo, k.hi);
             o += k.n;
             r0 += pix;
