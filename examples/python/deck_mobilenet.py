@@ -93,7 +93,11 @@ def main():
     subprocess.run([cosim, "nn", "run", str(q), "--input", str(a.out / "x.npy"),
                     "--output", str(a.out / "y.npy")], check=True)
     ours = np.load(a.out / "y.npy")
-    (ref,) = ort.InferenceSession(str(q), providers=["CPUExecutionProvider"]).run(None, {"input": x})
+    # The QDQ graph as ONNX defines it (onnxruntime's fused int8 kernels
+    # saturate on x86 CPUs without VNNI: docs/NN_ONNX.md).
+    so = ort.SessionOptions()
+    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
+    (ref,) = ort.InferenceSession(str(q), so, providers=["CPUExecutionProvider"]).run(None, {"input": x})
     print(f"the deck (ISS)  {ours.ravel()[:8]}\nonnxruntime     {ref.ravel()[:8]}")
 
     print(f"{'cores':>5} {'MHz':>5} {'fps':>8} {'ms':>9} {'mJ':>8} {'MAC/cycle':>9}")

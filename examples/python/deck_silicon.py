@@ -16,6 +16,14 @@ profile` at the published operating points:
 
     python examples/python/deck_silicon.py [--out out/deck-silicon] [--only pulpnn,dory,dronet]
 
+DORY's MobileNet and DroNet hold activations beyond the deck's 512 kB L2
+(a 64x64x64 map is 256 kB), which DORY and GreenWaves' tools keep in L3;
+the runtime keeps activations in L2, so these two run in segments: each
+segment (a conv and its ReLU, a residual block, the head) is cut out of the
+float model with onnx.utils.extract_model, quantized and profiled on its
+own, and the segments' cycles, times and energies add up (the traffic of
+activations through L3 between segments is not counted).
+
 Prints one line per figure and writes out/deck-silicon/silicon.json.
 Needs onnx and onnxruntime and the binaries built (cargo build --release
 -p scenarios).
@@ -43,6 +51,7 @@ class Graph:
     def __init__(self, seed: int = 0):
         self.rng = np.random.default_rng(seed)
         self.nodes, self.inits = [], []
+        self.cuts = []
 
     def conv(self, x, cin, cout, k, stride=1, pad=None, relu=True):
         n = f"conv{len(self.nodes)}"
@@ -67,6 +76,11 @@ class Graph:
         self.nodes.append(helper.make_node("Gemm", [x, n + "_w", n + "_b"], [n], name=n, transB=1))
         return n
 
+    def cut(self, x):
+        """Marks `x` as a segment boundary."""
+        self.cuts.append(x)
+        return x
+
     def model(self, name, shape, out):
         g = helper.make_graph(self.nodes, name, [helper.make_tensor_value_info("input", TensorProto.FLOAT, shape)],
                               [helper.make_empty_tensor_value_info(out)], self.inits)
@@ -77,6 +91,23 @@ class Graph:
 def pulpnn_layer():
     g = Graph(1)
     return g.model("pulpnn_conv", [1, 32, 16, 16], g.conv("input", 32, 64, 3)), [1, 32, 16, 16]
+
+
+def dronet_cuts(model):
+    """The segment boundaries of dronet(): after the pool (the first conv
+    with it: a pool alone is left in float by the quantizer) and after each
+    residual block."""
+    names = [n.output[0] for n in model.graph.node]
+    pools = [o for o in names if o.startswith("maxpool")]
+    relus_after_add = [names[i + 1] for i, o in enumerate(names) if o.startswith("add")]
+    # The head (Flatten, Gemm) stays with the last block: a Flatten at a
+    # graph input is left in float by the quantizer.
+    return pools + relus_after_add[:-1]
+
+
+def mobilenet_cuts(model):
+    """After every conv's ReLU."""
+    return [n.output[0] for n in model.graph.node if n.op_type == "Relu"]
 
 
 def dronet():
@@ -96,6 +127,34 @@ def dronet():
     return g.model("dronet", [1, 1, 200, 200], g.dense(f, 128 * 7 * 7, 2)), [1, 1, 200, 200]
 
 
+def segments(model, cuts, where: Path, key: str):
+    """The float model cut at the tensors `cuts`: (file, input shape) per
+    segment, in order."""
+    full = where / f"{key}.float.onnx"
+    onnx.save(model, full)
+    shapes = {v.name: [d.dim_value for d in v.type.tensor_type.shape.dim]
+              for v in list(model.graph.value_info) + list(model.graph.input)}
+    bounds = ["input"] + cuts + [model.graph.output[0].name]
+    out = []
+    for i, (a, b) in enumerate(zip(bounds, bounds[1:])):
+        f = where / f"{key}.seg{i:02d}.onnx"
+        onnx.utils.extract_model(str(full), str(f), [a], [b])
+        # The segment's input named as the deck's tools expect it.
+        m = onnx.load(f)
+        for n in m.graph.node:
+            n.input[:] = ["input" if x == a else x for x in n.input]
+        m.graph.input[0].name = "input"
+        onnx.save(m, f)
+        out.append((f, shapes[a]))
+    return out
+
+
+def profile(cosim, q: Path, cores, mhz, vdd, d: Path) -> dict:
+    subprocess.run([cosim, "nn", "profile", str(q), "--cores", str(cores), "--mhz", str(mhz),
+                    "--vdd", str(vdd), "--out", str(d)], check=True, stdout=subprocess.DEVNULL)
+    return json.loads((d / "profile.json").read_text())
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("out/deck-silicon"))
@@ -104,31 +163,48 @@ def main():
     a.out.mkdir(parents=True, exist_ok=True)
     root = find_checkout()
     cosim = str(root / "target" / "release" / "cosim") if root else "cosim"
+    mb = mobilenet(1.0, 128, 3, 1000)
+    dn, dn_shape = dronet()
     cases = {
-        # (cores, cluster MHz, supply V): the published operating points.
-        "pulpnn": (pulpnn_layer, [(8, 175, 1.2), (1, 175, 1.2)]),
-        "dory": (lambda: (mobilenet(1.0, 128, 3, 1000), [1, 3, 128, 128]), [(8, 100, 1.0)]),
-        "dronet": (dronet, [(8, 100, 1.0), (8, 175, 1.2)]),
+        # (model files with input shapes, [(cores, cluster MHz, supply V)]):
+        # the published operating points.
+        "pulpnn": (lambda: [(a.out / "pulpnn.onnx", pulpnn_layer())], [(8, 175, 1.2), (1, 175, 1.2)]),
+        "dory": (lambda: segments(onnx.shape_inference.infer_shapes(mb), mobilenet_cuts(mb), a.out, "dory"),
+                 [(8, 100, 1.0)]),
+        "dronet": (lambda: segments(dn, dronet_cuts(dn), a.out, "dronet"), [(8, 100, 1.0), (8, 175, 1.2)]),
     }
     results = {}
     for key in a.only.split(","):
         build, points = cases[key]
-        model, shape = build()
-        f = a.out / f"{key}.onnx"
-        onnx.save(model, f)
+        parts = build()
+        if key == "pulpnn":
+            (f, (m, shape)), = parts
+            onnx.save(m, f)
+            parts = [(f, shape)]
         rng = np.random.default_rng(1)
-        q = quantize_for_deck(f, a.out / f"{key}.q.onnx",
-                              [rng.uniform(0, 1, shape).astype(np.float32) for _ in range(8)])
+        quantized = [quantize_for_deck(f, f.with_suffix(".q.onnx"),
+                                       [rng.uniform(0, 1, shape).astype(np.float32) for _ in range(4)])
+                     for f, shape in parts]
         for cores, mhz, vdd in points:
-            d = a.out / f"{key}-{cores}x{mhz}"
-            subprocess.run([cosim, "nn", "profile", str(q), "--cores", str(cores), "--mhz", str(mhz),
-                            "--vdd", str(vdd), "--out", str(d)], check=True, stdout=subprocess.DEVNULL)
-            p = json.loads((d / "profile.json").read_text())
-            t = p["totals"]
-            results[f"{key}-{cores}x{mhz}"] = p
-            print(f"{key} {cores} cores {mhz} MHz {vdd} V: {t['macs'] / 1e6:.2f} MMAC, {t['mac_per_cycle']:.2f} MAC/cycle, "
-                  f"{t['latency_ms']:.2f} ms ({t['fps']:.1f} fps), {t['energy_mj']:.3f} mJ "
-                  f"({1e9 * t['energy_mj'] / t['macs']:.1f} pJ/MAC), L3 {t['l3_bytes']} B")
+            profiles = [profile(cosim, q, cores, mhz, vdd, a.out / f"{key}-{cores}x{mhz}" / q.stem)
+                        for q in quantized]
+            layers = [layer for p in profiles for layer in p["layers"]]
+            macs = sum(p["totals"]["macs"] for p in profiles)
+            cycles = sum(p["totals"]["cycles"] for p in profiles)
+            ms = sum(p["totals"]["latency_ms"] for p in profiles)
+            mj = sum(p["totals"]["energy_mj"] for p in profiles)
+            l3 = sum(p["totals"]["l3_bytes"] for p in profiles)
+            results[f"{key}-{cores}x{mhz}"] = {"cores": cores, "mhz": mhz, "vdd": vdd, "segments": len(profiles),
+                                               "macs": macs, "cycles": cycles, "latency_ms": ms, "energy_mj": mj,
+                                               "l3_bytes": l3, "layers": layers}
+            print(f"{key} {cores} cores {mhz} MHz {vdd} V ({len(profiles)} segments): {macs / 1e6:.2f} MMAC, "
+                  f"{macs / cycles:.2f} MAC/cycle, {ms:.2f} ms ({1e3 / ms:.2f} fps), {mj:.3f} mJ "
+                  f"({1e9 * mj / macs:.1f} pJ/MAC, {mj / ms * 1e3:.1f} mW), L3 {l3} B")
+            for layer in layers:
+                if layer["macs"]:
+                    print(f"    {layer['name']:<12} {layer['op']:<10} {layer['macs'] / 1e6:7.2f} MMAC"
+                          f" {layer['mac_per_cycle']:6.2f} MAC/cycle {layer['latency_ms']:8.3f} ms"
+                          f" {1e3 * layer['energy_uj'] / max(layer['latency_ms'], 1e-9) / 1e3:6.1f} mW")
     (a.out / "silicon.json").write_text(json.dumps(results, indent=1) + "\n")
 
 

@@ -192,8 +192,10 @@ impl Gap8 {
                     bail!("the program ended (exit code {code}) instead of stopping for the host")
                 }
                 StopReason::Limit => bail!(
-                    "no host stop within {timeout} of simulated time (pc {:#010x})",
-                    self.fc.pc()
+                    "no host stop within {timeout} of simulated time (pc {:#010x}, {}, FC at {})",
+                    self.fc.pc(),
+                    self.hyper.describe(),
+                    self.fc.now()
                 ),
                 StopReason::Fatal(e) => bail!("the program failed: {e}"),
                 other => bail!("unexpected stop {other:?} at pc {:#010x}", self.fc.pc()),

@@ -140,6 +140,16 @@ impl HyperRam {
         Ok(())
     }
 
+    /// The channel's state in words, for a run that stopped waiting.
+    pub fn describe(&self) -> String {
+        format!(
+            "HyperRAM: {} transfers queued, {} done, next end {:?}",
+            self.issued,
+            self.done,
+            self.queue.front().map(|t| t.end)
+        )
+    }
+
     /// Copies every transfer that has ended by `now` and counts it done.
     pub fn complete(&mut self, now: Picos, mem: &mut Memory) -> Result<(), String> {
         while let Some(t) = self.queue.front().copied() {

@@ -18,22 +18,24 @@ use std::path::{Path, PathBuf};
 /// Why a file could not be read or written.
 #[derive(Debug, thiserror::Error)]
 pub enum OnnxError {
-    #[error("{path}: {source}")]
+    // The source follows in the error's chain (anyhow's "{:#}" prints
+    // "path: source" on one line); naming it here too would repeat it.
+    #[error("{}", path.display())]
     Io {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{path}: not an ONNX model: {source}")]
+    #[error("{}: not an ONNX model", path.display())]
     Decode {
         path: PathBuf,
         source: prost::DecodeError,
     },
-    #[error("{path}: {source}")]
+    #[error("{}", path.display())]
     Import {
         path: PathBuf,
         source: graph::ImportError,
     },
-    #[error("{path}: {why}")]
+    #[error("{}: {why}", path.display())]
     Npy { path: PathBuf, why: String },
 }
 
