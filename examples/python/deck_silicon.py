@@ -53,14 +53,19 @@ class Graph:
         self.nodes, self.inits = [], []
         self.cuts = []
 
-    def conv(self, x, cin, cout, k, stride=1, pad=None, relu=True):
+    def const_scalar(self, v: float) -> str:
+        n = f"c{len(self.inits)}"
+        self.inits.append(numpy_helper.from_array(np.array(v, np.float32), n))
+        return n
+
+    def conv(self, x, cin, cout, k, stride=1, pad=None, relu=True, group=1):
         n = f"conv{len(self.nodes)}"
-        w = self.rng.normal(0, np.sqrt(2 / (cin * k * k)), (cout, cin, k, k)).astype(np.float32)
+        w = self.rng.normal(0, np.sqrt(2 / (cin // group * k * k)), (cout, cin // group, k, k)).astype(np.float32)
         self.inits += [numpy_helper.from_array(w, n + "_w"),
                        numpy_helper.from_array(np.zeros(cout, np.float32), n + "_b")]
         p = k // 2 if pad is None else pad
         self.nodes.append(helper.make_node("Conv", [x, n + "_w", n + "_b"], [n], name=n, kernel_shape=[k, k],
-                                           strides=[stride, stride], pads=[p] * 4))
+                                           strides=[stride, stride], pads=[p] * 4, group=group))
         return self.op("Relu", [n]) if relu else n
 
     def op(self, op, inputs, **attrs):
@@ -155,16 +160,50 @@ def profile(cosim, q: Path, cores, mhz, vdd, d: Path) -> dict:
     return json.loads((d / "profile.json").read_text())
 
 
+def dronet_v3(tiny: bool):
+    """PULP-Dronet v3 and Tiny-PULP-Dronet v3 (pulp-platform/pulp-dronet,
+    tiny-pulp-dronet-v3/model/dronet_v3.py): a 5x5/2 conv and a 2x2/2 max
+    pool, then three blocks, each halving the map: v3's residual blocks
+    (3x3/2 and 3x3 convs with ReLU6, a 1x1/2 bypass with ReLU6, added) at
+    depth 1 (32, 32, 64, 128 channels); Tiny's depthwise-separable blocks
+    without bypass (3x3/2 depthwise, 1x1, 3x3 depthwise, 1x1, each with
+    ReLU6) at depth 0.125 (4, 4, 8, 16 channels); a dense layer of two
+    outputs."""
+    g = Graph(3 if tiny else 4)
+    c = 4 if tiny else 32
+
+    def relu6(x):
+        lo, hi = g.const_scalar(0.0), g.const_scalar(6.0)
+        return g.op("Clip", [x, lo, hi])
+
+    x = g.op("MaxPool", [relu6(g.conv("input", 1, c, 5, 2, relu=False))], kernel_shape=[2, 2], strides=[2, 2])
+    for cout in (c, 2 * c, 4 * c):
+        if tiny:
+            d = relu6(g.conv(x, c, c, 3, 2, relu=False, group=c))
+            p = relu6(g.conv(d, c, cout, 1, relu=False))
+            d = relu6(g.conv(p, cout, cout, 3, relu=False, group=cout))
+            x = g.cut(relu6(g.conv(d, cout, cout, 1, relu=False)))
+        else:
+            a = relu6(g.conv(relu6(g.conv(x, c, cout, 3, 2, relu=False)), cout, cout, 3, relu=False))
+            b = relu6(g.conv(x, c, cout, 1, 2, pad=0, relu=False))
+            x = g.cut(g.op("Add", [a, b]))
+        c = cout
+    g.cuts.pop()  # the head stays with the last block
+    return g.model("dronet_v3", [1, 1, 200, 200], g.dense(g.op("Flatten", [x]), c * 7 * 7, 2)), g.cuts
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("out/deck-silicon"))
-    ap.add_argument("--only", default="pulpnn,dory,dronet")
+    ap.add_argument("--only", default="pulpnn,dory,dronet,dronet3,tiny3")
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     root = find_checkout()
     cosim = str(root / "target" / "release" / "cosim") if root else "cosim"
     mb = mobilenet(1.0, 128, 3, 1000)
     dn, dn_shape = dronet()
+    v3, v3_cuts = dronet_v3(tiny=False)
+    tiny, _ = dronet_v3(tiny=True)
     cases = {
         # (model files with input shapes, [(cores, cluster MHz, supply V)]):
         # the published operating points.
@@ -172,6 +211,11 @@ def main():
         "dory": (lambda: segments(onnx.shape_inference.infer_shapes(mb), mobilenet_cuts(mb), a.out, "dory"),
                  [(8, 100, 1.0)]),
         "dronet": (lambda: segments(dn, dronet_cuts(dn), a.out, "dronet"), [(8, 100, 1.0), (8, 175, 1.2)]),
+        # Both measured by their application at FC 250 MHz, cluster 175 MHz,
+        # 1.2 V (tiny-pulp-dronet-v3's gap8-dronet-app main.c).
+        "dronet3": (lambda: segments(onnx.shape_inference.infer_shapes(v3), v3_cuts, a.out, "dronet3"),
+                    [(8, 175, 1.2)]),
+        "tiny3": (lambda: segments(onnx.shape_inference.infer_shapes(tiny), [], a.out, "tiny3"), [(8, 175, 1.2)]),
     }
     results = {}
     for key in a.only.split(","):

@@ -181,6 +181,7 @@ pub fn plot(p: &Profile, path: &Path) -> Result<(), PlotError> {
         chart
             .configure_mesh()
             .disable_x_mesh()
+            .max_light_lines(1)
             .x_desc("layer (ONNX order)")
             .y_desc(label)
             .x_label_formatter(&|x| format!("{}", *x as usize))
