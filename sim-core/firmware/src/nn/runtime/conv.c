@@ -244,6 +244,28 @@ static inline void put(const kargs_t *k, int pix, int ch, int32_t acc)
     k->out[pix * k->n + ch] = (int8_t)rt_out(acc + k->bias[ch], &k->rec[ch], k->zy, k->lo, k->hi);
 }
 
+/* Channel ch of two pixels (the second only if has1): the channel's bias
+ * and record read once, both outputs computed before either is stored. */
+static inline void put2(const kargs_t *k, int p0, int has1, int ch, int32_t a, int32_t b)
+{
+    const int32_t bias = k->bias[ch];
+    const nn_record_t r = k->rec[ch];
+    int32_t va, vb;
+    if (r.shift - 33u < 30u) {
+        int32_t rnd = 1 << (r.shift - 33), sh = (int32_t)r.shift - 32;
+        va = ((int32_t)(((int64_t)(a + bias) * r.mult) >> 32) + rnd) >> sh;
+        vb = ((int32_t)(((int64_t)(b + bias) * r.mult) >> 32) + rnd) >> sh;
+    } else {
+        va = rt_rq_slow(a + bias, r.mult, r.shift);
+        vb = rt_rq_slow(b + bias, r.mult, r.shift);
+    }
+    va = rt_clamp(k->zy + va, k->lo, k->hi);
+    vb = rt_clamp(k->zy + vb, k->lo, k->hi);
+    k->out[p0 * k->n + ch] = (int8_t)va;
+    if (has1)
+        k->out[(p0 + 1) * k->n + ch] = (int8_t)vb;
+}
+
 static void fast_2x4(const kargs_t *k, int first, int last)
 {
     int quads = (k->n + 3) / 4;
@@ -284,23 +306,16 @@ static void fast_2x4(const kargs_t *k, int first, int last)
             x0 = (const uint32_t *)((const int8_t *)x0 + skip);
             x1 = (const uint32_t *)((const int8_t *)x1 + skip);
         }
-        put(k, p0, c, a0);
-        if (has1)
-            put(k, p0 + 1, c, a4_);
-        if (c + 1 <= last_c) {
-            put(k, p0, c + 1, a1);
-            if (has1)
-                put(k, p0 + 1, c + 1, a5);
-        }
-        if (c + 2 <= last_c) {
-            put(k, p0, c + 2, a2);
-            if (has1)
-                put(k, p0 + 1, c + 2, a6);
-        }
+        put2(k, p0, has1, c, a0, a4_);
         if (c + 3 <= last_c) {
-            put(k, p0, c + 3, a3);
-            if (has1)
-                put(k, p0 + 1, c + 3, a7);
+            put2(k, p0, has1, c + 1, a1, a5);
+            put2(k, p0, has1, c + 2, a2, a6);
+            put2(k, p0, has1, c + 3, a3, a7);
+        } else {
+            if (c + 1 <= last_c)
+                put2(k, p0, has1, c + 1, a1, a5);
+            if (c + 2 <= last_c)
+                put2(k, p0, has1, c + 2, a2, a6);
         }
         if (++quad == quads) {
             quad = 0;
