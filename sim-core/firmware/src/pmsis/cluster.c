@@ -9,6 +9,7 @@
 #include <stdlib.h>
 
 #include "pmsis_internal.h"
+#include "udma_regs.h"
 
 struct pi_alloc __pi_l1_heap;
 uint32_t __pi_cl_stack_top[CL_MAX_CORES];
@@ -106,11 +107,22 @@ pi_task_t *pi_task_block(pi_task_t *task)
 {
     task->done = 0;
     task->next = NULL;
+    task->ram_ticket = 0;
     return task;
 }
 
 void pi_task_wait_on(pi_task_t *task)
 {
+    if (task->ram_ticket) {
+        /* A HyperRAM transfer (ram.c): done once the µDMA's DONE count
+         * reaches its ticket. A polling loop: the ISS skips its idle
+         * iterations. */
+        while (!udma_hyper_done(task->ram_ticket))
+            ;
+        task->ram_ticket = 0;
+        task->done = 1;
+        return;
+    }
     while (!task->done) {
         if (!cl.pending_first)
             __pi_fatal("waiting on a task that was never sent");
@@ -140,6 +152,7 @@ int pi_cluster_send_task_to_cl_async(struct pi_device *device, struct pi_cluster
         return -1;
     done->done = 0;
     done->next = NULL;
+    done->ram_ticket = 0;
     task->done = done;
     /* The mailbox holds one task: wait until core 0 took the previous. */
     while (cl_read(CL_CTRL_BASE, CL_CTRL_MAILBOX) != 0)

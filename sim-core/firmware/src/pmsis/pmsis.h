@@ -29,6 +29,9 @@ struct pi_cluster_conf {
 typedef struct pi_task {
     volatile int done;
     struct pi_task *next; /* the runtime's queue of pending completions */
+    /* A HyperRAM transfer's (pi_ram_*_async): the µDMA's count of queued
+     * transfers after its own, 0 for a cluster task (pmsis/udma_regs.h). */
+    uint32_t ram_ticket;
 } pi_task_t;
 
 struct pi_cluster_task {
@@ -169,6 +172,41 @@ void pi_l2_free(void *chunk, uint32_t size);
 /* gap_sdk's cluster-side spellings of the L1 allocator. */
 #define pi_cl_l1_malloc pi_l1_malloc
 #define pi_cl_l1_free pi_l1_free
+
+/* ---- External RAM (FC side; gap_sdk pmsis_bsp bsp/ram.h) -------------- */
+
+/* The AI deck's HyperRAM (L3) behind the µDMA: transfers between it and L2,
+ * queued by the FC and carried while the FC and the cluster run. The
+ * synchronous calls return when the bytes have moved; an _async call
+ * returns at once and its task completes (pi_task_wait_on) when they have.
+ * Transfers complete in the order they were queued. */
+struct pi_ram_conf {
+    void *api; /* the SDK's driver table: unused, one RAM */
+};
+
+struct pi_hyperram_conf {
+    struct pi_ram_conf ram;
+    int skip_pads_config;
+    int hyper_itf;
+    int hyper_cs;
+    int ram_start;
+    int ram_size;
+};
+
+void pi_hyperram_conf_init(struct pi_hyperram_conf *conf);
+/* 0, or -1 if already open. */
+int32_t pi_ram_open(struct pi_device *device);
+void pi_ram_close(struct pi_device *device);
+void pi_ram_read(struct pi_device *device, uint32_t pi_ram_addr, void *data, uint32_t size);
+void pi_ram_write(struct pi_device *device, uint32_t pi_ram_addr, void *data, uint32_t size);
+void pi_ram_copy(struct pi_device *device, uint32_t pi_ram_addr, void *data, uint32_t size,
+                 int ext2loc);
+void pi_ram_read_async(struct pi_device *device, uint32_t pi_ram_addr, void *data,
+                       uint32_t size, pi_task_t *task);
+void pi_ram_write_async(struct pi_device *device, uint32_t pi_ram_addr, void *data,
+                        uint32_t size, pi_task_t *task);
+void pi_ram_copy_async(struct pi_device *device, uint32_t pi_ram_addr, void *data,
+                       uint32_t size, int ext2loc, pi_task_t *task);
 
 /* ---- Performance counters (per core) ---------------------------------- */
 
