@@ -502,6 +502,22 @@ def test_weights_beyond_l2_stream_from_l3(tmp_path, binaries):
     assert np.argmax(ours) == np.argmax(ort_y)
 
 
+@pytest.mark.parametrize("n", [16, 64, 100, 200, 400])
+def test_l3_waits_end_whatever_their_length(n, tmp_path, binaries):
+    """A Gemm 128 -> n from L3: the FC polls the µDMA's count of finished
+    transfers while the read runs, and the ISS skips that loop's idle
+    iterations; with these lengths an iteration straddles the transfer's
+    end (once a lost wake-up: the run stalled)."""
+    net = Net(f"g{n}", [1, 128], seed=n)
+    f = net.save(net.gemm("input", 128, n), tmp_path / "g.onnx")
+    rng = np.random.default_rng(1)
+    q = quantize_for_deck(f, tmp_path / "g.q.onnx", [rng.normal(0, 1, net.shape).astype(np.float32) for _ in range(8)])
+    x = rng.normal(0, 1, net.shape).astype(np.float32)
+    ours, report = run_deck(binaries, q, x, tmp_path / "deck", "--weights", "l3")
+    assert l3_bytes(report) == 128 * n
+    assert np.array_equal(ours, run_import(binaries, q, x, tmp_path / "reference"))
+
+
 def test_weights_forced_to_l3_give_the_same_output_later(tmp_path, binaries):
     q, net = quantized(tmp_path, "mobilenet_body")
     x = np.random.default_rng(4).normal(0, 1, net.shape).astype(np.float32)

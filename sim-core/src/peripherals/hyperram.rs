@@ -55,7 +55,7 @@ pub struct Timing {
     /// From the transfer's start to its first byte.
     pub latency: Picos,
     /// Bytes per second once streaming.
-    pub bytes_per_s: f64,
+    pub bytes_per_s: u64,
 }
 
 impl Timing {
@@ -66,13 +66,14 @@ impl Timing {
     /// approaches.
     pub const AI_DECK: Timing = Timing {
         latency: Picos::from_us(6),
-        bytes_per_s: 40.0e6,
+        bytes_per_s: 40_000_000,
     };
 
     /// How long `bytes` take.
     pub fn duration(&self, bytes: u32) -> Picos {
-        let ps = (bytes as f64 / self.bytes_per_s * 1e12).ceil() as u64;
-        Picos(self.latency.0 + ps)
+        // In integers: a float quotient lands a picosecond off exact ones.
+        let ps = (bytes as u128 * 1_000_000_000_000).div_ceil(self.bytes_per_s.max(1) as u128);
+        Picos(self.latency.0 + ps as u64)
     }
 }
 
@@ -102,6 +103,8 @@ pub struct HyperRam {
     /// A transfer outside L3 or with a bad command: reported by
     /// [`HyperRam::complete`] (the register write itself faults).
     fault: Option<String>,
+    /// When DONE last changed (the end of the last completed transfer).
+    done_changed: Picos,
 }
 
 impl Default for HyperRam {
@@ -124,6 +127,7 @@ impl HyperRam {
             bytes_written: 0,
             busy: Picos(0),
             fault: None,
+            done_changed: Picos(0),
         }
     }
 
@@ -168,6 +172,7 @@ impl HyperRam {
                 self.bytes_written += n as u64;
             }
             self.done = self.done.wrapping_add(1);
+            self.done_changed = self.done_changed.max(t.end);
         }
         Ok(())
     }
@@ -226,9 +231,13 @@ impl Mmio for HyperRam {
     }
 
     /// DONE changes only when the host completes a transfer, at the
-    /// queue's first end; the other registers only on writes.
+    /// queue's first end; the other registers only on writes. The ISS may
+    /// ask about a read it made before a completion (a polling loop's
+    /// iteration that straddled the stop): then the value it read has
+    /// changed since, at `done_changed`, and no iteration may be skipped.
     fn stable_until(&self, addr: u32, _size: AccessSize, now: Picos) -> Picos {
         match addr.wrapping_sub(BASE) {
+            DONE if now < self.done_changed => now,
             DONE => self.queue.front().map_or(Picos::MAX, |t| t.end).max(now),
             _ => Picos::MAX,
         }
@@ -247,7 +256,7 @@ mod tests {
     fn transfers_queue_in_order_and_copy_at_their_end() {
         let t = Timing {
             latency: Picos::from_ns(100),
-            bytes_per_s: 1e9,
+            bytes_per_s: 1_000_000_000,
         };
         let mut h = HyperRam::new(t);
         let mut mem = Memory::new();
@@ -277,6 +286,37 @@ mod tests {
             2
         );
         assert_eq!(h.bytes_read, 8);
+    }
+
+    /// A read of DONE made before a completion is not promised stable
+    /// after it (the ISS asks when it verifies a polling iteration that
+    /// straddled the completion's stop).
+    #[test]
+    fn a_read_before_a_completion_gets_no_promise() {
+        let mut h = HyperRam::new(Timing {
+            latency: Picos::from_ns(100),
+            bytes_per_s: 1_000_000_000,
+        });
+        let mut mem = Memory::new();
+        mem.add_ram(0x1c00_0000, 0x1000).unwrap();
+        for (off, v) in [(L2_ADDR, 0x1c00_0000), (SIZE, 4), (CMD, CMD_READ)] {
+            h.write(BASE + off, AccessSize::Word, v, Picos(0)).unwrap();
+        }
+        let before = Picos::from_ns(50);
+        assert_eq!(
+            h.stable_until(BASE + DONE, AccessSize::Word, before),
+            Picos::from_ns(104)
+        );
+        h.complete(Picos::from_ns(110), &mut mem).unwrap();
+        assert_eq!(
+            h.stable_until(BASE + DONE, AccessSize::Word, before),
+            before
+        );
+        let after = Picos::from_ns(120);
+        assert_eq!(
+            h.stable_until(BASE + DONE, AccessSize::Word, after),
+            Picos::MAX
+        );
     }
 
     #[test]

@@ -227,21 +227,9 @@ static int8_t *stage(const nn_model_t *m, int b)
 
 static pi_task_t read_task;
 
-/* Waits for an L3 read (pi_task_wait_on's RAM case, pmsis cluster.c),
- * reading mcycle in the loop: a CSR read keeps the ISS from skipping the
- * loop's idle iterations, a skip that can step over the HyperRAM's
- * completion with some transfer timings (the FC then polls a DONE count
- * that never moves). Stepping costs only host time. */
-static void read_wait(pi_task_t *t)
-{
-    while (!udma_hyper_done(t->ram_ticket)) {
-        uint32_t c;
-        __asm__ volatile("csrr %0, mcycle" : "=r"(c));
-        (void)c;
-    }
-    t->ram_ticket = 0;
-    t->done = 1;
-}
+/* Waits for an L3 read: the SDK's pi_task_wait_on, whose polling loop
+ * on the µDMA's DONE count the ISS skips exactly. */
+static void read_wait(pi_task_t *t) { pi_task_wait_on(t); }
 
 static void start_read(const nn_model_t *m, const part_t *p, int b)
 {
