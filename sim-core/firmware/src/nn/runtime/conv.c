@@ -266,59 +266,93 @@ static inline void put2(const kargs_t *k, int p0, int has1, int ch, int32_t a, i
         k->out[(p0 + 1) * k->n + ch] = (int8_t)vb;
 }
 
+/* Items run channel quad by channel quad (item = quad * pairs + pair), so
+ * a core's range walks the pixel pairs of one quad at a time: the quad's
+ * weight rows, biases and records are set up once per run instead of
+ * once per item. Requantization is most of a 1x1 layer's work when its
+ * input has few channels (32 channels: 8 dot products per output, beside
+ * the 64-bit product, rounding, clamp and store), so the records'
+ * rounding constant and shift are decoded here, once per quad. */
 static void fast_2x4(const kargs_t *k, int first, int last)
 {
-    int quads = (k->n + 3) / 4;
-    int pair = first / quads, quad = first - pair * quads;
-    int y = 2 * pair / k->Wo, x = 2 * pair - y * k->Wo;
-    const int rw = k->row_w, kh = k->kh, skip = k->skip;
-    for (int it = first; it < last; it++) {
-        int p0 = 2 * pair, has1 = p0 + 1 < k->P;
-        int i0 = y * k->ystep + x * k->pix;
-        int i1 = x + 1 < k->Wo ? i0 + k->pix : (y + 1) * k->ystep;
-        if (!has1)
-            i1 = i0;
-        int c = 4 * quad, last_c = k->n - 1;
+    const int pairs = (k->P + 1) / 2;
+    int quad = first / pairs, pair = first - quad * pairs;
+    const int rw = k->row_w, kh = k->kh, skip = k->skip, last_c = k->n - 1;
+    const int32_t zy = k->zy, lo = k->lo, hi = k->hi;
+    const int n = k->n;
+    int it = first;
+    while (it < last) {
+        const int c = 4 * quad;
+        int stop = it + (pairs - pair);
+        stop = stop < last ? stop : last;
         const int8_t *w = k->w;
-        const uint32_t *k0 = (const uint32_t *)(w + c * k->wch);
-        const uint32_t *k1 = (const uint32_t *)(w + (c + 1 > last_c ? last_c : c + 1) * k->wch);
-        const uint32_t *k2 = (const uint32_t *)(w + (c + 2 > last_c ? last_c : c + 2) * k->wch);
-        const uint32_t *k3 = (const uint32_t *)(w + (c + 3 > last_c ? last_c : c + 3) * k->wch);
-        const uint32_t *x0 = (const uint32_t *)(k->band + i0);
-        const uint32_t *x1 = (const uint32_t *)(k->band + i1);
-        int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0, a4_ = 0, a5 = 0, a6 = 0, a7 = 0;
-        for (int ky = 0; ky < kh; ky++) {
-            if ((rw & 3) == 0) {
-                for (int i = rw >> 2; i > 0; i--) {
-                    STEP_2x4();
-                    STEP_2x4();
-                    STEP_2x4();
-                    STEP_2x4();
+        const uint32_t *w0 = (const uint32_t *)(w + c * k->wch);
+        const uint32_t *w1 = (const uint32_t *)(w + (c + 1 > last_c ? last_c : c + 1) * k->wch);
+        const uint32_t *w2 = (const uint32_t *)(w + (c + 2 > last_c ? last_c : c + 2) * k->wch);
+        const uint32_t *w3 = (const uint32_t *)(w + (c + 3 > last_c ? last_c : c + 3) * k->wch);
+        /* The quad's records when all four take rt_rq's one-mulh form. */
+        int quick = c + 3 <= last_c;
+        int32_t bs[4], ml[4], rn[4], sh[4];
+        for (int j = 0; j < 4 && quick; j++) {
+            const nn_record_t r = k->rec[c + j];
+            quick = r.shift - 33u < 30u;
+            bs[j] = k->bias[c + j];
+            ml[j] = r.mult;
+            rn[j] = quick ? 1 << (r.shift - 33) : 0;
+            sh[j] = (int32_t)r.shift - 32;
+        }
+        int y = 2 * pair / k->Wo, x = 2 * pair - y * k->Wo;
+        for (; it < stop; it++) {
+            int p0 = 2 * pair, has1 = p0 + 1 < k->P;
+            int i0 = y * k->ystep + x * k->pix;
+            int i1 = x + 1 < k->Wo ? i0 + k->pix : (y + 1) * k->ystep;
+            if (!has1)
+                i1 = i0;
+            const uint32_t *k0 = w0, *k1 = w1, *k2 = w2, *k3 = w3;
+            const uint32_t *x0 = (const uint32_t *)(k->band + i0);
+            const uint32_t *x1 = (const uint32_t *)(k->band + i1);
+            int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0, a4_ = 0, a5 = 0, a6 = 0, a7 = 0;
+            for (int ky = 0; ky < kh; ky++) {
+                if ((rw & 3) == 0) {
+                    for (int i = rw >> 2; i > 0; i--) {
+                        STEP_2x4();
+                        STEP_2x4();
+                        STEP_2x4();
+                        STEP_2x4();
+                    }
+                } else {
+                    if (rw & 1)
+                        STEP_2x4();
+                    for (int i = rw >> 1; i > 0; i--) {
+                        STEP_2x4();
+                        STEP_2x4();
+                    }
                 }
-            } else {
-                if (rw & 1)
-                    STEP_2x4();
-                for (int i = rw >> 1; i > 0; i--) {
-                    STEP_2x4();
-                    STEP_2x4();
-                }
+                x0 = (const uint32_t *)((const int8_t *)x0 + skip);
+                x1 = (const uint32_t *)((const int8_t *)x1 + skip);
             }
-            x0 = (const uint32_t *)((const int8_t *)x0 + skip);
-            x1 = (const uint32_t *)((const int8_t *)x1 + skip);
-        }
-        put2(k, p0, has1, c, a0, a4_);
-        if (c + 3 <= last_c) {
-            put2(k, p0, has1, c + 1, a1, a5);
-            put2(k, p0, has1, c + 2, a2, a6);
-            put2(k, p0, has1, c + 3, a3, a7);
-        } else {
-            if (c + 1 <= last_c)
-                put2(k, p0, has1, c + 1, a1, a5);
-            if (c + 2 <= last_c)
-                put2(k, p0, has1, c + 2, a2, a6);
-        }
-        if (++quad == quads) {
-            quad = 0;
+            if (quick && has1) {
+                int8_t *o = k->out + p0 * n + c;
+#define RQ(acc, j) rt_clamp(zy + (((int32_t)(((int64_t)((acc) + bs[j]) * ml[j]) >> 32) + rn[j]) >> sh[j]), lo, hi)
+                o[0] = (int8_t)RQ(a0, 0);
+                o[1] = (int8_t)RQ(a1, 1);
+                o[2] = (int8_t)RQ(a2, 2);
+                o[3] = (int8_t)RQ(a3, 3);
+                o += n;
+                o[0] = (int8_t)RQ(a4_, 0);
+                o[1] = (int8_t)RQ(a5, 1);
+                o[2] = (int8_t)RQ(a6, 2);
+                o[3] = (int8_t)RQ(a7, 3);
+#undef RQ
+            } else {
+                put2(k, p0, has1, c, a0, a4_);
+                if (c + 1 <= last_c)
+                    put2(k, p0, has1, c + 1, a1, a5);
+                if (c + 2 <= last_c)
+                    put2(k, p0, has1, c + 2, a2, a6);
+                if (c + 3 <= last_c)
+                    put2(k, p0, has1, c + 3, a3, a7);
+            }
             pair++;
             x += 2;
             if (x >= k->Wo) {
@@ -326,6 +360,8 @@ static void fast_2x4(const kargs_t *k, int first, int last)
                 y++;
             }
         }
+        quad++;
+        pair = 0;
     }
 }
 
