@@ -271,8 +271,12 @@ static inline void put2(const kargs_t *k, int p0, int has1, int ch, int32_t a, i
  * weight rows, biases and records are set up once per run instead of
  * once per item. Requantization is most of a 1x1 layer's work when its
  * input has few channels (32 channels: 8 dot products per output, beside
- * the 64-bit product, rounding, clamp and store), so the records'
- * rounding constant and shift are decoded here, once per quad. */
+ * the 64-bit product, rounding, clamp and store), so the records are
+ * decoded here, once per quad, into the high word's shift s = shift - 32
+ * and one constant added before it: the rounding term plus the output
+ * zero point shifted up, as (h + r) >> s plus zp equals (h + r + zp *
+ * 2^s) >> s while the sum stays in int32 (|h| < 2^30, rt_rq; s <= 22
+ * keeps |zp * 2^s| <= 2^29). Other records take put2. */
 static void fast_2x4(const kargs_t *k, int first, int last)
 {
     const int pairs = (k->P + 1) / 2;
@@ -290,16 +294,17 @@ static void fast_2x4(const kargs_t *k, int first, int last)
         const uint32_t *w1 = (const uint32_t *)(w + (c + 1 > last_c ? last_c : c + 1) * k->wch);
         const uint32_t *w2 = (const uint32_t *)(w + (c + 2 > last_c ? last_c : c + 2) * k->wch);
         const uint32_t *w3 = (const uint32_t *)(w + (c + 3 > last_c ? last_c : c + 3) * k->wch);
-        /* The quad's records when all four take rt_rq's one-mulh form. */
+        /* The quad's records when all four take rt_rq's one-mulh form
+         * with s in 1..22. */
         int quick = c + 3 <= last_c;
         int32_t bs[4], ml[4], rn[4], sh[4];
         for (int j = 0; j < 4 && quick; j++) {
             const nn_record_t r = k->rec[c + j];
-            quick = r.shift - 33u < 30u;
+            quick = r.shift - 33u < 22u;
             bs[j] = k->bias[c + j];
             ml[j] = r.mult;
-            rn[j] = quick ? 1 << (r.shift - 33) : 0;
             sh[j] = (int32_t)r.shift - 32;
+            rn[j] = quick ? (1 << (sh[j] - 1)) + (int32_t)((uint32_t)zy << sh[j]) : 0;
         }
         int y = 2 * pair / k->Wo, x = 2 * pair - y * k->Wo;
         for (; it < stop; it++) {
@@ -333,7 +338,7 @@ static void fast_2x4(const kargs_t *k, int first, int last)
             }
             if (quick && has1) {
                 int8_t *o = k->out + p0 * n + c;
-#define RQ(acc, j) rt_clamp(zy + (((int32_t)(((int64_t)((acc) + bs[j]) * ml[j]) >> 32) + rn[j]) >> sh[j]), lo, hi)
+#define RQ(acc, j) rt_clamp(((int32_t)(((int64_t)((acc) + bs[j]) * ml[j]) >> 32) + rn[j]) >> sh[j], lo, hi)
                 o[0] = (int8_t)RQ(a0, 0);
                 o[1] = (int8_t)RQ(a1, 1);
                 o[2] = (int8_t)RQ(a2, 2);
