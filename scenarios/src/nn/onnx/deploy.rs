@@ -645,17 +645,15 @@ fn describe(
                 small.push((W_RQOFF, records(&[r[h_in * w_in]])));
             }
             let cost = |rows: usize| 2 * (a4(rows * w_in * c_in) + 4 * c_in);
-            tile_oh = fit1(h_in, cost).ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
+            (tile_oh, l1) = rows_tile(l, h_in, cost)?;
             tile_oc = c_out;
-            l1 = cost(tile_oh);
         }
         LayerKind::Add { ra, rb } => {
             small.push((W_RQOFF, records(&[*ra, *rb])));
             let row = w_in * c_in;
             let cost = |oh: usize| 2 * 3 * a4(oh * row);
-            tile_oh = fit1(h_out, cost).ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
+            (tile_oh, l1) = rows_tile(l, h_out, cost)?;
             tile_oc = c_out;
-            l1 = cost(tile_oh);
         }
         LayerKind::Concat { requant } => {
             small.push((W_RQOFF, records(requant)));
@@ -664,9 +662,8 @@ fn describe(
                 2 * (ins.iter().map(|&c| a4(oh * w_out * c)).sum::<usize>()
                     + a4(oh * w_out * c_out))
             };
-            tile_oh = fit1(h_out, cost).ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
+            (tile_oh, l1) = rows_tile(l, h_out, cost)?;
             tile_oc = c_out;
-            l1 = cost(tile_oh);
         }
         LayerKind::Requant { requant } => {
             small.push((W_RQOFF, records(&[*requant])));
@@ -674,9 +671,8 @@ fn describe(
             let [_, h, wd] = x.chw;
             let row = wd * c_in;
             let cost = |oh: usize| 2 * 2 * a4(oh * row);
-            tile_oh = fit1(h, cost).ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
+            (tile_oh, l1) = rows_tile(l, h, cost)?;
             tile_oc = c_out;
-            l1 = cost(tile_oh);
         }
         LayerKind::Lut { table } => {
             let base = model.values[l.inputs[0]].q.ty.range().0;
@@ -696,9 +692,8 @@ fn describe(
             let [_, h, wd] = x.chw;
             let row = wd * c_in;
             let cost = |oh: usize| 2 * 2 * a4(oh * row);
-            tile_oh = fit1(h, cost).ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
+            (tile_oh, l1) = rows_tile(l, h, cost)?;
             tile_oc = c_out;
-            l1 = cost(tile_oh);
         }
     }
     let _ = h_out;
@@ -725,6 +720,17 @@ fn describe(
         },
         plan,
     ))
+}
+
+/// The most rows (up to `rows`) whose tile of `cost(rows)` bytes fits,
+/// and its L1 bytes.
+fn rows_tile(
+    l: &Layer,
+    rows: usize,
+    cost: impl Fn(usize) -> usize,
+) -> Result<(usize, usize), DeployError> {
+    let oh = fit1(rows, &cost).ok_or_else(|| layer_err(l, "one row does not fit L1"))?;
+    Ok((oh, cost(oh)))
 }
 
 /// A pool's tile: the most output rows whose input band and output fit
