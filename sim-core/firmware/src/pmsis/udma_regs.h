@@ -16,8 +16,8 @@
 #define UDMA_HYPER_L2_ADDR 0x00 /* L2 side of the next transfer */
 #define UDMA_HYPER_L3_ADDR 0x04 /* HyperRAM side, 0 .. 8 MiB */
 #define UDMA_HYPER_SIZE 0x08    /* bytes */
-/* Write: queues the transfer staged in the three registers above (a
- * fifth while four are pending waits in the hardware). */
+/* Write: queues the transfer staged in the three registers above; they
+ * run one after another (sim-core's peripherals/hyperram.rs). */
 #define UDMA_HYPER_CMD 0x0C
 #define UDMA_HYPER_DONE 0x10   /* read: transfers completed since reset */
 #define UDMA_HYPER_ISSUED 0x14 /* read: transfers queued since reset */
