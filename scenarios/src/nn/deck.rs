@@ -10,7 +10,7 @@
 //! reads `nn_status` and `nn_stats` (per layer: cluster cycles, DMA bytes,
 //! L3 bytes, FC cycles waiting for L3).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use sim_core::iss::Backend;
@@ -245,9 +245,4 @@ pub fn config(cores: usize, mhz: u64, iss: Backend) -> DeckConfig {
         weights: WeightsPlace::Auto,
         vdd: None,
     }
-}
-
-/// `path` or the default runtime.
-pub fn elf_or_default(path: Option<&Path>) -> PathBuf {
-    path.map_or_else(default_elf, Path::to_path_buf)
 }

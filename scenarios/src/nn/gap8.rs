@@ -170,11 +170,9 @@ impl Gap8 {
             .with_context(|| format!("writing {addr:#010x}"))
     }
 
-    /// Runs until the program's next `ebreak` (then steps over it), or at
-    /// most `timeout` of simulated time. HyperRAM transfers complete on
-    /// the way.
-    pub fn run_to_stop(&mut self, timeout: Picos) -> anyhow::Result<()> {
-        let limit = Picos(self.fc.now().0.saturating_add(timeout.0));
+    /// Runs to `limit` or a stop the host must see, completing HyperRAM
+    /// transfers on the way (their device events).
+    fn run(&mut self, limit: Picos) -> anyhow::Result<StopReason> {
         loop {
             let stop = self.cluster.run_until(
                 &mut self.fc,
@@ -183,32 +181,39 @@ impl Gap8 {
                 &mut self.hyper,
                 limit,
             );
-            match stop {
-                StopReason::Event => {
-                    let now = self.fc.now();
-                    self.hyper
-                        .complete(now, &mut self.mem)
-                        .map_err(|e| anyhow::anyhow!("{e}"))?;
-                }
-                StopReason::Breakpoint { pc } => {
-                    self.fc.set_pc(pc.wrapping_add(4));
-                    return Ok(());
-                }
-                StopReason::Exit { code } => {
-                    self.done = true;
-                    let _ = self.fc.flush_console();
-                    let _ = self.cluster.flush_console();
-                    bail!("the program ended (exit code {code}) instead of stopping for the host")
-                }
-                StopReason::Limit => bail!(
-                    "no host stop within {timeout} of simulated time (pc {:#010x}, {}, FC at {})",
-                    self.fc.pc(),
-                    self.hyper.describe(),
-                    self.fc.now()
-                ),
-                StopReason::Fatal(e) => bail!("the program failed: {e}"),
-                other => bail!("unexpected stop {other:?} at pc {:#010x}", self.fc.pc()),
+            if !matches!(stop, StopReason::Event) {
+                return Ok(stop);
             }
+            let now = self.fc.now();
+            self.hyper
+                .complete(now, &mut self.mem)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+        }
+    }
+
+    /// Runs until the program's next `ebreak` (then steps over it), or at
+    /// most `timeout` of simulated time.
+    pub fn run_to_stop(&mut self, timeout: Picos) -> anyhow::Result<()> {
+        let limit = Picos(self.fc.now().0.saturating_add(timeout.0));
+        match self.run(limit)? {
+            StopReason::Breakpoint { pc } => {
+                self.fc.set_pc(pc.wrapping_add(4));
+                Ok(())
+            }
+            StopReason::Exit { code } => {
+                self.done = true;
+                let _ = self.fc.flush_console();
+                let _ = self.cluster.flush_console();
+                bail!("the program ended (exit code {code}) instead of stopping for the host")
+            }
+            StopReason::Limit => bail!(
+                "no host stop within {timeout} of simulated time (pc {:#010x}, {}, FC at {})",
+                self.fc.pc(),
+                self.hyper.describe(),
+                self.fc.now()
+            ),
+            StopReason::Fatal(e) => bail!("the program failed: {e}"),
+            other => bail!("unexpected stop {other:?} at pc {:#010x}", self.fc.pc()),
         }
     }
 
@@ -218,23 +223,7 @@ impl Gap8 {
             return Ok(0);
         }
         let limit = Picos(self.fc.now().0.saturating_add(timeout.0));
-        let stop = loop {
-            match self.cluster.run_until(
-                &mut self.fc,
-                &mut self.mem,
-                &mut self.code,
-                &mut self.hyper,
-                limit,
-            ) {
-                StopReason::Event => {
-                    let now = self.fc.now();
-                    self.hyper
-                        .complete(now, &mut self.mem)
-                        .map_err(|e| anyhow::anyhow!("{e}"))?;
-                }
-                other => break other,
-            }
-        };
+        let stop = self.run(limit)?;
         self.fc.flush_console()?;
         self.cluster.flush_console()?;
         self.done = true;

@@ -100,9 +100,6 @@ pub struct HyperRam {
     pub bytes_written: u64,
     /// Time the channel spent transferring.
     pub busy: Picos,
-    /// A transfer outside L3 or with a bad command: reported by
-    /// [`HyperRam::complete`] (the register write itself faults).
-    fault: Option<String>,
     /// When DONE last changed (the end of the last completed transfer).
     done_changed: Picos,
 }
@@ -126,7 +123,6 @@ impl HyperRam {
             bytes_read: 0,
             bytes_written: 0,
             busy: Picos(0),
-            fault: None,
             done_changed: Picos(0),
         }
     }
@@ -184,10 +180,8 @@ impl HyperRam {
             CMD_WRITE => false,
             _ => return Err(MmioError::AccessFault { addr: BASE + CMD }),
         };
+        // A transfer beyond L3 faults the CMD store (the program's error).
         if (l3 as u64 + size as u64) > SIZE_BYTES as u64 {
-            self.fault = Some(format!(
-                "HyperRAM transfer of {size} B at L3 {l3:#x} beyond its {SIZE_BYTES} B"
-            ));
             return Err(MmioError::AccessFault { addr: BASE + CMD });
         }
         let start = now.max(self.busy_until);

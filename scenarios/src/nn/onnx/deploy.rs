@@ -115,7 +115,6 @@ pub struct LayerPlan {
     /// The weights stream from L3 (in parts of `part_oc` channels).
     pub weights_l3: bool,
     pub part_oc: usize,
-    pub weight_bytes: usize,
 }
 
 /// The deck's memory contents for one model.
@@ -708,7 +707,6 @@ fn describe(
         l1_bytes: l1,
         weights_l3: false,
         part_oc: 0,
-        weight_bytes: weights.len(),
     };
     Ok((
         Desc {
